@@ -1,0 +1,13 @@
+"""sidar_torch: SIDAR image sequences (views, occlusion masks, label, homographies) rendered on the fly.
+
+>>> from torch.utils.data import DataLoader
+>>> from sidar_torch import SidarDataset, load_config
+>>> ds = SidarDataset(source=None, config=load_config("misaligned", image_size=(384, 512)), seed=0)
+>>> batch = next(iter(DataLoader(ds, batch_size=8, num_workers=2)))  # doctest: +SKIP
+"""
+
+from .config import SidarConfig, available_presets, load_config
+from .dataset import SidarDataset
+
+__all__ = ["SidarConfig", "SidarDataset", "available_presets", "load_config"]
+__version__ = "0.1.0"

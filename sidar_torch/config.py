@@ -1,0 +1,256 @@
+"""Configuration: every range and switch of a SIDAR scene, YAML presets, validation.
+
+Units. Lengths are in *painting units*: the painting's shorter side is 1 (the paper's
+Blender scenes use 7 Blender units for it, so its ranges are divided by 7 here). Angles
+are in degrees. Light strength is the irradiance a light gives the painting's centre,
+in the renderer's linear units, where a white diffuse painting saturates at about 3.3
+(see ``sidar_torch.render``).
+
+A range is a pair ``(low, high)`` with ``low <= high``; values are drawn uniformly from
+it. Presets are the YAML files in ``configs/`` (``load_config("misaligned")``); a YAML
+file may name a ``base`` preset and override some of its fields.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import yaml
+
+__all__ = [
+    "LIGHT_TYPES",
+    "OCCLUDER_MATERIALS",
+    "OCCLUDER_SHAPES",
+    "SidarConfig",
+    "available_presets",
+    "load_config",
+]
+
+CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
+"""Folder of the YAML presets (``configs/`` at the top of the repository)."""
+
+MAX_SHADOWED_LIGHTS = 24
+"""Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
+
+LIGHT_TYPES = ("spot", "point", "area")
+OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus")
+OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent")
+
+Range = tuple[float, float]
+IntRange = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class SidarConfig:
+    """Every parameter of the scene sampler and renderer (frozen; see module docstring for units).
+
+    Output
+        image_size: ``(H, W)`` of every view, mask and label, in pixels.
+        n_views: number of views ``V`` per sample; view 0 is the fronto-parallel reference.
+
+    Cameras
+        aligned: every view through the reference camera (all homographies identity).
+        camera_xy: half-width of the square in which camera x and y are drawn.
+        camera_height: range of camera z (distance above the painting's plane).
+        fov_deg: range of the field of view across the longer image side, for views 1..V-1.
+        max_tilt_deg: largest angle between a camera's axis and the painting's normal.
+
+    Scene content (drawn afresh for every view unless ``scene_per_view`` is false)
+        n_lights: range of the number of lights.
+        light_types: light kinds to draw from (``spot``, ``point``, ``area``).
+        light_xy, light_height: light position box, like the cameras'.
+        light_irradiance: range of each light's irradiance at the painting's centre.
+        light_saturation_max: colour is HSV(U(0, 1), U(0, this), 1).
+        spot_cone_deg: range of a spot light's full cone angle.
+        area_light_size: side of a square area light.
+        area_light_samples: jittered shadow-casting samples an area light is made of.
+        ambient: range of the ambient light level (linear, 1 reproduces the texture).
+        n_occluders: range of the number of occluding objects.
+        occluder_shapes, occluder_materials: kinds to draw from.
+        occluder_xy, occluder_height: box of occluder centres.
+        occluder_size: range of an occluder's half-extent along each of its axes.
+        occluders_visible: false makes occluders invisible to cameras; they still cast shadows.
+        shadows: whether lights cast shadows.
+        plane_roughness, plane_metallic: ranges of the painting's material.
+        scene_per_view: draw new lights, occluders and painting material for every view.
+
+    Rendering
+        shadow_map_size: side of each shadow map in texels (power of two).
+    """
+
+    image_size: tuple[int, int] = (384, 512)
+    n_views: int = 6
+
+    aligned: bool = False
+    camera_xy: float = 5 / 7
+    camera_height: Range = (5 / 7, 1.0)
+    fov_deg: Range = (61.9, 100.4)
+    max_tilt_deg: float = 60.0
+
+    n_lights: IntRange = (2, 4)
+    light_types: tuple[str, ...] = LIGHT_TYPES
+    light_xy: float = 10 / 7
+    light_height: Range = (10 / 7, 15 / 7)
+    light_irradiance: Range = (0.5, 3.0)
+    light_saturation_max: float = 0.3
+    spot_cone_deg: Range = (10.0, 90.0)
+    area_light_size: float = 0.3
+    area_light_samples: int = 4
+    ambient: Range = (0.1, 0.3)
+
+    n_occluders: IntRange = (0, 3)
+    occluder_shapes: tuple[str, ...] = OCCLUDER_SHAPES
+    occluder_materials: tuple[str, ...] = OCCLUDER_MATERIALS
+    occluder_xy: float = 3 / 7
+    occluder_height: Range = (1 / 7, 5 / 7)
+    occluder_size: Range = (0.1 / 7, 1.1 / 7)
+    occluders_visible: bool = True
+    shadows: bool = True
+
+    plane_roughness: Range = (0.4, 1.0)
+    plane_metallic: Range = (0.0, 0.2)
+    scene_per_view: bool = True
+
+    shadow_map_size: int = 1024
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, _coerce(f, getattr(self, f.name)))
+        _validate(self)
+
+    def replace(self, **overrides: Any) -> "SidarConfig":
+        """Return a copy with some fields changed (validated like the constructor)."""
+        _check_names(overrides, "override")
+        return dataclasses.replace(self, **overrides)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data view (lists for tuples), suitable for YAML or JSON."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
+
+
+def _coerce(f: dataclasses.Field, value: Any) -> Any:
+    """Turn YAML lists into tuples and ints into floats where the field's type asks for it."""
+    kind = str(f.type)
+    if kind.startswith(("Range", "IntRange", "tuple")):
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
+            raise ValueError(f"config field {f.name!r}: expected a sequence, got {value!r}")
+        value = tuple(value)
+        if kind in ("Range", "IntRange", "tuple[int, int]") and len(value) != 2:
+            raise ValueError(f"config field {f.name!r}: expected 2 values (low, high), got {value!r}")
+        if kind == "Range":
+            value = tuple(_number(f.name, v, float) for v in value)
+        elif kind in ("IntRange", "tuple[int, int]"):
+            value = tuple(_number(f.name, v, int) for v in value)
+    elif kind == "float":
+        value = _number(f.name, value, float)
+    elif kind == "int":
+        value = _number(f.name, value, int)
+    elif kind == "bool" and not isinstance(value, bool):
+        raise ValueError(f"config field {f.name!r}: expected true or false, got {value!r}")
+    return value
+
+
+def _number(name: str, value: Any, kind: type) -> float | int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"config field {name!r}: expected a number, got {value!r}")
+    if kind is int and value != int(value):
+        raise ValueError(f"config field {name!r}: expected an integer, got {value!r}")
+    if not math.isfinite(value):
+        raise ValueError(f"config field {name!r}: expected a finite number, got {value!r}")
+    return kind(value)
+
+
+def _validate(c: SidarConfig) -> None:
+    def need(ok: bool, name: str, expected: str) -> None:
+        if not ok:
+            raise ValueError(f"config field {name!r}: expected {expected}, got {getattr(c, name)!r}")
+
+    need(all(s >= 1 for s in c.image_size), "image_size", "(H, W) with H, W >= 1")
+    need(c.n_views >= 1, "n_views", "at least 1")
+    need(c.camera_xy >= 0, "camera_xy", ">= 0")
+    need(c.max_tilt_deg >= 0 and c.max_tilt_deg < 90, "max_tilt_deg", "0 <= max_tilt_deg < 90")
+    need(c.light_xy >= 0, "light_xy", ">= 0")
+    need(c.occluder_xy >= 0, "occluder_xy", ">= 0")
+    need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
+    need(c.area_light_size > 0, "area_light_size", "> 0")
+    need(c.area_light_samples >= 1, "area_light_samples", "at least 1")
+    size = c.shadow_map_size
+    need(size >= 16 and size & (size - 1) == 0, "shadow_map_size", "a power of two >= 16")
+    need(len(c.light_types) > 0 and set(c.light_types) <= set(LIGHT_TYPES),
+         "light_types", f"a non-empty subset of {LIGHT_TYPES}")
+    need(len(c.occluder_shapes) > 0 and set(c.occluder_shapes) <= set(OCCLUDER_SHAPES),
+         "occluder_shapes", f"a non-empty subset of {OCCLUDER_SHAPES}")
+    need(len(c.occluder_materials) > 0 and set(c.occluder_materials) <= set(OCCLUDER_MATERIALS),
+         "occluder_materials", f"a non-empty subset of {OCCLUDER_MATERIALS}")
+    bounded = {
+        "camera_height": (1e-3, math.inf), "fov_deg": (1.0, 170.0), "n_lights": (0, 8),
+        "light_height": (1e-3, math.inf), "light_irradiance": (0.0, math.inf),
+        "spot_cone_deg": (1.0, 120.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
+        "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
+        "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0),
+    }
+    for name, (lo, hi) in bounded.items():
+        low, high = getattr(c, name)
+        need(lo <= low <= high <= hi, name, f"a range (low, high) with {lo} <= low <= high <= {hi}")
+    samples = c.area_light_samples if "area" in c.light_types else 1
+    need(c.n_lights[1] * samples <= MAX_SHADOWED_LIGHTS, "area_light_samples",
+         f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind)")
+
+
+def _check_names(values: Mapping[str, Any], what: str) -> None:
+    known = {f.name for f in dataclasses.fields(SidarConfig)}
+    unknown = sorted(set(values) - known)
+    if unknown:
+        raise ValueError(f"unknown config {what} {unknown}; known fields: {sorted(known)}")
+
+
+def available_presets() -> list[str]:
+    """Names of the YAML presets in ``configs/``."""
+    return sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
+
+
+def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Fields of a preset name or YAML path, with its ``base`` chain resolved (base first)."""
+    path = Path(source)
+    if path.suffix not in (".yaml", ".yml"):
+        if str(source) not in available_presets():
+            raise ValueError(f"config {str(source)!r}: not a preset ({available_presets()}) nor a YAML path")
+        path = CONFIG_DIR / f"{source}.yaml"
+    if not path.is_file():
+        raise FileNotFoundError(f"config file {str(path)!r} does not exist")
+    if path.resolve() in seen:
+        raise ValueError(f"config {str(path)!r}: 'base' chain loops back to itself")
+    data = yaml.safe_load(path.read_text()) or {}
+    if not isinstance(data, dict):
+        raise ValueError(f"config {str(path)!r}: expected a mapping of fields, got {type(data).__name__}")
+    base = data.pop("base", None)
+    _check_names(data, f"field in {str(path)!r}:")
+    if base is None:
+        return data
+    base_path = base if str(base) in available_presets() else path.parent / str(base)
+    return {**_read_yaml(base_path, seen + (path.resolve(),)), **data}
+
+
+def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", **overrides: Any) -> SidarConfig:
+    """Load a preset by name (``configs/<name>.yaml``) or a YAML path, and apply keyword overrides.
+
+    Args:
+        preset: preset name, path to a YAML file, an existing ``SidarConfig``, or ``None`` for the
+            built-in defaults.
+        **overrides: field values replacing the preset's, e.g. ``image_size=(384, 512)``,
+            ``n_lights=(0, 2)``.
+
+    Raises:
+        ValueError: unknown preset or field, or a value out of its allowed range (the message
+            names the field).
+    """
+    _check_names(overrides, "override")
+    if isinstance(preset, SidarConfig):
+        return preset.replace(**overrides)
+    fields = {} if preset is None else _read_yaml(preset)
+    return SidarConfig(**{**fields, **overrides})

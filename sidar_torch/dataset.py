@@ -1,0 +1,118 @@
+"""``SidarDataset``: paintings x random scenes x renderer -> samples of tensors, on the fly.
+
+A sample is a pure function of ``(seed, index)``: its scene is drawn with
+``numpy.random.default_rng([seed, index])`` and its painting is ``source[index % len(source)]``,
+so the same sample comes out whatever the number of workers, ranks or the order of iteration.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, Iterator
+
+import numpy as np
+import torch
+from torch.utils.data import IterableDataset, get_worker_info
+
+from . import geometry
+from .config import SidarConfig, load_config
+from .render import shared_renderer
+from .scene import SceneSequence, sample_sequence
+from .sources import PaintingSource, make_source
+
+__all__ = ["SidarDataset", "sequence_homographies"]
+
+
+def sequence_homographies(sequence: SceneSequence) -> torch.Tensor:
+    """Every pairwise homography of a sequence, ``(V, V, 3, 3)`` float64, det = 1.
+
+    The painting's corners are projected with each camera in float64 and Kornia's DLT fits
+    every ordered pair (see :func:`sidar_torch.geometry.homographies_from_corners`).
+    """
+    corners = geometry.project(*sequence.cameras(), geometry.plane_corners(sequence.image_size))
+    return geometry.homographies_from_corners(corners)
+
+
+def _check_int(name: str, value: Any, low: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
+    return int(value)
+
+
+class SidarDataset(IterableDataset):
+    """SIDAR sequences rendered on the fly, for ``torch.utils.data.DataLoader``.
+
+    Args:
+        source: the paintings: ``None`` (built-in procedural paintings), a folder, an image path
+            or list of paths, a tensor ``(N, 3, h, w)`` / ``(3, h, w)``, a sequence of tensors or
+            PIL images, or any indexable dataset of images (see ``sidar_torch.sources``).
+        config: a :class:`SidarConfig`, a preset name or a YAML path (default ``"misaligned"``).
+        seed: the dataset's seed (integer >= 0).
+        length: ``None`` for an endless stream, or ``N``: indices ``0..N-1``, each exactly once
+            across all DataLoader workers.
+        crop: how paintings are fitted to the output aspect, ``"center"`` or ``"none"``.
+
+    Each sample is a dict (``V`` views of ``H x W`` pixels):
+
+    - ``images`` ``(V, 3, H, W)`` float32 in [0, 1]: the views; view 0 is the reference camera.
+    - ``masks`` ``(V, 1, H, W)`` float32 in {0, 1}: 1 where the painting is not visible.
+    - ``label`` ``(3, H, W)`` float32 in [0, 1]: the painting in view 0's frame, unlit, unoccluded.
+    - ``homographies`` ``(V, V, 3, 3)`` float32: ``H[i, j]`` maps view-i pixels to view-j pixels
+      (Kornia convention, det = 1).
+    - ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float32: intrinsics in pixels and
+      world-to-camera pose (OpenCV frame); world point ``X`` lands at ``K (R X + t)``.
+    - ``index`` int: the sample's index.
+
+    Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
+    created at the first sample: each DataLoader worker makes its own and reuses it.
+    """
+
+    def __init__(self, source: Any = None, config: SidarConfig | str | os.PathLike | None = None,
+                 seed: int = 0, length: int | None = None, crop: str = "center"):
+        super().__init__()
+        self.config = load_config(config if config is not None else "misaligned")
+        self.source: PaintingSource = make_source(source, crop=crop)
+        self.seed = _check_int("seed", seed, 0)
+        self.length = None if length is None else _check_int("length", length, 1)
+
+    def __len__(self) -> int:
+        if self.length is None:
+            raise TypeError("SidarDataset is an endless stream (length=None) and has no len()")
+        return self.length
+
+    def scene(self, index: int) -> SceneSequence:
+        """The scene description of sample ``index`` (no rendering)."""
+        index = _check_int("index", index, 0)
+        return sample_sequence(self.config, np.random.default_rng([self.seed, index]))
+
+    def sample(self, index: int) -> dict[str, Any]:
+        """Render sample ``index`` (a pure function of ``(seed, index)``); see the class docstring."""
+        sequence = self.scene(index)
+        painting = self.source.painting(index % len(self.source), self.config.image_size)
+        renderer = shared_renderer(self.config.image_size, self.config.shadow_map_size)
+        rendered = renderer.render(sequence, painting)
+        K, R, t = sequence.cameras()
+        return {
+            "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
+            "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
+            "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
+            "homographies": sequence_homographies(sequence).float(),
+            "K": torch.from_numpy(K).float(),
+            "R": torch.from_numpy(R).float(),
+            "t": torch.from_numpy(t).float(),
+            "index": index,
+        }
+
+    def indices(self) -> Iterator[int]:
+        """The indices this process draws: every ``n``-th index from its shard ``k`` of ``n``
+        (``n`` DataLoader workers; ``k`` this worker's id), up to ``length`` if finite."""
+        info = get_worker_info()
+        shard, n_shards = (info.id, info.num_workers) if info is not None else (0, 1)
+        index = shard
+        while self.length is None or index < self.length:
+            yield index
+            index += n_shards
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        for index in self.indices():
+            yield self.sample(index)

@@ -1,0 +1,170 @@
+"""Pure camera and homography math, float64, no rendering.
+
+Frames and conventions (the package's, written once here):
+
+* World: the painting lies in the plane z = 0, centred at the origin, facing +z. Its image
+  row 0 is at world y = +h/2 and column 0 at x = -w/2 (``w, h`` in painting units).
+* Camera: OpenCV/Kornia frame (x right, y down, z forward). ``R, t`` map world to camera,
+  so a world point ``X`` lands at pixel ``K (R X + t)`` (after division by the third entry).
+* Pixels: Kornia's convention, the centre of the top-left pixel is (0, 0) and pixel (u, v) is
+  column u, row v. The painting's outer corners are therefore at (-0.5, -0.5) and
+  (W - 0.5, H - 0.5) in the reference view.
+* ``H[i, j]`` maps view-i pixels to view-j pixels and is scaled to det = 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+import kornia
+import numpy as np
+import torch
+
+__all__ = [
+    "corner_pixels",
+    "homographies_from_corners",
+    "intrinsics_from_fov",
+    "look_at",
+    "normalize_det",
+    "plane_corners",
+    "plane_induced_homographies",
+    "plane_size",
+    "project",
+    "reference_camera",
+]
+
+WORLD_UP = np.array([0.0, 1.0, 0.0])
+PLANE_NORMAL = np.array([0.0, 0.0, 1.0])
+
+
+def plane_size(image_size: tuple[int, int]) -> tuple[float, float]:
+    """Painting ``(width, height)`` in painting units: shorter side 1, the image's aspect ratio.
+
+    Args:
+        image_size: ``(H, W)`` in pixels.
+    """
+    h, w = image_size
+    return (w / h, 1.0) if w >= h else (1.0, h / w)
+
+
+def plane_corners(image_size: tuple[int, int]) -> np.ndarray:
+    """World corners of the painting, ``(4, 3)`` float64, in the order top-left, top-right,
+    bottom-right, bottom-left of the image (matching :func:`corner_pixels`)."""
+    w, h = plane_size(image_size)
+    return np.array([[-w / 2, h / 2, 0], [w / 2, h / 2, 0], [w / 2, -h / 2, 0], [-w / 2, -h / 2, 0]])
+
+
+def corner_pixels(image_size: tuple[int, int]) -> np.ndarray:
+    """The image's outer corners in Kornia pixels, ``(4, 2)`` float64: (-0.5, -0.5) ... ."""
+    h, w = image_size
+    return np.array([[-0.5, -0.5], [w - 0.5, -0.5], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+
+
+def intrinsics_from_fov(fov_deg: float, image_size: tuple[int, int]) -> np.ndarray:
+    """Pinhole intrinsics ``(3, 3)`` float64 with square pixels and the principal point at the image centre.
+
+    Args:
+        fov_deg: field of view across the longer image side, degrees (Blender's sensor-fit auto).
+        image_size: ``(H, W)`` in pixels.
+    """
+    h, w = image_size
+    f = max(h, w) / 2 / math.tan(math.radians(fov_deg) / 2)
+    return np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+
+
+def look_at(position: np.ndarray, target: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """World-to-camera ``R (3, 3)``, ``t (3,)`` (float64, OpenCV frame) of a camera at ``position``
+    aimed at ``target`` (default: the origin), with world +y pointing up in the image.
+
+    The camera must not look along world y (never the case for a camera above the painting).
+    """
+    position = np.asarray(position, dtype=np.float64)
+    target = np.zeros(3) if target is None else np.asarray(target, dtype=np.float64)
+    z = target - position
+    z /= np.linalg.norm(z)
+    x = np.cross(z, WORLD_UP)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    rotation = np.stack([x, y, z])
+    return rotation, -rotation @ position
+
+
+def reference_camera(image_size: tuple[int, int], distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fronto-parallel camera whose view is exactly the painting: ``K, R, t`` (float64).
+
+    Pixel (u, v) of this view sees the painting's texel (u, v) at its centre, so the label
+    is the painting itself.
+
+    Args:
+        image_size: ``(H, W)`` in pixels.
+        distance: camera height above the painting, painting units.
+    """
+    h, w = image_size
+    f = distance * w / plane_size(image_size)[0]
+    K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+    R, t = look_at(np.array([0.0, 0.0, distance]))
+    return K, R, t
+
+
+def project(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Project world points with a batch of cameras.
+
+    Args:
+        K, R: ``(..., 3, 3)``; t: ``(..., 3)``; points: ``(N, 3)`` world points.
+
+    Returns:
+        ``(..., N, 2)`` float64 pixel coordinates (Kornia convention).
+    """
+    cam = np.einsum("...ij,nj->...ni", R, points) + t[..., None, :]
+    pix = np.einsum("...ij,...nj->...ni", K, cam)
+    return pix[..., :2] / pix[..., 2:]
+
+
+def normalize_det(H: torch.Tensor) -> torch.Tensor:
+    """Scale homographies ``(..., 3, 3)`` to det = 1 (never by ``H[2, 2]``, which may be 0)."""
+    det = torch.linalg.det(H)
+    scale = torch.sign(det) * det.abs().pow(1.0 / 3.0)
+    return H / scale[..., None, None]
+
+
+def homographies_from_corners(corners: np.ndarray) -> torch.Tensor:
+    """Every pairwise homography from the painting's corners as each view sees them.
+
+    Kornia's normalised DLT (``find_homography_dlt``, SVD solver) on all ``V * V`` ordered
+    pairs in one batch, in float64, then scaled to det = 1; the diagonal is set to exactly I.
+
+    Args:
+        corners: ``(V, 4, 2)`` pixel coordinates of the painting's corners in each view.
+
+    Returns:
+        ``(V, V, 3, 3)`` float64 tensor, ``H[i, j]`` mapping view-i pixels to view-j pixels.
+    """
+    pts = torch.as_tensor(corners, dtype=torch.float64)
+    v = pts.shape[0]
+    src = pts[:, None].expand(v, v, 4, 2).reshape(-1, 4, 2)
+    dst = pts[None, :].expand(v, v, 4, 2).reshape(-1, 4, 2)
+    H = kornia.geometry.homography.find_homography_dlt(src, dst, solver="svd")
+    H = normalize_det(H).reshape(v, v, 3, 3)
+    H[torch.arange(v), torch.arange(v)] = torch.eye(3, dtype=torch.float64)
+    return H
+
+
+def plane_induced_homographies(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """The analytic plane-induced homographies ``K_j (R_ij - t_ij n_i^T / d_i) K_i^{-1}`` (det = 1).
+
+    ``R_ij, t_ij`` is the pose of camera j relative to camera i and ``n_i^T X + d_i = 0`` the
+    painting's plane in camera i's frame (Hartley & Zisserman, result 13.1).
+
+    Args:
+        K, R: ``(V, 3, 3)``; t: ``(V, 3)`` float64.
+
+    Returns:
+        ``(V, V, 3, 3)`` float64 array.
+    """
+    R_ij = np.einsum("jab,icb->ijac", R, R)  # R_j R_i^T
+    t_ij = t[None, :] - np.einsum("ijab,ib->ija", R_ij, t)  # t_j - R_ij t_i
+    n = R @ PLANE_NORMAL  # (V, 3)
+    d = -np.einsum("ia,ia->i", n, t)
+    euclid = R_ij - np.einsum("ija,ib->ijab", t_ij, n) / d[:, None, None, None]
+    H = np.einsum("jab,ijbc,icd->ijad", K, euclid, np.linalg.inv(K))
+    return normalize_det(torch.from_numpy(H)).numpy()

@@ -1,0 +1,21 @@
+"""Rendering backend: pyrender on an offscreen OpenGL context (OSMesa unless told otherwise).
+
+Importing this package fixes two environment variables before anything imports OpenGL:
+
+* ``PYOPENGL_PLATFORM`` (default ``osmesa``): PyOpenGL reads it once, at its first import.
+* ``LP_NUM_THREADS`` (default ``0``): llvmpipe then rasterises in the calling thread. A process
+  that created a context with llvmpipe's worker threads deadlocks any child it forks at the
+  child's first GL call; with no worker threads, forking DataLoader workers is safe even after
+  the parent rendered. On 2 cores, one thread per worker process is also the fastest split.
+
+Set either variable before importing ``sidar_torch`` to choose otherwise.
+"""
+
+import os
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
+os.environ.setdefault("LP_NUM_THREADS", "0")
+
+from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402  (after the environment is set)
+
+__all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]

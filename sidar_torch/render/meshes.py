@@ -1,0 +1,67 @@
+"""Unit occluder primitives (trimesh) and the painting's plane, as pyrender meshes.
+
+Each unit primitive has half-extent 1 along x and y (the torus 0.3 along z) and is centred
+at the origin; a scene's occluder scales, rotates and places it. Meshes are pooled: a renderer
+uploads each pooled mesh once and reuses it with a new pose and material in every view.
+"""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import Callable
+
+import numpy as np
+import pyrender
+import trimesh
+
+from .. import geometry
+
+__all__ = ["MeshPool", "plane_mesh", "unit_primitive"]
+
+_UNIT_PRIMITIVES: dict[str, Callable[[], trimesh.Trimesh]] = {
+    "sphere": lambda: trimesh.creation.icosphere(subdivisions=3, radius=1.0),
+    "cube": lambda: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
+    "cylinder": lambda: trimesh.creation.cylinder(radius=1.0, height=2.0, sections=48),
+    "cone": lambda: trimesh.creation.cone(radius=1.0, height=2.0, sections=48).apply_translation((0, 0, -1.0)),
+    "torus": lambda: trimesh.creation.torus(major_radius=0.7, minor_radius=0.3, major_sections=48,
+                                            minor_sections=24),
+}
+_SMOOTH = {"sphere", "torus"}
+"""Shapes shaded with smooth vertex normals; the others keep sharp edges (flat face normals)."""
+
+
+def unit_primitive(shape: str) -> trimesh.Trimesh:
+    """The unit primitive of ``shape`` as a trimesh (see module docstring for its size)."""
+    return _UNIT_PRIMITIVES[shape]()
+
+
+class MeshPool:
+    """pyrender meshes of each shape, created on demand and reused (one GL upload each).
+
+    ``take(shape, k)`` returns the ``k``-th mesh of that shape, so a view with two spheres
+    uses two distinct meshes (each carries its own material).
+    """
+
+    def __init__(self) -> None:
+        self._meshes: dict[str, list[pyrender.Mesh]] = defaultdict(list)
+
+    def take(self, shape: str, k: int) -> pyrender.Mesh:
+        meshes = self._meshes[shape]
+        while len(meshes) <= k:
+            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape), smooth=shape in _SMOOTH))
+        return meshes[k]
+
+
+def plane_mesh(image_size: tuple[int, int]) -> pyrender.Mesh:
+    """The painting: a rectangle in z = 0 facing +z, textured so that image row 0 is at the top
+    (world +y) and column 0 at the left (world -x). Its material is set per view."""
+    corners = geometry.plane_corners(image_size)  # top-left, top-right, bottom-right, bottom-left
+    # pyrender flips textures vertically on upload: t = 1 is the image's first row.
+    uv = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
+    primitive = pyrender.Primitive(
+        positions=corners.astype(np.float32),
+        normals=np.tile(geometry.PLANE_NORMAL, (4, 1)).astype(np.float32),
+        texcoord_0=uv.astype(np.float32),
+        indices=np.array([[0, 3, 2], [0, 2, 1]], dtype=np.uint32),  # counter-clockwise seen from +z
+    )
+    return pyrender.Mesh([primitive])

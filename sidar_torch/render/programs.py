@@ -1,0 +1,119 @@
+"""Shader programs for pyrender, with three of its quirks fixed in one place.
+
+1. **The program cache never hits on OSMesa.** pyrender keys its cache on
+   ``OpenGL.contextdata.getContext()``, which returns a new pointer object at every call on
+   OSMesa, so every render compiles, links and leaks fresh programs (thousands of programs and
+   gigabytes after a few thousand renders). A cache belongs to one renderer, which owns one
+   context, so :class:`ProgramCache` keys on the shaders and defines alone.
+2. **Validation fails with shadows.** PyOpenGL validates a program right after linking,
+   against whatever texture units happen to be bound; with shadow maps Mesa reports "active
+   samplers with a different type refer to the same texture image unit" for a program that
+   is correct once its uniforms are set. Programs here are linked without that check (a
+   link error still raises).
+3. **Shadow lookups dominate the cost of a lit view**: pyrender filters each shadow map with
+   a 3x3 grid of manual 4-tap bilinear compares, 36 texture reads per light per pixel (about
+   50 ms per light at 512 x 384 on llvmpipe). Spot-light shadow maps here are depth-compare
+   samplers (``sampler2DShadow``, set up by the renderer) read with 4 hardware-filtered taps
+   at +-0.5 texel: a 3 x 3 tent-weighted percentage-closer filter for 4 reads.
+4. **The lit shader's output encoding is a gamma-2.2 approximation** (``pow(x, 1/2.2)``)
+   although it decodes textures with the exact sRGB curve, so an ambient-only render is up to
+   9 levels off its texture. :data:`SHADER_PATCHES` swaps in the exact sRGB encoding.
+
+Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
+loudly if a pyrender release changes it.
+"""
+
+from __future__ import annotations
+
+import os
+
+from OpenGL import GL
+from OpenGL.GL import shaders as gl_shaders
+from pyrender.shader_program import ShaderProgram, ShaderProgramCache
+
+__all__ = ["ProgramCache", "SHADER_PATCHES"]
+
+_SPOT_SHADOW_LOOKUP = """
+float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
+{
+    vec4 proj_coords = light_matrix * vec4(frag_position.xyz, 1.0);
+    vec3 light_coords = proj_coords.xyz / proj_coords.w * 0.5 + 0.5;
+    if (light_coords.z > 1.0) {
+        return 0.0;
+    }
+    float compare = light_coords.z - max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;
+    vec2 texel = 0.5 / vec2(textureSize(shadow_map, 0));
+    float lit = texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, -texel.y), compare))
+              + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, -texel.y), compare))
+              + texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, texel.y), compare))
+              + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, texel.y), compare));
+    return 1.0 - 0.25 * lit;
+}
+"""
+
+_EXACT_SRGB_ENCODE = """
+vec3 linear_to_srgb(vec3 c)
+{
+    c = clamp(c, 0.0, 1.0);
+    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}
+
+void main()
+"""
+
+SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
+    "mesh.frag": [
+        ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
+         "sampler2DShadow shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
+        ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
+         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
+        ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
+        ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)",
+         "vec4(linear_to_srgb(color.xyz), color.a * base_color.a)"),
+    ],
+}
+"""Per shader file, ``(old, new)`` text replacements, applied after pyrender has resolved the
+``#ifdef`` lines (so no pattern may contain one)."""
+
+
+class _PatchedProgram(ShaderProgram):
+    """A pyrender shader program built from patched sources and linked without validation."""
+
+    def _load(self, shader_filename: str) -> str:
+        text = super()._load(shader_filename)
+        for old, new in SHADER_PATCHES.get(os.path.basename(shader_filename), []):
+            if text.count(old) != 1:
+                raise RuntimeError(f"pyrender shader {shader_filename!r} changed: cannot patch {old.strip()!r}")
+            text = text.replace(old, new)
+        return text
+
+    def _add_to_context(self) -> None:
+        if self._program_id is not None:
+            raise ValueError("Shader program already in context")
+        stages = [(self.vertex_shader, GL.GL_VERTEX_SHADER), (self.fragment_shader, GL.GL_FRAGMENT_SHADER),
+                  (self.geometry_shader, GL.GL_GEOMETRY_SHADER)]
+        shader_ids = [gl_shaders.compileShader(self._load(path), kind) for path, kind in stages if path]
+        self._vao_id = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(self._vao_id)  # a VAO must be bound while linking (PyOpenGL)
+        self._program_id = gl_shaders.compileProgram(*shader_ids, validate=False)
+        GL.glBindVertexArray(0)
+
+
+class ProgramCache(ShaderProgramCache):
+    """pyrender's program cache for a single GL context: keyed by shader files and defines only.
+
+    ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
+    """
+
+    def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
+        defines = defines or {}
+        names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
+        key = names + tuple(sorted(defines.items()))
+        if key not in self._program_cache:
+            paths = [os.path.join(self.shader_dir, s) if s else None
+                     for s in (vertex_shader, fragment_shader, geometry_shader)]
+            self._program_cache[key] = _PatchedProgram(*paths, defines=defines)
+        return self._program_cache[key]
+
+    def __len__(self) -> int:
+        return len(self._program_cache)

@@ -1,0 +1,355 @@
+"""The backend: a :class:`~sidar_torch.scene.SceneSequence` and a painting in, pixels out.
+
+:class:`SceneRenderer` owns one offscreen GL context and everything uploaded to it (shader
+programs, meshes, shadow maps, the current painting's texture) and reuses them for every
+sample. Create it in the process that uses it (a DataLoader worker creates its own).
+
+Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry``):
+
+* the **view**: the painting under the view's ambient level and lights, with occluders and
+  shadows; 8-bit sRGB (the shader's output encoding is exact sRGB, see ``programs``);
+* the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
+  (black) with depth testing, so occluder parts behind the painting never count; background
+  and occluders are 1.
+
+and once per sequence the **label**: the painting through view 0's camera, unlit and without
+occluders (the texture as the reference camera samples it).
+
+Lights are spot lights (``scene`` explains how point and area lights map to them). The
+painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
+occluder parts behind it are farther from the light than the plane, so they cannot darken it
+either. This removes shadow acne on the painting altogether.
+"""
+
+from __future__ import annotations
+
+import os
+import weakref
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pyrender
+from OpenGL import GL
+from pyrender.constants import MAX_N_LIGHTS, RenderFlags
+
+from ..config import MAX_SHADOWED_LIGHTS
+from ..geometry import plane_corners
+from ..scene import Camera, Light, Material, SceneSequence, ViewScene
+from .context import open_context
+from .meshes import MeshPool, plane_mesh
+from .programs import ProgramCache
+
+__all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
+
+GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
+"""Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
+
+PAINTING_SAMPLER = pyrender.Sampler(
+    magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR_MIPMAP_LINEAR,
+    wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE,
+)
+"""Trilinear filtering; clamping keeps texels of the opposite edge out of the border pixels."""
+
+SHADOW_SAMPLER = pyrender.Sampler(
+    magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR, wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE,
+)
+"""Linear filtering of a depth-compare texture is the hardware's 2 x 2 percentage-closer filter."""
+
+
+@dataclass(frozen=True)
+class RenderedSequence:
+    """The pixels of one sequence.
+
+    Attributes:
+        views: ``(V, H, W, 3)`` uint8 sRGB.
+        masks: ``(V, H, W)`` bool, True where the painting is not visible.
+        label: ``(H, W, 3)`` uint8 sRGB, the painting as view 0's camera sees it, unlit.
+    """
+
+    views: np.ndarray
+    masks: np.ndarray
+    label: np.ndarray
+
+
+def gl_camera(camera: Camera, znear: float, zfar: float) -> tuple[pyrender.IntrinsicsCamera, np.ndarray]:
+    """pyrender camera and its camera-to-world pose (OpenGL frame) for a Kornia-convention camera.
+
+    The one place where pixel conventions meet: OpenGL puts pixel centres at +0.5 in window
+    coordinates, Kornia at integers, so the principal point shifts by half a pixel (``cy``
+    counts from the top row in both).
+    """
+    K = camera.K
+    gl = pyrender.IntrinsicsCamera(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2] + 0.5, cy=K[1, 2] + 0.5,
+                                   znear=znear, zfar=zfar)
+    world_from_cv = np.eye(4)
+    world_from_cv[:3, :3] = camera.R.T
+    world_from_cv[:3, 3] = camera.position
+    return gl, world_from_cv @ GL_FROM_CV
+
+
+def _clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, float]:
+    """Near and far clip distances: far beyond the painting's farthest corner, near at far / 2000
+    (24-bit depth then resolves about 1e-4 painting units at the painting)."""
+    zfar = 2.0 * float(np.linalg.norm(plane_corners(image_size) - camera.position, axis=1).max())
+    return zfar / 2000.0, zfar
+
+
+def _gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
+    return pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=material.base_color.astype(np.float64),  # floats: ints would be read as 0-255
+        metallicFactor=float(material.metallic),
+        roughnessFactor=float(material.roughness),
+        alphaMode="BLEND" if material.transparent else "OPAQUE",
+        baseColorTexture=texture,
+    )
+
+
+def _aim_pose(position: np.ndarray) -> np.ndarray:
+    """Pose of a light at ``position`` pointing at the origin (pyrender lights shine along -z)."""
+    back = position / np.linalg.norm(position)
+    side = np.cross([0.0, 1.0, 0.0], back)
+    if np.linalg.norm(side) < 1e-9:
+        side = np.array([1.0, 0.0, 0.0])
+    side /= np.linalg.norm(side)
+    pose = np.eye(4)
+    pose[:3, :3] = np.stack([side, np.cross(back, side), back], axis=1)
+    pose[:3, 3] = position
+    return pose
+
+
+class _RankedNode(pyrender.Node):
+    """A scene node whose hash is its insertion rank in the scene, not its memory address.
+
+    pyrender keeps nodes in sets and sums the lights in set order; address-based hashes make
+    that order, and so the float rounding of the sum, change from one render to the next.
+    """
+
+    def __init__(self, rank: int, **kwargs: Any):
+        super().__init__(**kwargs)
+        self._rank = rank
+
+    def __hash__(self) -> int:
+        return self._rank
+
+
+def _add(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) -> pyrender.Node:
+    """Add ``mesh=``, ``light=`` or ``camera=`` to ``scene`` at ``pose`` as a :class:`_RankedNode`."""
+    node = _RankedNode(len(scene.nodes), matrix=pose, **obj)
+    scene.add_node(node)
+    return node
+
+
+class _GLRenderer(pyrender.Renderer):
+    """pyrender's renderer, adapted to a long-lived context that draws many small scenes.
+
+    * programs come from :class:`ProgramCache` (stable key, patched shaders);
+    * :meth:`_update_context` uploads what is new and frees only textures no longer used (the
+      previous painting); pooled meshes and shadow maps stay uploaded until :meth:`delete`;
+    * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
+      to the 4 nearest);
+    * shadow maps may be any power-of-two size;
+    * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
+      whatever context is current, which may be another renderer's): the objects die with
+      their context, which :class:`SceneRenderer` destroys.
+    """
+
+    def __init__(self, width: int, height: int, shadow_map_size: int):
+        super().__init__(width, height)
+        self._program_cache = ProgramCache()
+        self.shadow_map_size = shadow_map_size
+
+    def _update_context(self, scene: pyrender.Scene, flags: int) -> None:
+        for mesh in scene.meshes - self._meshes:
+            for primitive in mesh.primitives:
+                primitive._add_to_context()
+        self._meshes |= scene.meshes
+        textures = {t for m in scene.meshes for p in m.primitives for t in p.material.textures}
+        for texture in textures - self._mesh_textures:
+            texture._add_to_context()
+        for texture in self._mesh_textures - textures:
+            texture.delete()
+        self._mesh_textures = textures
+        for light in scene.lights:
+            if light.shadow_texture not in self._shadow_textures:
+                light.shadow_texture._add_to_context()
+                # A depth-compare sampler: the patched shader reads it with hardware filtering.
+                GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_COMPARE_REF_TO_TEXTURE)
+                GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_FUNC, GL.GL_LEQUAL)
+                self._shadow_textures.add(light.shadow_texture)
+
+    def __del__(self) -> None:
+        pass
+
+    def _compute_max_n_lights(self, flags: int) -> list[int]:
+        return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
+
+    def _configure_shadow_mapping_viewport(self, light, flags) -> None:
+        super()._configure_shadow_mapping_viewport(light, flags)
+        GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
+
+    def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
+             seg_node_map: dict | None = None) -> np.ndarray:
+        """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
+
+        Args:
+            flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
+            seen: mesh nodes the camera sees.
+            casters: mesh nodes drawn into shadow maps.
+            seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
+        """
+        self._update_context(scene, flags)
+        if flags & RenderFlags.SHADOWS_SPOT:
+            for node in scene.mesh_nodes:
+                node.mesh.is_visible = node in casters
+            for light_node in scene.light_nodes:
+                self._shadow_mapping_pass(scene, light_node, flags)
+        for node in scene.mesh_nodes:
+            node.mesh.is_visible = node in seen
+        self._forward_pass(scene, flags, seg_node_map=seg_node_map)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)  # shadow passes leave their framebuffer bound
+        GL.glReadBuffer(GL.GL_FRONT)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        pixels = GL.glReadPixels(0, 0, self.viewport_width, self.viewport_height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+        image = np.frombuffer(pixels, dtype=np.uint8).reshape(self.viewport_height, self.viewport_width, 4)
+        return np.ascontiguousarray(image[::-1])  # OpenGL's first row is the bottom one
+
+
+class SceneRenderer:
+    """Renders scene sequences of one output size in one offscreen GL context.
+
+    Args:
+        image_size: ``(H, W)`` of every view, in pixels.
+        shadow_map_size: side of each shadow map, texels (power of two).
+    """
+
+    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024):
+        self.image_size = tuple(image_size)
+        h, w = self.image_size
+        self._platform = open_context(w, h)
+        # Destroying the context frees every GL object in it; it needs no current context, so a
+        # collected renderer cannot disturb another one mid-render. Runs at exit too.
+        self._release = weakref.finalize(self, self._platform.delete_context)
+        self._gl = _GLRenderer(w, h, shadow_map_size)
+        GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        self._meshes = MeshPool()
+        self._plane = plane_mesh(self.image_size)
+        self._lights: list[pyrender.SpotLight] = []
+        self._painting: np.ndarray | None = None
+        self._texture: pyrender.Texture | None = None
+
+    @property
+    def program_count(self) -> int:
+        """Number of shader programs built so far (constant once every variant has been used)."""
+        return len(self._gl._program_cache)
+
+    def render(self, sequence: SceneSequence, painting: np.ndarray) -> RenderedSequence:
+        """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
+
+        Args:
+            sequence: the scenes; its ``image_size`` must be this renderer's.
+            painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel).
+        """
+        if tuple(sequence.image_size) != self.image_size:
+            raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
+        if painting.shape != (*self.image_size, 3) or painting.dtype != np.uint8:
+            raise ValueError(f"painting: expected {(*self.image_size, 3)} uint8, got {painting.shape} {painting.dtype}")
+        if not self._release.alive:
+            raise RuntimeError("SceneRenderer.render called after close()")
+        self._platform.make_current()
+        texture = self._painting_texture(painting)
+        views, masks = [], []
+        for view in sequence.views:
+            image, mask = self._render_view(view, sequence, texture)
+            views.append(image)
+            masks.append(mask)
+        label = self._render_label(sequence.views[0].camera, texture)
+        return RenderedSequence(np.stack(views), np.stack(masks), label)
+
+    def close(self) -> None:
+        """Destroy the context and every GL object in it (safe to call twice)."""
+        self._release()
+
+    def disown(self) -> None:
+        """Drop this renderer without touching its context: for a forked child holding a copy of
+        its parent's renderer, whose GL state it must neither use nor free."""
+        self._release.detach()
+
+    def _painting_texture(self, painting: np.ndarray) -> pyrender.Texture:
+        """The painting's texture, created (and uploaded at first draw) once per painting."""
+        if self._texture is None or not np.array_equal(painting, self._painting):
+            rgba = np.concatenate([painting, np.full((*painting.shape[:2], 1), 255, np.uint8)], axis=2)
+            self._texture = pyrender.Texture(source=rgba, source_channels="RGBA", sampler=PAINTING_SAMPLER)
+            self._painting = painting.copy()
+        return self._texture
+
+    def _new_scene(self, camera: Camera, ambient: float, texture: pyrender.Texture, material: Material):
+        scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=np.full(3, ambient))
+        self._plane.primitives[0].material = _gl_material(material, texture)
+        plane = _add(scene, mesh=self._plane)
+        gl_cam, pose = gl_camera(camera, *_clip_range(camera, self.image_size))
+        _add(scene, pose, camera=gl_cam)
+        return scene, plane
+
+    def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture):
+        scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
+        occluders = set()
+        counts: dict[str, int] = {}
+        for occ in view.occluders:
+            mesh = self._meshes.take(occ.shape, counts.setdefault(occ.shape, 0))
+            counts[occ.shape] += 1
+            mesh.primitives[0].material = _gl_material(occ.material)
+            occluders.add(_add(scene, occ.object_to_world(), mesh=mesh))
+        self._add_lights(scene, view.lights)
+        visible = occluders if sequence.occluders_visible else set()
+        # With no occluder nothing can cast a shadow (the painting is not a caster), so the
+        # unshadowed draw gives the same pixels without the shadow passes.
+        flags = RenderFlags.SHADOWS_SPOT if sequence.shadows and occluders else RenderFlags.NONE
+        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders)
+        seg_map = {plane: 255, **{node: 0 for node in visible}}
+        seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | visible, seg_node_map=seg_map)
+        return image[..., :3], seg[..., 0] < 128
+
+    def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...]) -> None:
+        k = 0
+        for light in lights:
+            for position in light.emitters:
+                gl_light = self._light(k)
+                gl_light.color = light.color
+                gl_light.intensity = light.intensity
+                gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
+                gl_light.innerConeAngle = light.inner_cone
+                _add(scene, _aim_pose(position), light=gl_light)
+                k += 1
+
+    def _light(self, k: int) -> pyrender.SpotLight:
+        """The ``k``-th pooled spot light, with its own shadow map (allocated once)."""
+        while len(self._lights) <= k:
+            light = pyrender.SpotLight(outerConeAngle=np.pi / 4)
+            light._generate_shadow_texture(size=self._gl.shadow_map_size)
+            light.shadow_texture.sampler = SHADOW_SAMPLER
+            self._lights.append(light)
+        return self._lights[k]
+
+    def _render_label(self, camera: Camera, texture: pyrender.Texture) -> np.ndarray:
+        plain = Material(np.ones(4), 0.0, 1.0)
+        scene, plane = self._new_scene(camera, 1.0, texture, plain)
+        return self._gl.draw(scene, RenderFlags.FLAT, seen={plane})[..., :3]
+
+
+_SHARED: dict[tuple[int, tuple[int, int], int], SceneRenderer] = {}
+
+
+def shared_renderer(image_size: tuple[int, int], shadow_map_size: int) -> SceneRenderer:
+    """This process's renderer for these settings, created at first use and then reused.
+
+    A forked child (a DataLoader worker) inherits its parent's renderers; it disowns them
+    without touching their GL state and creates its own.
+    """
+    pid = os.getpid()
+    for key in [k for k in _SHARED if k[0] != pid]:
+        _SHARED.pop(key).disown()
+    key = (pid, tuple(image_size), shadow_map_size)
+    if key not in _SHARED:
+        _SHARED[key] = SceneRenderer(image_size, shadow_map_size)
+    return _SHARED[key]

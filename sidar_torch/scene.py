@@ -1,0 +1,293 @@
+"""A SIDAR scene as plain data, and the pure functions that sample one.
+
+Nothing here knows OpenGL: a sequence can be sampled, printed, compared and tested without
+a renderer. All positions are world coordinates in painting units (see ``sidar_torch.config``);
+angles are radians; colours are linear RGB in [0, 1].
+
+Every light is aimed at the painting's centre and is made of one or more *emitters*, each
+rendered as a spot light: a spot light is one emitter; a point light is one emitter whose
+inner cone covers the whole painting (on the painting this is exactly a point light, since a
+point light is a spot light with an unbounded cone); an area light is several emitters
+spread over a square facing the painting, whose shadows overlap into a penumbra.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import geometry
+from .config import SidarConfig
+
+__all__ = [
+    "Camera",
+    "Light",
+    "Material",
+    "Occluder",
+    "SceneSequence",
+    "ViewScene",
+    "sample_sequence",
+]
+
+MAX_EMITTER_CONE = 1.0
+"""Largest outer half-angle (rad) of an emitter's cone: wider shadow frusta give shadow acne."""
+
+CONE_MARGIN = math.radians(1.0)
+"""Angle by which a painting-covering cone exceeds the painting's farthest corner."""
+
+
+class _Plain:
+    """Equality for frozen dataclasses holding numpy arrays (field by field, arrays by value)."""
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(
+            np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b
+            for a, b in zip(dataclasses.astuple(self), dataclasses.astuple(other))
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+@dataclass(frozen=True, eq=False)
+class Camera(_Plain):
+    """A pinhole camera: intrinsics ``K (3, 3)`` in Kornia pixels and world-to-camera ``R (3, 3)``,
+    ``t (3,)`` in the OpenCV frame, float64."""
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+
+    @property
+    def position(self) -> np.ndarray:
+        """Camera centre in world coordinates, ``(3,)``."""
+        return -self.R.T @ self.t
+
+
+@dataclass(frozen=True, eq=False)
+class Material(_Plain):
+    """A metallic-roughness surface. ``base_color (4,)`` is linear RGBA; alpha < 1 is blended."""
+
+    base_color: np.ndarray
+    metallic: float
+    roughness: float
+
+    @property
+    def transparent(self) -> bool:
+        return bool(self.base_color[3] < 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Light(_Plain):
+    """A light aimed at the painting's centre, made of ``S`` spot-light emitters.
+
+    Attributes:
+        kind: ``"spot"``, ``"point"`` or ``"area"``.
+        emitters: ``(S, 3)`` emitter positions.
+        color: ``(3,)`` linear RGB.
+        intensity: each emitter's intensity, such that an emitter at distance ``d`` whose ray
+            meets the painting at incidence angle ``theta`` gives it irradiance
+            ``intensity * cos(theta) / d**2`` inside its inner cone.
+        inner_cone, outer_cone: half-angles (rad); the light falls off quadratically between them.
+    """
+
+    kind: str
+    emitters: np.ndarray
+    color: np.ndarray
+    intensity: float
+    inner_cone: float
+    outer_cone: float
+
+
+@dataclass(frozen=True, eq=False)
+class Occluder(_Plain):
+    """A unit primitive (``shape``: half-extent 1 along each axis) scaled by ``scale (3,)``,
+    rotated by ``rotation (3, 3)`` and centred at ``position (3,)``."""
+
+    shape: str
+    position: np.ndarray
+    rotation: np.ndarray
+    scale: np.ndarray
+    material: Material
+
+    def object_to_world(self) -> np.ndarray:
+        """``(4, 4)`` float64 transform from the unit primitive's frame to the world."""
+        m = np.eye(4)
+        m[:3, :3] = self.rotation * self.scale[None, :]
+        m[:3, 3] = self.position
+        return m
+
+
+@dataclass(frozen=True, eq=False)
+class ViewScene(_Plain):
+    """What one view renders: its camera, lights, occluders, painting material and ambient level."""
+
+    camera: Camera
+    lights: tuple[Light, ...]
+    occluders: tuple[Occluder, ...]
+    plane_material: Material
+    ambient: float
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSequence(_Plain):
+    """One sample's scenes: the painting (size only; pixels come from a source) and ``V`` views.
+
+    Attributes:
+        image_size: ``(H, W)`` of every view, in pixels.
+        views: ``V`` view scenes; view 0's camera is the fronto-parallel reference.
+        occluders_visible: false: occluders cast shadows but cameras do not see them.
+        shadows: whether lights cast shadows.
+    """
+
+    image_size: tuple[int, int]
+    views: tuple[ViewScene, ...]
+    occluders_visible: bool
+    shadows: bool
+
+    def cameras(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Stacked ``K (V, 3, 3)``, ``R (V, 3, 3)``, ``t (V, 3)`` float64."""
+        cams = [v.camera for v in self.views]
+        return np.stack([c.K for c in cams]), np.stack([c.R for c in cams]), np.stack([c.t for c in cams])
+
+
+def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSequence:
+    """Draw one sample's scenes from ``config`` with ``rng`` (a pure function of the rng's state).
+
+    Cameras are drawn first (view 0 the reference, then views 1..V-1), then each view's lights,
+    occluders and materials, or one set reused by every view when ``scene_per_view`` is false.
+    """
+    size = config.image_size
+    cameras = _sample_cameras(config, rng)
+    content = None
+    views = []
+    for camera in cameras:
+        if content is None or config.scene_per_view:
+            content = _sample_content(config, rng, size)
+        views.append(ViewScene(camera, *content))
+    return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows)
+
+
+def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camera]:
+    size = config.image_size
+    reference = Camera(*geometry.reference_camera(size, rng.uniform(*config.camera_height)))
+    if config.aligned:
+        return [reference] * config.n_views
+    cameras = [reference]
+    for _ in range(config.n_views - 1):
+        position = _camera_position(config, rng)
+        K = geometry.intrinsics_from_fov(rng.uniform(*config.fov_deg), size)
+        cameras.append(Camera(K, *geometry.look_at(position)))
+    return cameras
+
+
+def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: int = 64) -> np.ndarray:
+    """A camera centre drawn uniformly from the box ``|x|, |y| <= camera_xy`` (z from
+    ``camera_height``) restricted to tilts of at most ``max_tilt_deg``.
+
+    Rejection from the square ``|x|, |y| <= min(camera_xy, r)``, ``r`` the tilt disc's radius,
+    accepts with probability at least pi/4; after ``attempts`` failures (probability below
+    1e-40) the camera looks straight down.
+    """
+    z = rng.uniform(*config.camera_height)
+    radius = z * math.tan(math.radians(config.max_tilt_deg))
+    half = min(config.camera_xy, radius)
+    for _ in range(attempts):
+        x, y = rng.uniform(-half, half, size=2)
+        if x * x + y * y <= radius * radius:
+            return np.array([x, y, z])
+    return np.array([0.0, 0.0, z])
+
+
+def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]):
+    n_lights = rng.integers(config.n_lights[0], config.n_lights[1] + 1)
+    lights = tuple(_sample_light(config, rng, size) for _ in range(n_lights))
+    n_occluders = rng.integers(config.n_occluders[0], config.n_occluders[1] + 1)
+    occluders = tuple(_sample_occluder(config, rng) for _ in range(n_occluders))
+    plane = Material(np.ones(4), rng.uniform(*config.plane_metallic), rng.uniform(*config.plane_roughness))
+    return lights, occluders, plane, rng.uniform(*config.ambient)
+
+
+def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]) -> Light:
+    kind = config.light_types[rng.integers(len(config.light_types))]
+    xy = rng.uniform(-config.light_xy, config.light_xy, size=2)
+    position = np.array([xy[0], xy[1], rng.uniform(*config.light_height)])
+    color = np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, config.light_saturation_max), 1.0))
+    irradiance = rng.uniform(*config.light_irradiance)
+    if kind == "spot":
+        outer = min(math.radians(rng.uniform(*config.spot_cone_deg)) / 2, MAX_EMITTER_CONE)
+        inner = outer * (1.0 - rng.uniform())
+        emitters = position[None]
+    else:
+        position = _distance_for_cover(position, size)
+        n = config.area_light_samples if kind == "area" else 1
+        emitters = _area_emitters(position, config.area_light_size, n, rng) if kind == "area" else position[None]
+        inner = max(_cover_angle(e, size) for e in emitters)
+        outer = inner + CONE_MARGIN
+        # Emitters share the light's intensity so the total irradiance is the sampled one.
+        irradiance /= n
+    distance = np.linalg.norm(position)
+    intensity = irradiance * distance**2 / (position[2] / distance)
+    return Light(kind, emitters, color, float(intensity), float(inner), float(outer))
+
+
+def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:
+    """Largest angle (rad) between the emitter's axis (towards the centre) and a painting corner,
+    plus :data:`CONE_MARGIN`."""
+    axis = -emitter / np.linalg.norm(emitter)
+    rays = geometry.plane_corners(size) - emitter
+    cos = rays @ axis / np.linalg.norm(rays, axis=1)
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)).max()) + CONE_MARGIN
+
+
+def _distance_for_cover(position: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Move ``position`` away from the centre along its ray until a cone of
+    :data:`MAX_EMITTER_CONE` minus two margins covers the painting (no move if it already does)."""
+    limit = MAX_EMITTER_CONE - 2 * CONE_MARGIN
+    while _cover_angle(position, size) > limit:
+        position = position * 1.25
+    return position
+
+
+def _area_emitters(center: np.ndarray, side: float, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``(n, 3)`` points uniform on a ``side`` x ``side`` square centred at ``center``, facing the origin."""
+    axis = -center / np.linalg.norm(center)
+    u = np.cross(axis, geometry.WORLD_UP)
+    u /= np.linalg.norm(u)
+    v = np.cross(axis, u)
+    offsets = rng.uniform(-side / 2, side / 2, size=(n, 2))
+    return center + offsets[:, :1] * u + offsets[:, 1:] * v
+
+
+def _sample_occluder(config: SidarConfig, rng: np.random.Generator) -> Occluder:
+    shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
+    xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
+    position = np.array([xy[0], xy[1], rng.uniform(*config.occluder_height)])
+    rotation = _random_rotation(rng)
+    scale = rng.uniform(*config.occluder_size, size=3)
+    kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
+    return Occluder(shape, position, rotation, scale, _occluder_material(kind, rng))
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A rotation matrix ``(3, 3)`` uniform over SO(3) (normalised Gaussian quaternion)."""
+    w, x, y, z = (q := rng.normal(size=4)) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _occluder_material(kind: str, rng: np.random.Generator) -> Material:
+    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+    alpha = rng.uniform(0.2, 0.7) if kind == "transparent" else 1.0
+    metallic = 1.0 if kind == "metallic" else 0.0
+    roughness = {"diffuse": 1.0, "glossy": rng.uniform(0.05, 0.3),
+                 "metallic": rng.uniform(0.05, 0.4), "transparent": rng.uniform(0.05, 0.5)}[kind]
+    return Material(np.array([*rgb, alpha]), metallic, roughness)

@@ -1,0 +1,565 @@
+"""Tests for sidar_torch.sources."""
+
+from __future__ import annotations
+
+import os
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+from PIL import JpegImagePlugin
+
+from sidar_torch.sources import (
+    DatasetPaintings,
+    ImageFiles,
+    ImageList,
+    PaintingSource,
+    ProceduralPaintings,
+    TensorPaintings,
+    fit_painting,
+    make_source,
+)
+
+ODD_SIZES = [(131, 257), (40, 320), (320, 40)]
+RED, GREEN, BLUE = (255, 0, 0), (0, 255, 0), (0, 0, 255)
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _random_rgb(height: int, width: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, (height, width, 3), dtype=np.uint8)
+
+
+def _save(image: Image.Image, path: Path, **kwargs) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image.save(path, **kwargs)
+    return path
+
+
+def _solid(path: Path, color: tuple[int, int, int], size: tuple[int, int] = (24, 16), **kwargs) -> Path:
+    return _save(Image.new("RGB", size, color), path, **kwargs)
+
+
+def _thirds(width: int = 360, height: int = 120) -> Image.Image:
+    """Left third red, middle third green, right third blue."""
+    image = Image.new("RGB", (width, height), RED)
+    image.paste(GREEN, (width // 3, 0, 2 * width // 3, height))
+    image.paste(BLUE, (2 * width // 3, 0, width, height))
+    return image
+
+
+def _single_pixel_source(image: Image.Image, tmp_path: Path, name: str = "img.png", **save_kwargs) -> np.ndarray:
+    """Save ``image``, read it back through make_source at its own size (no resampling)."""
+    path = _save(image, tmp_path / name, **save_kwargs)
+    return make_source(path).painting(0, (image.height, image.width))
+
+
+class PairDataset:
+    """A torchvision-style dataset of (image tensor, label) pairs."""
+
+    def __init__(self, images: torch.Tensor) -> None:
+        self.images = images
+
+    def __len__(self) -> int:
+        return len(self.images)
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor, int]:
+        return self.images[index], index
+
+
+class PilDataset:
+    def __len__(self) -> int:
+        return 2
+
+    def __getitem__(self, index: int) -> Image.Image:
+        return Image.new("RGB", (30 + index, 20), (10 * index, 50, 90))
+
+
+class BadItemDataset:
+    def __len__(self) -> int:
+        return 1
+
+    def __getitem__(self, index: int) -> str:
+        return "not an image"
+
+
+def _build(kind: str, tmp_path: Path) -> PaintingSource:
+    """One source of each accepted kind, each with at least two paintings."""
+    if kind == "none":
+        return make_source(None)
+    if kind in ("folder", "file", "path_list"):
+        paths = [
+            _save(Image.fromarray(_random_rgb(50, 70, seed)), tmp_path / f"img{seed}.png") for seed in range(2)
+        ]
+        return make_source({"folder": tmp_path, "file": str(paths[0]), "path_list": paths}[kind])
+    if kind == "tensor4d":
+        return make_source(torch.rand(2, 3, 33, 47))
+    if kind == "tensor3d_uint8":
+        return make_source(torch.from_numpy(_random_rgb(33, 47)).permute(2, 0, 1))
+    if kind == "mixed_list":
+        return make_source([torch.rand(3, 20, 30), Image.fromarray(_random_rgb(41, 17)), Image.new("L", (9, 5), 3)])
+    if kind == "dataset":
+        return make_source(PairDataset(torch.rand(3, 3, 25, 35)))
+    raise AssertionError(kind)
+
+
+SOURCE_KINDS = ["none", "folder", "file", "path_list", "tensor4d", "tensor3d_uint8", "mixed_list", "dataset"]
+
+
+# --------------------------------------------------------------------------- every source kind
+
+
+@pytest.mark.parametrize("kind", SOURCE_KINDS)
+@pytest.mark.parametrize("size", ODD_SIZES)
+def test_every_source_gives_uint8_rgb_of_requested_size(kind, size, tmp_path):
+    source = _build(kind, tmp_path)
+    for index in range(3):
+        out = source.painting(index, size)
+        assert out.shape == (*size, 3)
+        assert out.dtype == np.uint8
+        assert out.flags.c_contiguous
+
+
+@pytest.mark.parametrize("kind", SOURCE_KINDS)
+def test_index_is_taken_modulo_length_and_negative_index_fails(kind, tmp_path):
+    source = _build(kind, tmp_path)
+    np.testing.assert_array_equal(source.painting(len(source) + 1, (20, 30)), source.painting(1, (20, 30)))
+    with pytest.raises(ValueError, match="index"):
+        source.painting(-1, (20, 30))
+
+
+@pytest.mark.parametrize("kind", SOURCE_KINDS)
+def test_pickle_round_trip_gives_same_paintings(kind, tmp_path):
+    source = _build(kind, tmp_path)
+    clone = pickle.loads(pickle.dumps(source))
+    assert type(clone) is type(source) and len(clone) == len(source)
+    for index in range(2):
+        np.testing.assert_array_equal(clone.painting(index, (31, 45)), source.painting(index, (31, 45)))
+
+
+@pytest.mark.parametrize("size", [(0, 5), (5, -1), (5,), (2.5, 3), "ab", None, (True, 4)])
+def test_invalid_size_raises(size):
+    with pytest.raises(ValueError, match="size"):
+        ProceduralPaintings().painting(0, size)
+    with pytest.raises(ValueError, match="size"):
+        TensorPaintings(torch.rand(3, 4, 4)).painting(0, size)
+
+
+def test_source_kinds_map_to_classes(tmp_path):
+    _solid(tmp_path / "a.png", RED)
+    assert isinstance(make_source(None), ProceduralPaintings)
+    assert isinstance(make_source(tmp_path), ImageFiles)
+    assert isinstance(make_source(str(tmp_path / "a.png")), ImageFiles)
+    assert isinstance(make_source(torch.rand(3, 4, 4)), TensorPaintings)
+    assert isinstance(make_source([torch.rand(3, 4, 4)]), ImageList)
+    assert isinstance(make_source(PilDataset()), DatasetPaintings)
+    existing = TensorPaintings(torch.rand(3, 4, 4))
+    assert make_source(existing) is existing
+
+
+@pytest.mark.parametrize(
+    "bad", [42, 3.5, b"bytes", {"a": 1}, np.zeros((2, 3, 4, 4), np.float32), [1, 2], [torch.rand(3, 4, 4), "x.png"]]
+)
+def test_unsupported_source_raises_type_error_naming_source(bad):
+    with pytest.raises(TypeError, match="source") as info:
+        make_source(bad)
+    assert "PIL" in str(info.value) and "Tensor" in str(info.value)
+
+
+@pytest.mark.parametrize("crop", ["middle", "", None, "CENTER"])
+def test_invalid_crop_raises(crop, tmp_path):
+    with pytest.raises(ValueError, match="crop"):
+        make_source(None, crop=crop)
+    with pytest.raises(ValueError, match="crop"):
+        ImageFiles([tmp_path / "x.png"], crop=crop)
+
+
+# --------------------------------------------------------------------------- procedural paintings
+
+
+def test_procedural_is_deterministic():
+    a = ProceduralPaintings().painting(7, (96, 128))
+    b = ProceduralPaintings().painting(7, (96, 128))
+    np.testing.assert_array_equal(a, b)
+
+
+def test_procedural_does_not_use_global_random_state():
+    np.random.seed(1)
+    torch.manual_seed(1)
+    a = ProceduralPaintings().painting(3, (64, 64))
+    np.random.seed(2)
+    torch.manual_seed(2)
+    np.testing.assert_array_equal(a, ProceduralPaintings().painting(3, (64, 64)))
+
+
+def test_procedural_indices_differ():
+    paintings = [ProceduralPaintings().painting(i, (96, 128)).astype(np.int16) for i in range(5)]
+    for i in range(5):
+        for j in range(i + 1, 5):
+            assert np.abs(paintings[i] - paintings[j]).mean() > 10
+
+
+@pytest.mark.parametrize("size", [(768, 1024), (384, 512), (131, 257), (40, 320)])
+def test_procedural_has_texture_everywhere(size):
+    for index in range(4):
+        out = ProceduralPaintings().painting(index, size).astype(np.float64)
+        h, w = (size[0] // 8) * 8, (size[1] // 8) * 8
+        blocks = out[:h, :w].reshape(h // 8, 8, w // 8, 8, 3)
+        block_std = blocks.std(axis=(1, 3)).max(axis=-1)  # per 8x8 block, most textured channel
+        assert (block_std < 1).mean() < 0.01
+        assert np.median(block_std) > 4
+        assert out.std() > 20  # colourful, not just noise around one grey
+
+
+def test_procedural_same_index_at_two_sizes_looks_alike():
+    source = ProceduralPaintings()
+    big = Image.fromarray(source.painting(5, (384, 512))).resize((256, 192), Image.Resampling.LANCZOS)
+    big = np.asarray(big, dtype=np.int16)
+    same = np.abs(big - source.painting(5, (192, 256)).astype(np.int16)).mean()
+    other = np.abs(big - source.painting(6, (192, 256)).astype(np.int16)).mean()
+    assert same < 12
+    assert same < other / 3
+
+
+def test_procedural_count_and_validation():
+    assert len(ProceduralPaintings()) == 100_000
+    assert len(ProceduralPaintings(3)) == 3
+    small = ProceduralPaintings(3)
+    np.testing.assert_array_equal(small.painting(4, (8, 8)), small.painting(1, (8, 8)))
+    assert ProceduralPaintings(1).painting(0, (1, 1)).shape == (1, 1, 3)
+    with pytest.raises(ValueError, match="count"):
+        ProceduralPaintings(0)
+
+
+# --------------------------------------------------------------------------- crop and resample
+
+
+def test_image_already_at_size_is_bit_identical(tmp_path):
+    pixels = _random_rgb(37, 53)
+    path = _save(Image.fromarray(pixels), tmp_path / "exact.png")
+    for crop in ("center", "none"):
+        np.testing.assert_array_equal(make_source(path, crop=crop).painting(0, (37, 53)), pixels)
+    np.testing.assert_array_equal(make_source(torch.from_numpy(pixels).permute(2, 0, 1)).painting(0, (37, 53)), pixels)
+    np.testing.assert_array_equal(make_source([Image.fromarray(pixels)]).painting(0, (37, 53)), pixels)
+
+
+def test_center_crop_keeps_only_the_middle(tmp_path):
+    path = _save(_thirds(), tmp_path / "thirds.png")
+    out = make_source(path).painting(0, (40, 40)).astype(np.int16)  # box = middle third, 3x downscale
+    np.testing.assert_allclose(out[:, 1:-1].reshape(-1, 3), np.broadcast_to(GREEN, (40 * 38, 3)), atol=3)
+    assert (out[..., 1] > 200).all()
+
+
+def test_crop_none_stretches_the_whole_image(tmp_path):
+    path = _save(_thirds(), tmp_path / "thirds.png")
+    out = make_source(path, crop="none").painting(0, (30, 30))
+    assert tuple(out[15, 2]) == RED and tuple(out[15, 15]) == GREEN and tuple(out[15, -3]) == BLUE
+
+
+def test_center_crop_box_is_fractional_and_centred():
+    image = Image.fromarray(_random_rgb(60, 101))
+    # scale = min(101 / 37, 60 / 50) = 1.2 -> box 44.4 x 60 starting at x = 28.3
+    expected = image.resize((37, 50), Image.Resampling.LANCZOS, box=(28.3, 0.0, 72.7, 60.0))
+    out = fit_painting(image, (50, 37))
+    np.testing.assert_array_equal(out, np.asarray(expected))
+
+
+def test_center_crop_of_mirror_symmetric_image_is_symmetric():
+    half = _random_rgb(60, 50)
+    image = Image.fromarray(np.concatenate([half, half[:, :1], half[:, ::-1]], axis=1))  # width 101
+    out = fit_painting(image, (50, 37)).astype(np.int16)
+    assert np.abs(out - out[:, ::-1]).max() <= 1
+
+
+def test_exif_orientation_is_applied(tmp_path):
+    image = Image.new("RGB", (40, 20), RED)
+    image.paste(BLUE, (20, 0, 40, 20))
+    exif = Image.Exif()
+    exif[0x0112] = 6  # rotate 90 degrees clockwise for display: the left edge goes to the top
+    path = _save(image, tmp_path / "rotated.png", exif=exif)
+    out = make_source(path).painting(0, (40, 20))  # displayed size: no resampling
+    assert tuple(out[5, 10]) == RED and tuple(out[35, 10]) == BLUE
+
+
+# --------------------------------------------------------------------------- colour modes
+
+
+def test_palette_with_transparency_is_composited_over_black(tmp_path):
+    image = Image.new("P", (2, 1))
+    image.putpalette([255, 0, 0, 0, 255, 0])
+    image.putpixel((0, 0), 0)
+    image.putpixel((1, 0), 1)
+    out = _single_pixel_source(image, tmp_path, transparency=0)
+    assert out[0].tolist() == [[0, 0, 0], [0, 255, 0]]
+
+
+def test_plain_palette_and_grey(tmp_path):
+    image = Image.new("P", (1, 1))
+    image.putpalette([10, 20, 30])
+    assert _single_pixel_source(image, tmp_path, "p.gif")[0, 0].tolist() == [10, 20, 30]
+    assert _single_pixel_source(Image.new("L", (1, 1), 77), tmp_path, "l.png")[0, 0].tolist() == [77, 77, 77]
+
+
+def test_la_and_rgba_are_composited_over_black(tmp_path):
+    assert _single_pixel_source(Image.new("LA", (1, 1), (200, 128)), tmp_path, "la.png")[0, 0].tolist() == [100] * 3
+    rgba = Image.new("RGBA", (1, 1), (255, 100, 0, 51))
+    assert _single_pixel_source(rgba, tmp_path, "rgba.png")[0, 0].tolist() == [51, 20, 0]
+    assert ImageList([rgba]).painting(0, (1, 1))[0, 0].tolist() == [51, 20, 0]
+
+
+def test_cmyk_jpeg(tmp_path):
+    out = _single_pixel_source(Image.new("CMYK", (16, 16), (0, 255, 255, 0)), tmp_path, "cmyk.jpg")
+    assert (np.abs(out.astype(int) - RED) <= 8).all()
+
+
+def test_16_bit_png_is_scaled_not_clipped(tmp_path):
+    image = Image.fromarray(np.array([[0, 257, 32768, 65535]], dtype=np.uint16))
+    out = _single_pixel_source(image, tmp_path, "deep.png")
+    assert out[0, :, 0].tolist() == [0, 1, 128, 255]
+    assert (out == out[..., :1]).all()
+
+
+def test_32_bit_int_image_is_taken_as_16_bit():
+    image = Image.fromarray(np.array([[-5, 32768, 65535, 70000]], dtype=np.int32))
+    assert image.mode == "I"
+    assert ImageList([image]).painting(0, (1, 4))[0, :, 0].tolist() == [0, 128, 255, 255]
+
+
+def test_float_image_in_unit_range_is_scaled(tmp_path):
+    image = Image.fromarray(np.array([[0.0, 0.25, 1.0]], dtype=np.float32))
+    assert _single_pixel_source(image, tmp_path, "f.tif")[0, :, 0].tolist() == [0, 64, 255]
+
+
+def test_float_image_beyond_unit_range_is_taken_as_0_255():
+    image = Image.fromarray(np.array([[0.0, 100.0, 300.0, np.nan]], dtype=np.float32))
+    assert ImageList([image]).painting(0, (1, 4))[0, :, 0].tolist() == [0, 100, 255, 0]
+
+
+def test_one_pixel_image_is_upscaled(tmp_path):
+    out = make_source(_solid(tmp_path / "dot.png", (9, 99, 199), size=(1, 1))).painting(0, (131, 257))
+    assert (out == (9, 99, 199)).all()
+
+
+# --------------------------------------------------------------------------- files and folders
+
+
+@pytest.mark.parametrize("name", ["cut.png", "cut.jpg"])
+def test_truncated_file_raises_value_error_with_path(name, tmp_path):
+    full = _save(Image.fromarray(_random_rgb(64, 64)), tmp_path / f"full_{name}")
+    data = full.read_bytes()
+    path = tmp_path / name
+    path.write_bytes(data[: len(data) // 2])
+    source = make_source(path)  # lazy: nothing is decoded yet
+    with pytest.raises(ValueError, match="cannot decode") as info:
+        source.painting(0, (32, 32))
+    assert str(path) in str(info.value)
+
+
+def test_text_file_named_png_raises_value_error_with_path(tmp_path):
+    path = tmp_path / "notes.png"
+    path.write_text("hello, not an image")
+    source = make_source(tmp_path)
+    with pytest.raises(ValueError) as info:
+        source.painting(0, (8, 8))
+    assert str(path) in str(info.value) and "cannot identify" in str(info.value)
+
+
+def test_nonexistent_path_raises_file_not_found(tmp_path):
+    missing = tmp_path / "nope"
+    with pytest.raises(FileNotFoundError, match="nope"):
+        make_source(missing)
+    _solid(tmp_path / "ok.png", RED)
+    with pytest.raises(FileNotFoundError, match="nope"):
+        make_source([tmp_path / "ok.png", missing])
+
+
+def test_folder_in_path_list_is_rejected(tmp_path):
+    (tmp_path / "sub").mkdir()
+    with pytest.raises(IsADirectoryError, match="sub"):
+        make_source([tmp_path / "sub"])
+
+
+def test_folder_without_images_raises_value_error(tmp_path):
+    (tmp_path / "nested" / "deeper").mkdir(parents=True)
+    (tmp_path / "nested" / "readme.txt").write_text("no images here")
+    with pytest.raises(ValueError, match="no image files") as info:
+        make_source(tmp_path)
+    assert str(tmp_path) in str(info.value)
+
+
+@pytest.mark.parametrize("kind", ["empty_list", "empty_tuple", "empty_tensor", "empty_dataset", "empty_files"])
+def test_empty_inputs_raise_value_error(kind):
+    with pytest.raises(ValueError, match="empty"):
+        if kind == "empty_list":
+            make_source([])
+        elif kind == "empty_tuple":
+            make_source(())
+        elif kind == "empty_tensor":
+            make_source(torch.rand(0, 3, 4, 4))
+        elif kind == "empty_dataset":
+            make_source(PairDataset(torch.rand(0, 3, 4, 4)))
+        else:
+            ImageFiles([])
+
+
+def test_folder_is_scanned_recursively_in_sorted_order(tmp_path):
+    colors = {
+        "a/b/c.jpg": (250, 0, 0),
+        "a/z.PNG": (0, 250, 0),
+        "b.gif": (0, 0, 250),
+        "c.JPEG": (250, 250, 0),
+        "d.bmp": (0, 250, 250),
+        "e.webp": (250, 0, 250),
+        "f/g.TIF": (120, 60, 30),
+    }
+    for relative, color in reversed(colors.items()):
+        _solid(tmp_path / relative, color, **({"lossless": True} if relative.endswith("webp") else {}))
+    (tmp_path / "skip.txt").write_text("not an image")
+    (tmp_path / "a" / "b" / "skip.json").write_text("{}")
+    source = make_source(tmp_path)
+    assert [Path(p).relative_to(tmp_path).as_posix() for p in source.paths] == list(colors)
+    for index, color in enumerate(colors.values()):
+        assert np.abs(source.painting(index, (8, 8)).astype(int) - color).max() <= 3
+
+
+def test_unreadable_folder_raises_permission_error_naming_it(tmp_path, monkeypatch):
+    _solid(tmp_path / "ok.png", RED)
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_scandir = os.scandir
+
+    def scandir(path="."):
+        if os.fspath(path) == os.fspath(locked):
+            raise PermissionError(13, "Permission denied", os.fspath(path))
+        return real_scandir(path)
+
+    monkeypatch.setattr(os, "scandir", scandir)
+    with pytest.raises(PermissionError, match="locked"):
+        make_source(tmp_path)
+
+
+def test_files_are_opened_lazily(tmp_path, monkeypatch):
+    paths = [_solid(tmp_path / f"{i}.png", (i, i, i)) for i in range(3)]
+    opened = []
+    real_open = Image.open
+
+    def spy(fp, *args, **kwargs):
+        opened.append(os.fspath(fp))
+        return real_open(fp, *args, **kwargs)
+
+    monkeypatch.setattr(Image, "open", spy)
+    source = make_source(tmp_path)
+    assert opened == []
+    source.painting(1, (4, 4))
+    assert opened == [str(paths[1])]
+
+
+def test_bomb_sized_jpeg_is_decoded_reduced_with_warning(tmp_path, monkeypatch):
+    path = _save(_thirds(720, 240), tmp_path / "huge.jpg", quality=95)
+    drafts = []
+    real_draft = JpegImagePlugin.JpegImageFile.draft
+
+    def spy(self, mode, size):
+        drafts.append(size)
+        return real_draft(self, mode, size)
+
+    monkeypatch.setattr(JpegImagePlugin.JpegImageFile, "draft", spy)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # 720 * 240 > 2 * 1000: Pillow would raise
+    with pytest.warns(UserWarning, match="huge.jpg"):
+        out = make_source(path).painting(0, (30, 30))
+    assert drafts == [(30, 30)]
+    assert Image.MAX_IMAGE_PIXELS == 1000  # limit restored
+    assert (np.abs(out[:, 3:-3].astype(int) - GREEN) <= 12).all()
+
+
+def test_bomb_sized_png_is_decoded_with_warning(tmp_path, monkeypatch):
+    pixels = _random_rgb(60, 80)
+    path = _save(Image.fromarray(pixels), tmp_path / "huge.png")
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 100)
+    with pytest.warns(UserWarning, match="huge.png"):
+        out = make_source(path).painting(0, (60, 80))
+    np.testing.assert_array_equal(out, pixels)
+
+
+# --------------------------------------------------------------------------- tensors, lists, datasets
+
+
+def test_float_tensor_is_rounded_to_uint8():
+    tensor = torch.tensor([0.0, 0.5, 1.0 / 255, 0.998, 1.0]).reshape(1, 1, 5).expand(3, 1, 5)
+    out = make_source(tensor).painting(0, (1, 5))
+    assert out[0, :, 0].tolist() == [0, 128, 1, 254, 255]
+
+
+def test_tensor_paintings_index_the_batch():
+    images = torch.stack([torch.full((3, 6, 9), i / 10) for i in range(4)])
+    source = make_source(images)
+    assert len(source) == 4
+    assert [int(source.painting(i, (3, 3))[1, 1, 0]) for i in range(4)] == [0, 26, 51, 76]
+
+
+@pytest.mark.parametrize(
+    "tensor, message",
+    [
+        (torch.rand(4, 4), r"\(N, 3, h, w\) or \(3, h, w\), got \(4, 4\)"),
+        (torch.rand(1, 1, 3, 4, 4), r"got \(1, 1, 3, 4, 4\)"),
+        (torch.rand(2, 4, 5, 5), r"got \(2, 4, 5, 5\)"),
+        (torch.rand(5, 5, 3), r"got \(5, 5, 3\)"),
+        (torch.rand(3, 0, 4), "empty"),
+        (torch.tensor(float("nan")).expand(3, 2, 2), "NaN"),
+        (torch.tensor(float("inf")).expand(3, 2, 2), "NaN or infinite"),
+        (torch.full((3, 2, 2), 1.5), r"\[0, 1\]"),
+        (torch.full((3, 2, 2), -0.1), r"\[0, 1\]"),
+        (torch.zeros(3, 2, 2, dtype=torch.int64), "dtype"),
+        (torch.zeros(3, 2, 2, dtype=torch.bool), "dtype"),
+    ],
+)
+def test_invalid_tensors_raise_value_error(tensor, message):
+    with pytest.raises(ValueError, match=message):
+        make_source(tensor)
+
+
+def test_half_precision_tensor_is_accepted():
+    out = make_source(torch.ones(3, 4, 4, dtype=torch.float16)).painting(0, (4, 4))
+    assert (out == 255).all()
+
+
+def test_list_of_pil_and_tensors_keeps_order_and_sizes():
+    items = [
+        Image.new("RGB", (50, 20), RED),
+        torch.zeros(3, 7, 9, dtype=torch.uint8),
+        torch.ones(3, 31, 13),
+        Image.new("RGB", (3, 90), BLUE),
+    ]
+    source = make_source(items)
+    expected = [RED, (0, 0, 0), (255, 255, 255), BLUE]
+    for index, color in enumerate(expected):
+        out = source.painting(index, (40, 320))
+        assert out.shape == (40, 320, 3) and (out == color).all()
+
+
+def test_list_item_with_wrong_shape_is_rejected():
+    with pytest.raises(ValueError, match=r"\(3, h, w\), got \(2, 3, 4, 4\)"):
+        make_source([torch.rand(3, 4, 4), torch.rand(2, 3, 4, 4)])
+
+
+def test_dataset_of_tensor_label_pairs():
+    images = torch.rand(3, 3, 25, 35)
+    source = make_source(PairDataset(images))
+    assert len(source) == 3
+    expected = np.round(images[2].permute(1, 2, 0).numpy() * 255).astype(np.uint8)
+    np.testing.assert_array_equal(source.painting(2, (25, 35)), expected)
+
+
+def test_dataset_of_pil_images():
+    source = make_source(PilDataset())
+    assert (source.painting(1, (20, 31)) == (10, 50, 90)).all()
+
+
+def test_dataset_with_unsupported_items_raises_type_error():
+    source = make_source(BadItemDataset())
+    with pytest.raises(TypeError, match="str"):
+        source.painting(0, (4, 4))
