@@ -46,10 +46,8 @@ class _Plain:
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
-        return all(
-            np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b
-            for a, b in zip(dataclasses.astuple(self), dataclasses.astuple(other))
-        )
+        pairs = ((getattr(self, f.name), getattr(other, f.name)) for f in dataclasses.fields(self))
+        return all(np.array_equal(a, b) if isinstance(a, np.ndarray) else a == b for a, b in pairs)
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -224,9 +222,9 @@ def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int
         inner = outer * (1.0 - rng.uniform())
         emitters = position[None]
     else:
-        position = _distance_for_cover(position, size)
         n = config.area_light_samples if kind == "area" else 1
-        emitters = _area_emitters(position, config.area_light_size, n, rng) if kind == "area" else position[None]
+        offsets = rng.uniform(-0.5, 0.5, size=(n, 2)) * config.area_light_size if kind == "area" else np.zeros((1, 2))
+        position, emitters = _covering_emitters(position, offsets, size)
         inner = max(_cover_angle(e, size) for e in emitters)
         outer = inner + CONE_MARGIN
         # Emitters share the light's intensity so the total irradiance is the sampled one.
@@ -245,23 +243,23 @@ def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:
     return float(np.arccos(np.clip(cos, -1.0, 1.0)).max()) + CONE_MARGIN
 
 
-def _distance_for_cover(position: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """Move ``position`` away from the centre along its ray until a cone of
-    :data:`MAX_EMITTER_CONE` minus two margins covers the painting (no move if it already does)."""
-    limit = MAX_EMITTER_CONE - 2 * CONE_MARGIN
-    while _cover_angle(position, size) > limit:
+def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[int, int]):
+    """Emitters at ``offsets (S, 2)`` on a square centred at ``position`` and facing the origin,
+    moved away from the centre along its ray until every emitter's painting-covering cone fits
+    within :data:`MAX_EMITTER_CONE` (no move if they already do).
+
+    Returns:
+        the (possibly moved) centre ``(3,)`` and the emitters ``(S, 3)``.
+    """
+    while True:
+        axis = -position / np.linalg.norm(position)
+        u = np.cross(axis, geometry.WORLD_UP)
+        u /= np.linalg.norm(u)
+        v = np.cross(axis, u)
+        emitters = position + offsets[:, :1] * u + offsets[:, 1:] * v
+        if max(_cover_angle(e, size) for e in emitters) <= MAX_EMITTER_CONE - CONE_MARGIN:
+            return position, emitters
         position = position * 1.25
-    return position
-
-
-def _area_emitters(center: np.ndarray, side: float, n: int, rng: np.random.Generator) -> np.ndarray:
-    """``(n, 3)`` points uniform on a ``side`` x ``side`` square centred at ``center``, facing the origin."""
-    axis = -center / np.linalg.norm(center)
-    u = np.cross(axis, geometry.WORLD_UP)
-    u /= np.linalg.norm(u)
-    v = np.cross(axis, u)
-    offsets = rng.uniform(-side / 2, side / 2, size=(n, 2))
-    return center + offsets[:, :1] * u + offsets[:, 1:] * v
 
 
 def _sample_occluder(config: SidarConfig, rng: np.random.Generator) -> Occluder:

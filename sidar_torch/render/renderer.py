@@ -158,6 +158,23 @@ class _GLRenderer(pyrender.Renderer):
         super().__init__(width, height)
         self._program_cache = ProgramCache()
         self.shadow_map_size = shadow_map_size
+        self._unused_shadow_map = self.new_shadow_map()
+        self._unused_shadow_map._add_to_context()
+        self._make_depth_compare(self._unused_shadow_map)
+
+    def new_shadow_map(self) -> pyrender.Texture:
+        """A depth texture for one light's shadow map (uploaded at first use)."""
+        return pyrender.Texture(width=self.shadow_map_size, height=self.shadow_map_size, source_channels="D",
+                                data_format=GL.GL_FLOAT, sampler=SHADOW_SAMPLER)
+
+    @staticmethod
+    def _make_depth_compare(texture: pyrender.Texture) -> None:
+        """Turn an uploaded depth texture into a depth-compare sampler (the patched shader reads it
+        with hardware filtering)."""
+        texture._bind()
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_COMPARE_REF_TO_TEXTURE)
+        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_FUNC, GL.GL_LEQUAL)
+        texture._unbind()
 
     def _update_context(self, scene: pyrender.Scene, flags: int) -> None:
         for mesh in scene.meshes - self._meshes:
@@ -173,13 +190,24 @@ class _GLRenderer(pyrender.Renderer):
         for light in scene.lights:
             if light.shadow_texture not in self._shadow_textures:
                 light.shadow_texture._add_to_context()
-                # A depth-compare sampler: the patched shader reads it with hardware filtering.
-                GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_COMPARE_REF_TO_TEXTURE)
-                GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_FUNC, GL.GL_LEQUAL)
+                self._make_depth_compare(light.shadow_texture)
                 self._shadow_textures.add(light.shadow_texture)
 
     def __del__(self) -> None:
         pass
+
+    def _bind_lighting(self, scene, program, node, flags) -> None:
+        """pyrender's light binding, then the unused shadow samplers bound to one spare map.
+
+        llvmpipe compiles a fragment-shader variant for every distinct layout of bound textures
+        (about 1 s each). pyrender binds only the lights present, on units 0..k-1, and the
+        painting on unit k, so every light count was a new layout. With all shadow samplers
+        bound, the layout is the same for every lit draw.
+        """
+        super()._bind_lighting(scene, program, node, flags)
+        if flags & RenderFlags.SHADOWS_SPOT:
+            for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
+                self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
@@ -326,8 +354,7 @@ class SceneRenderer:
         """The ``k``-th pooled spot light, with its own shadow map (allocated once)."""
         while len(self._lights) <= k:
             light = pyrender.SpotLight(outerConeAngle=np.pi / 4)
-            light._generate_shadow_texture(size=self._gl.shadow_map_size)
-            light.shadow_texture.sampler = SHADOW_SAMPLER
+            light.shadow_texture = self._gl.new_shadow_map()
             self._lights.append(light)
         return self._lights[k]
 

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine and a fresh clone: installs what is missing
+# (OSMesa from Debian, a virtual environment, torch's CPU build, the package), then runs a task.
+#
+#   bash scripts/run.sh preview [preview options]   render a contact sheet of the built-in paintings
+#   bash scripts/run.sh test [pytest options]       run the test suite (what .ci/run calls)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if ! dpkg-query -W -f='${Status}' libosmesa6 2>/dev/null | grep -q "ok installed"; then
+  sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libosmesa6 >/dev/null
+fi
+[ -x .venv/bin/python ] || python3 -m venv .venv
+# torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).
+.venv/bin/python -m pip install -q torch==2.13.0
+.venv/bin/python -m pip install -q -e ".[test]"
+
+task="${1:-}"; shift || true
+case "$task" in
+  preview) exec .venv/bin/python -m sidar_torch preview --out out/preview.png "$@" ;;
+  test)    exec .venv/bin/python -m pytest -q "$@" ;;
+  *)       echo "usage: bash scripts/run.sh preview|test [options]" >&2; exit 2 ;;
+esac

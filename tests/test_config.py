@@ -1,0 +1,64 @@
+import pytest
+
+from sidar_torch import SidarConfig, available_presets, load_config
+
+CORE_PRESETS = ["misaligned", "aligned", "ambient", "shadows_only", "occlusions_only"]
+
+
+def test_core_presets_exist_and_say_what_they_mean():
+    assert set(CORE_PRESETS) <= set(available_presets())
+    assert load_config("misaligned") == load_config()
+    assert load_config("aligned").aligned
+    ambient = load_config("ambient")
+    assert ambient.n_lights == (0, 0) and ambient.n_occluders == (0, 0)
+    assert not load_config("shadows_only").occluders_visible and load_config("shadows_only").shadows
+    assert not load_config("occlusions_only").shadows and load_config("occlusions_only").n_occluders[0] >= 1
+
+
+def test_keyword_overrides_replace_preset_values():
+    cfg = load_config("misaligned", image_size=(384, 512), n_views=6, n_lights=(1, 2), n_occluders=[0, 1],
+                      fov_deg=(30, 40), max_tilt_deg=45)
+    assert cfg.image_size == (384, 512) and cfg.n_views == 6
+    assert cfg.n_lights == (1, 2) and cfg.n_occluders == (0, 1)  # lists become tuples
+    assert cfg.fov_deg == (30.0, 40.0) and cfg.max_tilt_deg == 45.0
+    assert load_config(cfg, n_views=2).n_views == 2
+
+
+@pytest.mark.parametrize("field, value", [
+    ("image_size", (0, 64)), ("image_size", (64,)), ("n_views", 0), ("n_lights", (3, 1)),
+    ("n_occluders", (-1, 2)), ("fov_deg", (200, 210)), ("fov_deg", (60, "wide")), ("max_tilt_deg", 90),
+    ("light_types", ("laser",)), ("light_types", "spot"), ("occluder_shapes", ()),
+    ("shadow_map_size", 1000), ("ambient", (float("nan"), 1.0)), ("aligned", "yes"),
+    ("n_views", 2.5), ("plane_roughness", (0.5, 2.0)),
+])
+def test_bad_values_raise_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        load_config("misaligned", **{field: value})
+
+
+def test_unknown_fields_and_presets_are_rejected():
+    with pytest.raises(ValueError, match="n_veiws"):
+        load_config("misaligned", n_veiws=3)
+    with pytest.raises(ValueError, match="not a preset"):
+        load_config("no_such_preset")
+    with pytest.raises(FileNotFoundError):
+        load_config("/nonexistent/config.yaml")
+
+
+def test_yaml_file_with_base_preset(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: aligned\nn_views: 4\nn_occluders: [2, 2]\n")
+    cfg = load_config(path, image_size=(64, 64))
+    assert cfg.aligned and cfg.n_views == 4 and cfg.n_occluders == (2, 2) and cfg.image_size == (64, 64)
+    path.write_text("base: aligned\nn_view: 4\n")
+    with pytest.raises(ValueError, match="n_view"):
+        load_config(path)
+    loop = tmp_path / "loop.yaml"
+    loop.write_text("base: loop.yaml\n")
+    with pytest.raises(ValueError, match="loops"):
+        load_config(loop)
+
+
+def test_too_many_shadowed_emitters_rejected():
+    with pytest.raises(ValueError, match="area_light_samples"):
+        SidarConfig(n_lights=(1, 8), area_light_samples=4)

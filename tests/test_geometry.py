@@ -1,0 +1,61 @@
+"""Homography math: Kornia's DLT on projected corners against the analytic plane-induced homography."""
+
+import math
+
+import numpy as np
+import torch
+
+from sidar_torch import geometry
+
+SIZE = (384, 512)
+
+
+def random_cameras(rng, n, size=SIZE):
+    """Reference camera plus ``n - 1`` random look-at cameras above the painting."""
+    Ks, Rs, ts = zip(geometry.reference_camera(size, rng.uniform(0.7, 1.0)), *[
+        (geometry.intrinsics_from_fov(rng.uniform(20, 110), size),
+         *geometry.look_at(np.array([*rng.uniform(-0.8, 0.8, 2), rng.uniform(0.3, 3.0)])))
+        for _ in range(n - 1)])
+    return np.stack(Ks), np.stack(Rs), np.stack(ts)
+
+
+def test_kornia_dlt_agrees_with_plane_induced_homography(rng):
+    worst = 0.0
+    for _ in range(40):
+        K, R, t = random_cameras(rng, 6)
+        corners = geometry.project(K, R, t, geometry.plane_corners(SIZE))
+        H_dlt = geometry.homographies_from_corners(corners).numpy()
+        H_true = geometry.plane_induced_homographies(K, R, t)
+        # Corner disagreement in pixels, mapping view-i corners with both.
+        src = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+        a = np.einsum("ijab,inb->ijna", H_dlt, src)
+        b = np.einsum("ijab,inb->ijna", H_true, src)
+        err = np.abs(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:]).max()
+        worst = max(worst, err)
+    assert worst < 1e-6
+
+
+def test_homography_identities(rng):
+    K, R, t = random_cameras(rng, 5)
+    H = geometry.homographies_from_corners(geometry.project(K, R, t, geometry.plane_corners(SIZE)))
+    eye = torch.eye(3, dtype=torch.float64)
+    assert torch.equal(H[torch.arange(5), torch.arange(5)], eye.expand(5, 3, 3))
+    assert torch.allclose(H @ H.transpose(0, 1), eye.expand(5, 5, 3, 3), atol=1e-9)
+    assert torch.allclose(torch.linalg.det(H), torch.ones(5, 5, dtype=torch.float64), atol=1e-9)
+
+
+def test_det_normalisation_survives_zero_h22():
+    # A valid homography whose H[2, 2] is exactly 0: normalising by it would divide by zero.
+    H = torch.tensor([[2.0, 0.5, 10.0], [0.1, 1.5, -3.0], [0.001, 0.002, 0.0]], dtype=torch.float64)
+    N = geometry.normalize_det(H)
+    assert torch.isfinite(N).all()
+    assert math.isclose(torch.linalg.det(N).item(), 1.0, rel_tol=1e-12)
+    assert torch.allclose(N / N[0, 0], H / H[0, 0])  # same projective map
+    assert torch.allclose(geometry.normalize_det(-H), N)  # the sign of the scale is fixed by det
+
+
+def test_reference_camera_sees_the_painting_edge_to_edge():
+    for size in [(384, 512), (131, 257), (512, 64)]:
+        K, R, t = geometry.reference_camera(size, 0.9)
+        corners = geometry.project(K, R, t, geometry.plane_corners(size))
+        np.testing.assert_allclose(corners, geometry.corner_pixels(size), atol=1e-9)

@@ -1,0 +1,146 @@
+"""The renderer, proved by rendering: each pyrender/OSMesa quirk has a test that fails if it returns."""
+
+import gc
+
+import numpy as np
+import pytest
+
+from sidar_torch import geometry
+from sidar_torch.render import SceneRenderer, shared_renderer
+from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
+
+from conftest import SMALL, small_config, textured_painting
+
+WHITE = Material(np.ones(4), 0.0, 1.0)
+
+
+def one_view(size, occluders=(), lights=(), ambient=1.0, shadows=True, visible=True, camera=None):
+    """A one-view sequence through the reference camera (or ``camera``)."""
+    camera = camera or Camera(*geometry.reference_camera(size, 0.9))
+    view = ViewScene(camera, tuple(lights), tuple(occluders), WHITE, ambient)
+    return SceneSequence(size, (view,), visible, shadows)
+
+
+def overhead_spot(irradiance=2.0, height=2.0):
+    position = np.array([0.0, 0.0, height])
+    return Light("spot", position[None], np.ones(3), irradiance * height**2, 0.5, 0.6)
+
+
+def cube(position, half=0.1, material=None):
+    return Occluder("cube", np.asarray(position, float), np.eye(3), np.full(3, half),
+                    material or Material(np.array([0.8, 0.2, 0.2, 1.0]), 0.0, 1.0))
+
+
+@pytest.mark.parametrize("size", [SMALL, (131, 257), (40, 320), (77, 33)])
+def test_label_is_the_painting_bit_exactly(size):
+    # Catches: the half-pixel principal-point offset (a shift blurs every texel), texture row
+    # order (flipped image), and GL_UNPACK_ALIGNMENT (odd RGB widths come out sheared).
+    painting = textured_painting(size)
+    out = shared_renderer(size, 1024).render(one_view(size), painting)
+    assert np.array_equal(out.label, painting)
+
+
+def test_ambient_only_view_reproduces_the_texture_with_exact_srgb():
+    # pyrender's gamma-2.2 output encoding is up to 9 levels off here; the exact sRGB encode is <= 1.
+    painting = textured_painting(SMALL, seed=1)
+    out = shared_renderer(SMALL, 1024).render(one_view(SMALL, ambient=1.0), painting)
+    assert np.abs(out.views[0].astype(int) - painting).max() <= 1
+    assert not out.masks[0].any()
+
+
+def test_shadows_darken_the_painting_under_an_occluder():
+    # Catches the program-validation failure with shadow maps (an exception) and lost shadows.
+    renderer = shared_renderer(SMALL, 1024)
+    white = np.full((*SMALL, 3), 200, np.uint8)
+    occluder = cube([0.0, 0.0, 0.3], half=0.15)
+    lit = dict(occluders=[occluder], lights=[overhead_spot()], ambient=0.05, visible=False)
+    shadowed = renderer.render(one_view(SMALL, **lit), white).views[0].astype(float)
+    unshadowed = renderer.render(one_view(SMALL, **lit, shadows=False), white).views[0].astype(float)
+    h, w = SMALL
+    centre = (slice(h // 2 - 5, h // 2 + 5), slice(w // 2 - 5, w // 2 + 5))
+    assert shadowed[centre].mean() < 0.5 * unshadowed[centre].mean()
+    assert np.abs(shadowed[:8, :8] - unshadowed[:8, :8]).max() <= 1  # far from the shadow: unchanged
+
+
+def test_transparent_occluder_casts_a_shadow_and_is_blended():
+    renderer = shared_renderer(SMALL, 1024)
+    white = np.full((*SMALL, 3), 200, np.uint8)
+    glass = Material(np.array([0.2, 0.4, 0.9, 0.4]), 0.0, 0.2)
+    out = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3], 0.15, glass)], ambient=1.0), white)
+    h, w = SMALL
+    pixel = out.views[0][h // 2, w // 2].astype(int)
+    assert out.masks[0][h // 2, w // 2]  # the paper's semantics: transparent occluders occlude
+    assert 0 < pixel[0] < 200 and pixel[2] > pixel[0]  # blended: neither the occluder's nor the painting's colour
+
+
+def test_masks_cover_visible_occluders_and_ignore_parts_behind_the_painting():
+    renderer = shared_renderer(SMALL, 1024)
+    painting = textured_painting(SMALL)
+    h, w = SMALL
+    above = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])]), painting)
+    assert above.masks[0][h // 2, w // 2] and not above.masks[0][2, 2]
+    # An occluder entirely behind the painting is hidden by it: the mask must stay empty.
+    behind = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, -0.3])]), painting)
+    assert not behind.masks[0].any()
+    invisible = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])], visible=False), painting)
+    assert not invisible.masks[0].any()
+
+
+def test_background_is_masked():
+    size = SMALL
+    camera = Camera(geometry.intrinsics_from_fov(120, size), *geometry.look_at(np.array([0.0, 0.0, 0.5])))
+    out = shared_renderer(size, 1024).render(one_view(size, camera=camera), textured_painting(size))
+    masks = out.masks[0]
+    assert masks[0, 0] and masks[-1, -1] and not masks[size[0] // 2, size[1] // 2]
+    assert np.all(out.views[0][masks] == 0)  # black background
+
+
+def test_shader_programs_are_built_once():
+    # pyrender's cache key changes at every call on OSMesa: programs would grow with every render.
+    cfg = small_config(n_lights=(3, 4), n_occluders=(1, 3))
+    renderer = shared_renderer(cfg.image_size, cfg.shadow_map_size)
+    painting = textured_painting(cfg.image_size)
+    for seed in range(4):
+        renderer.render(sample_sequence(cfg, np.random.default_rng(seed)), painting)
+    count = renderer.program_count
+    for seed in range(4, 10):
+        renderer.render(sample_sequence(cfg, np.random.default_rng(seed)), painting)
+    assert renderer.program_count == count <= 8
+
+
+def test_rendering_is_deterministic_with_many_lights():
+    # pyrender sums lights in set order; address-based hashes made that order (and rounding) vary.
+    cfg = small_config(n_lights=(4, 4), light_types=("spot", "point", "area"), n_occluders=(2, 2))
+    renderer = shared_renderer(cfg.image_size, cfg.shadow_map_size)
+    painting = textured_painting(cfg.image_size)
+    seq = sample_sequence(cfg, np.random.default_rng(7))
+    first = renderer.render(seq, painting)
+    for seed in range(3):  # other scenes in between move nodes to other addresses
+        renderer.render(sample_sequence(cfg, np.random.default_rng(seed)), painting)
+    again = renderer.render(seq, painting)
+    assert np.array_equal(first.views, again.views) and np.array_equal(first.masks, again.masks)
+
+
+def test_collecting_one_renderer_does_not_break_another():
+    # pyrender's Renderer.__del__ deleted GL objects by id in whatever context was current.
+    painting = textured_painting(SMALL)
+    seq = one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])], lights=[overhead_spot()])
+    a = SceneRenderer(SMALL)
+    expected = a.render(seq, painting)
+    b = SceneRenderer(SMALL)
+    b.render(seq, painting)
+    del a
+    gc.collect()
+    assert np.array_equal(b.render(seq, painting).views, expected.views)
+    b.close()
+    b.close()
+    with pytest.raises(RuntimeError, match="after close"):
+        b.render(seq, painting)
+
+
+def test_wrong_inputs_are_rejected():
+    renderer = shared_renderer(SMALL, 1024)
+    with pytest.raises(ValueError, match="painting"):
+        renderer.render(one_view(SMALL), np.zeros((*SMALL, 3), np.float32))
+    with pytest.raises(ValueError, match="image_size"):
+        renderer.render(one_view((64, 64)), np.zeros((64, 64, 3), np.uint8))

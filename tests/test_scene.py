@@ -1,0 +1,59 @@
+"""The scene sampler: pure, reproducible and within the configured ranges."""
+
+import math
+
+import numpy as np
+
+from sidar_torch import geometry
+from sidar_torch.scene import sample_sequence
+
+from conftest import small_config
+
+
+def test_same_rng_state_same_sequence_and_different_seeds_differ():
+    cfg = small_config(n_views=4)
+    a = sample_sequence(cfg, np.random.default_rng([0, 5]))
+    assert a == sample_sequence(cfg, np.random.default_rng([0, 5]))
+    assert a != sample_sequence(cfg, np.random.default_rng([0, 6]))
+
+
+def test_aligned_views_share_the_reference_camera():
+    seq = sample_sequence(small_config("aligned", n_views=4), np.random.default_rng(0))
+    assert all(v.camera == seq.views[0].camera for v in seq.views)
+    assert not all(v.lights == seq.views[0].lights for v in seq.views)  # but not the lights
+
+
+def test_cameras_respect_tilt_and_fov_and_see_the_centre():
+    cfg = small_config(n_views=6, max_tilt_deg=30, fov_deg=(40, 50))
+    for seed in range(30):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        for view in seq.views[1:]:
+            c = view.camera
+            axis = c.R[2]  # camera z axis in world coordinates
+            tilt = math.degrees(math.acos(-axis[2]))
+            assert tilt <= 30 + 1e-9
+            fov = math.degrees(2 * math.atan(max(cfg.image_size) / 2 / c.K[0, 0]))
+            assert 40 - 1e-9 <= fov <= 50 + 1e-9
+            centre = geometry.project(c.K, c.R, c.t, np.zeros((1, 3)))[0]
+            np.testing.assert_allclose(centre, [(cfg.image_size[1] - 1) / 2, (cfg.image_size[0] - 1) / 2])
+
+
+def test_point_and_area_lights_cover_the_whole_painting():
+    cfg = small_config(light_types=("point", "area"), n_lights=(3, 3), image_size=(40, 320))
+    corners = geometry.plane_corners(cfg.image_size)
+    for seed in range(10):
+        for view in sample_sequence(cfg, np.random.default_rng(seed)).views:
+            for light in view.lights:
+                assert light.outer_cone <= 1.0 + 1e-9
+                for e in light.emitters:
+                    rays = corners - e
+                    cos = rays @ (-e / np.linalg.norm(e)) / np.linalg.norm(rays, axis=1)
+                    assert np.all(np.arccos(np.clip(cos, -1, 1)) < light.inner_cone)
+
+
+def test_scene_per_view_false_keeps_one_scene():
+    seq = sample_sequence(small_config(scene_per_view=False, n_occluders=(2, 2)), np.random.default_rng(3))
+    first = seq.views[0]
+    assert all(v.lights == first.lights and v.occluders == first.occluders for v in seq.views)
+    seq = sample_sequence(small_config(n_occluders=(2, 2)), np.random.default_rng(3))
+    assert any(v.occluders != seq.views[0].occluders for v in seq.views[1:])
