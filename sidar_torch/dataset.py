@@ -23,14 +23,21 @@ from .sources import PaintingSource, make_source
 __all__ = ["SidarDataset", "sequence_homographies"]
 
 
-def sequence_homographies(sequence: SceneSequence) -> torch.Tensor:
-    """Every pairwise homography of a sequence, ``(V, V, 3, 3)`` float64, det = 1.
+def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
+    """Every pairwise homography of a sequence and a bound on its error.
 
     The painting's corners are projected with each camera in float64 and Kornia's DLT fits
     every ordered pair (see :func:`sidar_torch.geometry.homographies_from_corners`).
+
+    Returns:
+        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in pixels
+        between where they and the analytic plane-induced homographies send the corners.
     """
-    corners = geometry.project(*sequence.cameras(), geometry.plane_corners(sequence.image_size))
-    return geometry.homographies_from_corners(corners)
+    K, R, t = sequence.cameras()
+    corners = geometry.project(K, R, t, geometry.plane_corners(sequence.image_size))
+    H = geometry.homographies_from_corners(corners)
+    error = geometry.corner_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), corners)
+    return H, error
 
 
 def _check_int(name: str, value: Any, low: int) -> int:
@@ -61,6 +68,8 @@ class SidarDataset(IterableDataset):
       (Kornia convention, det = 1).
     - ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float32: intrinsics in pixels and
       world-to-camera pose (OpenCV frame); world point ``X`` lands at ``K (R X + t)``.
+    - ``homography_error`` float: largest disagreement, in pixels at the painting's corners, between
+      the float64 homographies (Kornia DLT) and the analytic plane-induced ones.
     - ``index`` int: the sample's index.
 
     Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
@@ -92,11 +101,13 @@ class SidarDataset(IterableDataset):
         renderer = shared_renderer(self.config.image_size, self.config.shadow_map_size)
         rendered = renderer.render(sequence, painting)
         K, R, t = sequence.cameras()
+        homographies, homography_error = sequence_homographies(sequence)
         return {
             "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
             "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
             "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
-            "homographies": sequence_homographies(sequence).float(),
+            "homographies": homographies.float(),
+            "homography_error": homography_error,
             "K": torch.from_numpy(K).float(),
             "R": torch.from_numpy(R).float(),
             "t": torch.from_numpy(t).float(),

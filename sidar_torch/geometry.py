@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 __all__ = [
+    "corner_disagreement",
     "corner_pixels",
     "homographies_from_corners",
     "intrinsics_from_fov",
@@ -168,3 +169,16 @@ def plane_induced_homographies(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> n
     euclid = R_ij - np.einsum("ija,ib->ijab", t_ij, n) / d[:, None, None, None]
     H = np.einsum("jab,ijbc,icd->ijad", K, euclid, np.linalg.inv(K))
     return normalize_det(torch.from_numpy(H)).numpy()
+
+
+def corner_disagreement(H_a: np.ndarray, H_b: np.ndarray, corners: np.ndarray) -> float:
+    """Largest distance in pixels between where two sets of homographies send the painting's corners.
+
+    Args:
+        H_a, H_b: ``(V, V, 3, 3)`` homographies (any scale), ``H[i, j]`` from view i to view j.
+        corners: ``(V, 4, 2)`` the painting's corners in each view's pixels.
+    """
+    src = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+    a = np.einsum("ijab,inb->ijna", H_a, src)
+    b = np.einsum("ijab,inb->ijna", H_b, src)
+    return float(np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1).max())

@@ -13,7 +13,7 @@ from sidar_torch import SidarDataset, available_presets
 
 from conftest import small_config
 
-KEYS = {"images", "masks", "label", "homographies", "K", "R", "t", "index"}
+KEYS = {"images", "masks", "label", "homographies", "homography_error", "K", "R", "t", "index"}
 
 
 def assert_same_sample(a, b):
@@ -33,6 +33,7 @@ def test_sample_format():
         assert s[key].shape == shape and s[key].dtype == torch.float32, key
     assert 0 <= s["images"].min() and s["images"].max() <= 1 and 0 <= s["label"].min() and s["label"].max() <= 1
     assert set(s["masks"].unique().tolist()) <= {0.0, 1.0}
+    assert 0 <= s["homography_error"] < 1e-6
     H = s["homographies"].double()
     assert torch.allclose(torch.linalg.det(H), torch.ones(4, 4, dtype=torch.float64), atol=1e-5)
     assert torch.allclose(H @ H.transpose(0, 1), torch.eye(3, dtype=torch.float64).expand(4, 4, 3, 3), atol=1e-4)
