@@ -29,6 +29,8 @@ def _parse_set(items: Sequence[str]) -> dict[str, Any]:
 
 
 def _preview(args: argparse.Namespace) -> None:
+    if args.samples < 1:
+        raise SystemExit(f"--samples {args.samples}: expected at least 1")
     config = load_config(args.config, **_parse_set(args.set))
     dataset = SidarDataset(source=args.source, config=config, seed=args.seed)
     start = time.perf_counter()

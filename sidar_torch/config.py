@@ -137,8 +137,9 @@ def _coerce(f: dataclasses.Field, value: Any) -> Any:
     """Turn YAML lists into tuples and ints into floats where the field's type asks for it."""
     kind = str(f.type)
     if kind.startswith(("Range", "IntRange", "tuple")):
-        if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
-            raise ValueError(f"config field {f.name!r}: expected a sequence, got {value!r}")
+        if isinstance(value, (str, bytes, set, frozenset, dict)) or not hasattr(value, "__iter__"):
+            # Sets are refused: their order follows string hashing, which changes between processes.
+            raise ValueError(f"config field {f.name!r}: expected a list or tuple, got {value!r}")
         value = tuple(value)
         if kind in ("Range", "IntRange", "tuple[int, int]") and len(value) != 2:
             raise ValueError(f"config field {f.name!r}: expected 2 values (low, high), got {value!r}")
@@ -190,7 +191,7 @@ def _validate(c: SidarConfig) -> None:
     bounded = {
         "camera_height": (1e-3, math.inf), "fov_deg": (1.0, 170.0), "n_lights": (0, 8),
         "light_height": (1e-3, math.inf), "light_irradiance": (0.0, math.inf),
-        "spot_cone_deg": (1.0, 120.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
+        "spot_cone_deg": (1.0, 114.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
         "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
         "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0),
     }

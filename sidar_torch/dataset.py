@@ -26,17 +26,19 @@ __all__ = ["SidarDataset", "sequence_homographies"]
 def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
     """Every pairwise homography of a sequence and a bound on its error.
 
-    The painting's corners are projected with each camera in float64 and Kornia's DLT fits
-    every ordered pair (see :func:`sidar_torch.geometry.homographies_from_corners`).
+    Four points of the painting's plane in front of every camera (:func:`sidar_torch.geometry.fit_points`)
+    are projected with each camera in float64 and Kornia's DLT fits every ordered pair (see
+    :func:`sidar_torch.geometry.homographies_from_corners`).
 
     Returns:
         ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in pixels
-        between where they and the analytic plane-induced homographies send the corners.
+        between where they and the analytic plane-induced homographies send those points.
     """
     K, R, t = sequence.cameras()
-    corners = geometry.project(K, R, t, geometry.plane_corners(sequence.image_size))
-    H = geometry.homographies_from_corners(corners)
-    error = geometry.corner_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), corners)
+    centres = -np.einsum("vji,vj->vi", R, t)
+    points = geometry.project(K, R, t, geometry.fit_points(centres))
+    H = geometry.homographies_from_corners(points)
+    error = geometry.corner_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), points)
     return H, error
 
 
@@ -68,7 +70,7 @@ class SidarDataset(IterableDataset):
       (Kornia convention, det = 1).
     - ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float32: intrinsics in pixels and
       world-to-camera pose (OpenCV frame); world point ``X`` lands at ``K (R X + t)``.
-    - ``homography_error`` float: largest disagreement, in pixels at the painting's corners, between
+    - ``homography_error`` float: largest disagreement, in pixels at the four fitted points, between
       the float64 homographies (Kornia DLT) and the analytic plane-induced ones.
     - ``index`` int: the sample's index.
 
@@ -79,6 +81,8 @@ class SidarDataset(IterableDataset):
     def __init__(self, source: Any = None, config: SidarConfig | str | os.PathLike | None = None,
                  seed: int = 0, length: int | None = None, crop: str = "center"):
         super().__init__()
+        if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
+            raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
         self.config = load_config(config if config is not None else "misaligned")
         self.source: PaintingSource = make_source(source, crop=crop)
         self.seed = _check_int("seed", seed, 0)

@@ -23,6 +23,7 @@ import torch
 __all__ = [
     "corner_disagreement",
     "corner_pixels",
+    "fit_points",
     "homographies_from_corners",
     "intrinsics_from_fov",
     "look_at",
@@ -53,6 +54,21 @@ def plane_corners(image_size: tuple[int, int]) -> np.ndarray:
     bottom-right, bottom-left of the image (matching :func:`corner_pixels`)."""
     w, h = plane_size(image_size)
     return np.array([[-w / 2, h / 2, 0], [w / 2, h / 2, 0], [w / 2, -h / 2, 0], [-w / 2, -h / 2, 0]])
+
+
+def fit_points(camera_centres: np.ndarray) -> np.ndarray:
+    """Four painting-plane points ``(4, 3)`` in front of every camera, for fitting homographies.
+
+    The painting's own corners can lie behind a camera that sees only part of a wide painting,
+    where their projections blow up. A square centred on the origin, with half-diagonal under
+    half the nearest camera's distance to the origin, lies in front of every camera aimed at
+    the origin: for such a point ``X`` and camera centre ``C``, ``X . C < |C|^2``.
+
+    Args:
+        camera_centres: ``(V, 3)`` world positions of the cameras.
+    """
+    half = 0.25 * float(np.linalg.norm(camera_centres, axis=1).min())
+    return np.array([[-half, half, 0], [half, half, 0], [half, -half, 0], [-half, -half, 0]])
 
 
 def corner_pixels(image_size: tuple[int, int]) -> np.ndarray:

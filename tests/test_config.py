@@ -29,7 +29,8 @@ def test_keyword_overrides_replace_preset_values():
     ("n_occluders", (-1, 2)), ("fov_deg", (200, 210)), ("fov_deg", (60, "wide")), ("max_tilt_deg", 90),
     ("light_types", ("laser",)), ("light_types", "spot"), ("occluder_shapes", ()),
     ("shadow_map_size", 1000), ("ambient", (float("nan"), 1.0)), ("aligned", "yes"),
-    ("n_views", 2.5), ("plane_roughness", (0.5, 2.0)),
+    ("n_views", 2.5), ("plane_roughness", (0.5, 2.0)), ("light_types", {"spot", "point"}),
+    ("spot_cone_deg", (120, 120)),
 ])
 def test_bad_values_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):

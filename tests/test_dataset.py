@@ -10,6 +10,7 @@ from PIL import Image
 from torch.utils.data import DataLoader
 
 from sidar_torch import SidarDataset, available_presets
+from sidar_torch.dataset import sequence_homographies
 
 from conftest import small_config
 
@@ -156,5 +157,14 @@ def test_bad_dataset_arguments_raise():
         SidarDataset(length=0)
     with pytest.raises(ValueError, match="index"):
         SidarDataset(config=small_config()).sample(-3)
-    with pytest.raises(ValueError, match="n_views"):
-        SidarDataset(config="misaligned").config.replace(n_views=0)
+    with pytest.raises(TypeError, match="config"):
+        SidarDataset(config=5)
+
+
+@pytest.mark.parametrize("size", [(32, 512), (512, 40), (131, 257)])
+def test_homographies_stay_exact_at_extreme_aspect_ratios(size):
+    # Corners of a wide painting can lie behind a camera; the fit must not use them.
+    ds = SidarDataset(config=small_config(image_size=size, n_views=6), seed=0)
+    for index in range(20):
+        _, error = sequence_homographies(ds.scene(index))
+        assert error < 1e-6, (index, error)

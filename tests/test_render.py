@@ -62,7 +62,7 @@ def test_shadows_darken_the_painting_under_an_occluder():
     assert np.abs(shadowed[:8, :8] - unshadowed[:8, :8]).max() <= 1  # far from the shadow: unchanged
 
 
-def test_transparent_occluder_casts_a_shadow_and_is_blended():
+def test_transparent_occluder_is_blended_and_masked():
     renderer = shared_renderer(SMALL, 1024)
     white = np.full((*SMALL, 3), 200, np.uint8)
     glass = Material(np.array([0.2, 0.4, 0.9, 0.4]), 0.0, 0.2)

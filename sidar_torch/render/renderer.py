@@ -299,9 +299,15 @@ class SceneRenderer:
         self._release()
 
     def disown(self) -> None:
-        """Drop this renderer without touching its context: for a forked child holding a copy of
-        its parent's renderer, whose GL state it must neither use nor free."""
+        """Retire this renderer without touching its context: for a forked child holding a copy of
+        its parent's renderer, whose GL state it must neither use nor free.
+
+        The renderer is kept alive for the rest of the process: the inherited context may still
+        be current, and freeing its pixel buffer (or letting pyrender's ``Platform.__del__``
+        destroy it) would hand Mesa freed or foreign state.
+        """
         self._release.detach()
+        _DISOWNED.append(self)
 
     def _painting_texture(self, painting: np.ndarray) -> pyrender.Texture:
         """The painting's texture, created (and uploaded at first draw) once per painting."""
@@ -365,6 +371,8 @@ class SceneRenderer:
 
 
 _SHARED: dict[tuple[int, tuple[int, int], int], SceneRenderer] = {}
+_DISOWNED: list[SceneRenderer] = []
+"""Renderers inherited from a parent process, kept alive and unused (see ``SceneRenderer.disown``)."""
 
 
 def shared_renderer(image_size: tuple[int, int], shadow_map_size: int) -> SceneRenderer:
