@@ -110,15 +110,17 @@ def test_shader_programs_are_built_once():
 
 def test_rendering_is_deterministic_with_many_lights():
     # pyrender sums lights in set order; address-based hashes made that order (and rounding) vary.
-    cfg = small_config(n_lights=(4, 4), light_types=("spot", "point", "area"), n_occluders=(2, 2))
+    # Full-size views with several coloured lights: at 96 x 128 too few pixels round differently.
+    cfg = small_config(image_size=(384, 512), n_views=2, n_lights=(4, 4), light_types=("spot", "point"),
+                       n_occluders=(0, 0))
     renderer = shared_renderer(cfg.image_size, cfg.shadow_map_size)
     painting = textured_painting(cfg.image_size)
     seq = sample_sequence(cfg, np.random.default_rng(7))
     first = renderer.render(seq, painting)
-    for seed in range(3):  # other scenes in between move nodes to other addresses
-        renderer.render(sample_sequence(cfg, np.random.default_rng(seed)), painting)
-    again = renderer.render(seq, painting)
-    assert np.array_equal(first.views, again.views) and np.array_equal(first.masks, again.masks)
+    for _ in range(4):
+        junk = [object() for _ in range(1000)]  # noqa: F841  (moves new nodes to other addresses)
+        again = renderer.render(seq, painting)
+        assert np.array_equal(first.views, again.views) and np.array_equal(first.masks, again.masks)
 
 
 def test_collecting_one_renderer_does_not_break_another():
