@@ -28,17 +28,17 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
 
     Four points of the painting's plane in front of every camera (:func:`sidar_torch.geometry.fit_points`)
     are projected with each camera in float64 and Kornia's DLT fits every ordered pair (see
-    :func:`sidar_torch.geometry.homographies_from_corners`).
+    :func:`sidar_torch.geometry.homographies_from_points`).
 
     Returns:
         ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in pixels
         between where they and the analytic plane-induced homographies send those points.
     """
     K, R, t = sequence.cameras()
-    centres = -np.einsum("vji,vj->vi", R, t)
+    centres = np.stack([view.camera.position for view in sequence.views])
     points = geometry.project(K, R, t, geometry.fit_points(centres))
-    H = geometry.homographies_from_corners(points)
-    error = geometry.corner_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), points)
+    H = geometry.homographies_from_points(points)
+    error = geometry.point_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), points)
     return H, error
 
 

@@ -21,10 +21,10 @@ import numpy as np
 import torch
 
 __all__ = [
-    "corner_disagreement",
+    "point_disagreement",
     "corner_pixels",
     "fit_points",
-    "homographies_from_corners",
+    "homographies_from_points",
     "intrinsics_from_fov",
     "look_at",
     "normalize_det",
@@ -144,19 +144,19 @@ def normalize_det(H: torch.Tensor) -> torch.Tensor:
     return H / scale[..., None, None]
 
 
-def homographies_from_corners(corners: np.ndarray) -> torch.Tensor:
-    """Every pairwise homography from the painting's corners as each view sees them.
+def homographies_from_points(points: np.ndarray) -> torch.Tensor:
+    """Every pairwise homography from four plane points as each view sees them.
 
     Kornia's normalised DLT (``find_homography_dlt``, SVD solver) on all ``V * V`` ordered
     pairs in one batch, in float64, then scaled to det = 1; the diagonal is set to exactly I.
 
     Args:
-        corners: ``(V, 4, 2)`` pixel coordinates of the painting's corners in each view.
+        points: ``(V, 4, 2)`` pixel coordinates of the same four plane points in each view.
 
     Returns:
         ``(V, V, 3, 3)`` float64 tensor, ``H[i, j]`` mapping view-i pixels to view-j pixels.
     """
-    pts = torch.as_tensor(corners, dtype=torch.float64)
+    pts = torch.as_tensor(points, dtype=torch.float64)
     v = pts.shape[0]
     src = pts[:, None].expand(v, v, 4, 2).reshape(-1, 4, 2)
     dst = pts[None, :].expand(v, v, 4, 2).reshape(-1, 4, 2)
@@ -187,14 +187,14 @@ def plane_induced_homographies(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> n
     return normalize_det(torch.from_numpy(H)).numpy()
 
 
-def corner_disagreement(H_a: np.ndarray, H_b: np.ndarray, corners: np.ndarray) -> float:
-    """Largest distance in pixels between where two sets of homographies send the painting's corners.
+def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray) -> float:
+    """Largest distance in pixels between where two sets of homographies send the same points.
 
     Args:
         H_a, H_b: ``(V, V, 3, 3)`` homographies (any scale), ``H[i, j]`` from view i to view j.
-        corners: ``(V, 4, 2)`` the painting's corners in each view's pixels.
+        points: ``(V, N, 2)`` the points in each view's pixels.
     """
-    src = np.concatenate([corners, np.ones((*corners.shape[:2], 1))], axis=2)
+    src = np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2)
     a = np.einsum("ijab,inb->ijna", H_a, src)
     b = np.einsum("ijab,inb->ijna", H_b, src)
     return float(np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1).max())

@@ -252,10 +252,7 @@ def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[in
         the (possibly moved) centre ``(3,)`` and the emitters ``(S, 3)``.
     """
     while True:
-        axis = -position / np.linalg.norm(position)
-        u = np.cross(axis, geometry.WORLD_UP)
-        u /= np.linalg.norm(u)
-        v = np.cross(axis, u)
+        u, v, _ = geometry.look_at(position)[0]  # the square's axes: a camera's x and y there
         emitters = position + offsets[:, :1] * u + offsets[:, 1:] * v
         if max(_cover_angle(e, size) for e in emitters) <= MAX_EMITTER_CONE - CONE_MARGIN:
             return position, emitters

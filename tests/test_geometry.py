@@ -24,20 +24,20 @@ def test_kornia_dlt_agrees_with_plane_induced_homography(rng):
     for _ in range(40):
         K, R, t = random_cameras(rng, 6)
         corners = geometry.project(K, R, t, geometry.plane_corners(SIZE))
-        H_dlt = geometry.homographies_from_corners(corners).numpy()
+        H_dlt = geometry.homographies_from_points(corners).numpy()
         H_true = geometry.plane_induced_homographies(K, R, t)
-        worst = max(worst, geometry.corner_disagreement(H_dlt, H_true, corners))
+        worst = max(worst, geometry.point_disagreement(H_dlt, H_true, corners))
     assert worst < 1e-6
     # The measure sees a small error: one corner of one view moved by 0.01 px.
     moved = corners.copy()
     moved[2, 0, 1] += 0.01
-    wrong = geometry.homographies_from_corners(moved).numpy()
-    assert 0.005 < geometry.corner_disagreement(wrong, H_true, corners) < 0.05
+    wrong = geometry.homographies_from_points(moved).numpy()
+    assert 0.005 < geometry.point_disagreement(wrong, H_true, corners) < 0.05
 
 
 def test_homography_identities(rng):
     K, R, t = random_cameras(rng, 5)
-    H = geometry.homographies_from_corners(geometry.project(K, R, t, geometry.plane_corners(SIZE)))
+    H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.plane_corners(SIZE)))
     eye = torch.eye(3, dtype=torch.float64)
     assert torch.equal(H[torch.arange(5), torch.arange(5)], eye.expand(5, 3, 3))
     assert torch.allclose(H @ H.transpose(0, 1), eye.expand(5, 5, 3, 3), atol=1e-9)

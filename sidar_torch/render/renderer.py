@@ -34,7 +34,7 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS
-from ..geometry import plane_corners
+from ..geometry import look_at, plane_corners
 from ..scene import Camera, Light, Material, SceneSequence, ViewScene
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
@@ -82,10 +82,16 @@ def gl_camera(camera: Camera, znear: float, zfar: float) -> tuple[pyrender.Intri
     K = camera.K
     gl = pyrender.IntrinsicsCamera(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2] + 0.5, cy=K[1, 2] + 0.5,
                                    znear=znear, zfar=zfar)
+    return gl, _gl_pose(camera.R, camera.t)
+
+
+def _gl_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """pyrender node pose (camera-to-world, OpenGL axes: looks along -z) of the OpenCV-frame
+    world-to-camera pose ``R, t``. Cameras and lights (which shine along -z) both use it."""
     world_from_cv = np.eye(4)
-    world_from_cv[:3, :3] = camera.R.T
-    world_from_cv[:3, 3] = camera.position
-    return gl, world_from_cv @ GL_FROM_CV
+    world_from_cv[:3, :3] = R.T
+    world_from_cv[:3, 3] = -R.T @ t
+    return world_from_cv @ GL_FROM_CV
 
 
 def _clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, float]:
@@ -103,19 +109,6 @@ def _gl_material(material: Material, texture: pyrender.Texture | None = None) ->
         alphaMode="BLEND" if material.transparent else "OPAQUE",
         baseColorTexture=texture,
     )
-
-
-def _aim_pose(position: np.ndarray) -> np.ndarray:
-    """Pose of a light at ``position`` pointing at the origin (pyrender lights shine along -z)."""
-    back = position / np.linalg.norm(position)
-    side = np.cross([0.0, 1.0, 0.0], back)
-    if np.linalg.norm(side) < 1e-9:
-        side = np.array([1.0, 0.0, 0.0])
-    side /= np.linalg.norm(side)
-    pose = np.eye(4)
-    pose[:3, :3] = np.stack([side, np.cross(back, side), back], axis=1)
-    pose[:3, 3] = position
-    return pose
 
 
 class _RankedNode(pyrender.Node):
@@ -353,7 +346,7 @@ class SceneRenderer:
                 gl_light.intensity = light.intensity
                 gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
                 gl_light.innerConeAngle = light.inner_cone
-                _add(scene, _aim_pose(position), light=gl_light)
+                _add(scene, _gl_pose(*look_at(position)), light=gl_light)  # aimed at the centre
                 k += 1
 
     def _light(self, k: int) -> pyrender.SpotLight:
