@@ -26,6 +26,7 @@ __all__ = [
     "LIGHT_TYPES",
     "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES",
+    "ON_BAD_IMAGE",
     "SidarConfig",
     "available_presets",
     "load_config",
@@ -40,6 +41,7 @@ MAX_SHADOWED_LIGHTS = 24
 LIGHT_TYPES = ("spot", "point", "area")
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent")
+ON_BAD_IMAGE = ("raise", "skip")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -59,6 +61,10 @@ class SidarConfig:
         camera_height: range of camera z (distance above the painting's plane).
         fov_deg: range of the field of view across the longer image side, for views 1..V-1.
         max_tilt_deg: largest angle between a camera's axis and the painting's normal.
+        min_coverage: least fraction of each view's pixels that see the painting (cameras are
+            redrawn until it holds; see ``sidar_torch.scene``).
+        min_overlap: least fraction of the painting pixels of any view ``i`` that another view
+            ``j`` also sees (every ordered pair; cameras are redrawn until it holds).
 
     Scene content (drawn afresh for every view unless ``scene_per_view`` is false)
         n_lights: range of the number of lights.
@@ -81,6 +87,10 @@ class SidarConfig:
 
     Rendering
         shadow_map_size: side of each shadow map in texels (power of two).
+
+    Input
+        on_bad_image: what a painting source does with an unreadable image: ``"raise"`` (an
+            error naming the file) or ``"skip"`` (a warning, and the next readable image).
     """
 
     image_size: tuple[int, int] = (384, 512)
@@ -91,6 +101,8 @@ class SidarConfig:
     camera_height: Range = (5 / 7, 1.0)
     fov_deg: Range = (61.9, 100.4)
     max_tilt_deg: float = 60.0
+    min_coverage: float = 0.0
+    min_overlap: float = 0.0
 
     n_lights: IntRange = (2, 4)
     light_types: tuple[str, ...] = LIGHT_TYPES
@@ -117,6 +129,8 @@ class SidarConfig:
     scene_per_view: bool = True
 
     shadow_map_size: int = 1024
+
+    on_bad_image: str = "raise"
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
@@ -177,6 +191,9 @@ def _validate(c: SidarConfig) -> None:
     need(c.max_tilt_deg >= 0 and c.max_tilt_deg < 90, "max_tilt_deg", "0 <= max_tilt_deg < 90")
     need(c.light_xy >= 0, "light_xy", ">= 0")
     need(c.occluder_xy >= 0, "occluder_xy", ">= 0")
+    need(0 <= c.min_coverage <= 1, "min_coverage", "a fraction in [0, 1]")
+    need(0 <= c.min_overlap <= 1, "min_overlap", "a fraction in [0, 1]")
+    need(c.on_bad_image in ON_BAD_IMAGE, "on_bad_image", f"one of {ON_BAD_IMAGE}")
     need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
     need(c.area_light_size > 0, "area_light_size", "> 0")
     need(c.area_light_samples >= 1, "area_light_samples", "at least 1")
