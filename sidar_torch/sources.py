@@ -62,6 +62,10 @@ RGB:
 * every other mode (``1``, ``L``, ``P``, ``CMYK``, ``YCbCr``, ``LAB``, ...)
   uses Pillow's own conversion to RGB.
 
+16-bit RGB and RGBA PNGs never reach these rules as 16-bit data: Pillow
+opens them as 8-bit ``RGB``/``RGBA``, keeping the high byte of each value
+(``v >> 8``).
+
 Large images
 ------------
 Files are decoded only when a painting is requested. Images with more pixels
@@ -74,6 +78,41 @@ output size, and the crop box is computed on the reduced image (the
 reduction rounds image sizes up, which can shift the crop by less than one
 reduced pixel). Other formats are decoded at full size, so a truly huge
 non-JPEG file needs the memory for all its pixels.
+
+Bad input
+---------
+Problems with the ``source`` argument itself are found when the source is
+built and always raise, whatever ``on_bad_image`` says: a path that does not
+exist (``FileNotFoundError``), a folder or sub-folder that cannot be listed
+(``PermissionError``), a folder given in a path list (``IsADirectoryError``),
+all naming the path; a folder with no image files below it, an empty list,
+tensor or dataset (``ValueError``); a tensor of the wrong shape or dtype, with
+NaN or infinite values, or float values outside ``[0, 1]`` (``ValueError``
+naming the item and what was expected).
+
+Files and dataset items are read only when their painting is requested, so a
+bad one is found then: a truncated or corrupt file, a non-image file with an
+image extension, a file without read permission or deleted since the folder
+was listed, a dataset item whose loading raises or that is not an image. The
+``on_bad_image`` argument (``SidarConfig.on_bad_image``) decides:
+
+* ``"raise"`` (default): the error propagates. Files give ``ValueError``
+  ("cannot decode image file '<path>': <Pillow's reason>") or the OS error
+  (``PermissionError``, ``FileNotFoundError``), which names the file; dataset
+  items give whatever the dataset raised, or ``TypeError`` / ``ValueError``
+  naming the item if it is not a valid image.
+* ``"skip"``: painting ``i`` is the first readable image of ``i, i + 1, ...``
+  (wrapping around). Each unreadable image gives one :class:`BadImageWarning`
+  naming it and the error, and is recorded in the source's ``bad_images``
+  (``{name: reason}``; the name is the file path or ``"dataset item <i>"``)
+  so that it is not read again; ``len(bad_images)`` is the count. The
+  painting an index shows depends only on the index and on which images are
+  readable, not on the order of requests or on the process; each DataLoader
+  worker keeps its own ``bad_images`` and warns on its own. If no image can
+  be read at all, ``ValueError``.
+
+Damage that the decoder reads through (e.g. flipped bits inside JPEG data,
+which libjpeg decodes with artefacts) cannot be detected and gives a painting.
 
 All sources keep only plain data (paths, tensors, arrays, the user's dataset)
 so that they can be pickled and sent to ``DataLoader`` worker processes.
@@ -92,11 +131,15 @@ from typing import Any
 
 import numpy as np
 import torch
-from PIL import ExifTags, Image, ImageDraw, ImageOps
+from PIL import ExifTags, Image, ImageOps
+
+from . import procedural
+from .config import ON_BAD_IMAGE
 
 __all__ = [
     "IMAGE_EXTENSIONS",
     "CROP_MODES",
+    "BadImageWarning",
     "PaintingSize",
     "PaintingSource",
     "ProceduralPaintings",
@@ -116,6 +159,11 @@ IMAGE_EXTENSIONS = frozenset({".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", 
 
 CROP_MODES = ("center", "none")
 """Accepted values of the ``crop`` argument."""
+
+
+class BadImageWarning(UserWarning):
+    """An image could not be read and was skipped (``on_bad_image="skip"``)."""
+
 
 _ROTATING_ORIENTATIONS = frozenset({5, 6, 7, 8})  # EXIF orientations that swap width and height
 
@@ -145,10 +193,11 @@ def _check_index(index: Any, length: int) -> int:
     return value % length
 
 
-def _check_crop(crop: str) -> str:
-    if crop not in CROP_MODES:
-        raise ValueError(f"crop must be one of {CROP_MODES}, got {crop!r}")
-    return crop
+def _check_choice(name: str, value: Any, choices: tuple[str, ...]) -> str:
+    """Return ``value`` after checking it is one of ``choices`` (the message names argument ``name``)."""
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+    return value
 
 
 # --------------------------------------------------------------------------- crop + resample
@@ -184,7 +233,7 @@ def fit_painting(image: Image.Image, size: PaintingSize, crop: str = "center") -
         resampled with Lanczos (antialiased when downscaling).
     """
     height, width = _check_size(size)
-    crop = _check_crop(crop)
+    crop = _check_choice("crop", crop, CROP_MODES)
     if image.mode != "RGB":
         raise ValueError(f"fit_painting expects an RGB image, got mode {image.mode!r}")
     if image.size != (width, height):
@@ -232,7 +281,7 @@ def _to_rgb(image: Image.Image) -> Image.Image:
     return image if image.mode == "RGB" else image.convert("RGB")
 
 
-def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool) -> torch.Tensor:
+def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image tensor") -> torch.Tensor:
     """Validate an image tensor and return it as a contiguous CPU ``uint8`` tensor.
 
     Args:
@@ -240,6 +289,7 @@ def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool) -> torch.Tensor:
             ``(3, h, w)``. Float values must be finite and in ``[0, 1]``
             (converted with ``round(x * 255)``); ``uint8`` is taken as is.
         batched: whether a leading batch dimension is allowed.
+        name: how error messages name the tensor.
 
     Returns:
         ``uint8`` tensor, ``(N, 3, h, w)`` if ``batched`` (a single image gets
@@ -248,22 +298,22 @@ def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool) -> torch.Tensor:
     expected = "(N, 3, h, w) or (3, h, w)" if batched else "(3, h, w)"
     shape = tuple(tensor.shape)
     if tensor.ndim not in ((3, 4) if batched else (3,)) or shape[-3] != 3:
-        raise ValueError(f"image tensor must have shape {expected}, got {shape}")
+        raise ValueError(f"{name} must have shape {expected}, got {shape}")
     if tensor.numel() == 0:
-        raise ValueError(f"image tensor is empty: shape {shape}")
+        raise ValueError(f"{name} is empty: shape {shape}")
     tensor = tensor.detach().cpu()
     if tensor.dtype == torch.uint8:
         result = tensor.contiguous()
     elif tensor.is_floating_point():
         tensor = tensor.float()
         if not bool(torch.isfinite(tensor).all()):
-            raise ValueError("image tensor contains NaN or infinite values")
+            raise ValueError(f"{name} values must be finite, got NaN or infinite values")
         low, high = float(tensor.min()), float(tensor.max())
         if low < 0.0 or high > 1.0:
-            raise ValueError(f"float image tensor values must be in [0, 1], got range [{low}, {high}]")
+            raise ValueError(f"{name} float values must be in [0, 1], got range [{low}, {high}]")
         result = (tensor * 255).round().to(torch.uint8)
     else:
-        raise ValueError(f"image tensor dtype must be a float type or torch.uint8, got {tensor.dtype}")
+        raise ValueError(f"{name} dtype must be a float type or torch.uint8, got {tensor.dtype}")
     return result.unsqueeze(0) if batched and result.ndim == 3 else result
 
 
@@ -382,7 +432,7 @@ class _ImageSource(PaintingSource):
     """A source backed by images of their own size, fitted with :func:`fit_painting`."""
 
     def __init__(self, crop: str) -> None:
-        self.crop = _check_crop(crop)
+        self.crop = _check_choice("crop", crop, CROP_MODES)
 
     @abc.abstractmethod
     def _image(self, index: int, size: PaintingSize) -> Image.Image:
@@ -393,19 +443,69 @@ class _ImageSource(PaintingSource):
         return fit_painting(self._image(_check_index(index, len(self)), size), size, self.crop)
 
 
-class ImageFiles(_ImageSource):
+class _ReadingSource(_ImageSource):
+    """An image source that reads each image only when its painting is requested, so reading can fail.
+
+    What happens to an image that cannot be read is ``on_bad_image``'s choice
+    (see "Bad input" in the module docstring); the images skipped so far are
+    in ``bad_images``, ``{name: "<error type>: <message>"}``.
+    """
+
+    def __init__(self, crop: str, on_bad_image: str) -> None:
+        super().__init__(crop)
+        self.on_bad_image = _check_choice("on_bad_image", on_bad_image, ON_BAD_IMAGE)
+        self.bad_images: dict[str, str] = {}
+
+    @abc.abstractmethod
+    def _read(self, index: int, size: PaintingSize) -> Image.Image:
+        """Read image ``index`` as in :meth:`_image`, raising whatever reading raises."""
+
+    @abc.abstractmethod
+    def _name(self, index: int) -> str:
+        """How warnings and errors name image ``index``."""
+
+    def _image(self, index: int, size: PaintingSize) -> Image.Image:
+        if self.on_bad_image == "raise":
+            return self._read(index, size)
+        for offset in range(len(self)):
+            candidate = (index + offset) % len(self)
+            name = self._name(candidate)
+            if name in self.bad_images:
+                continue
+            try:
+                return self._read(candidate, size)
+            except Exception as exc:  # Pillow and users' datasets raise many types for bad data
+                self.bad_images[name] = f"{type(exc).__name__}: {exc}"
+                warnings.warn(
+                    f"on_bad_image='skip': skipping unreadable image {name}: {self.bad_images[name]}",
+                    BadImageWarning,
+                    stacklevel=3,
+                )
+        name = self._name(index)
+        raise ValueError(
+            f"on_bad_image='skip', but none of the {len(self)} images of this {type(self).__name__} can be read; "
+            f"{name}: {self.bad_images[name]}"
+        )
+
+
+class ImageFiles(_ReadingSource):
     """Paintings read lazily from image files, in the given order.
 
     Args:
         paths: image files; they are opened only in :meth:`painting`.
         crop: see :func:`fit_painting`.
+        on_bad_image: ``"raise"`` or ``"skip"``, for a file that cannot be
+            read (see "Bad input" in the module docstring).
 
-    A missing or undecodable file raises ``FileNotFoundError`` or
-    ``ValueError`` (with the path) when its painting is requested.
+    With ``"raise"``, a file that cannot be decoded raises ``ValueError``
+    naming it and the cause; a missing or unreadable one raises the OS error
+    (``FileNotFoundError``, ``PermissionError``), which names it too.
     """
 
-    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, crop: str = "center") -> None:
-        super().__init__(crop)
+    def __init__(
+        self, paths: Sequence[str | os.PathLike[str]], *, crop: str = "center", on_bad_image: str = "raise"
+    ) -> None:
+        super().__init__(crop, on_bad_image)
         self.paths = tuple(os.fspath(path) for path in paths)
         if not self.paths:
             raise ValueError("ImageFiles needs at least one path, got an empty list")
@@ -413,7 +513,10 @@ class ImageFiles(_ImageSource):
     def __len__(self) -> int:
         return len(self.paths)
 
-    def _image(self, index: int, size: PaintingSize) -> Image.Image:
+    def _name(self, index: int) -> str:
+        return self.paths[index]
+
+    def _read(self, index: int, size: PaintingSize) -> Image.Image:
         return _load_image(self.paths[index], size)
 
 
@@ -458,7 +561,7 @@ class ImageList(_ImageSource):
         return Image.fromarray(self.images[index], "RGB")
 
 
-class DatasetPaintings(_ImageSource):
+class DatasetPaintings(_ReadingSource):
     """Paintings from an indexable dataset, read lazily.
 
     Args:
@@ -466,12 +569,15 @@ class DatasetPaintings(_ImageSource):
             ``(3, h, w)`` tensor, a PIL image, or a tuple/list whose first
             element is one (e.g. ``(image, label)``).
         crop: see :func:`fit_painting`.
+        on_bad_image: ``"raise"`` or ``"skip"``, for an item whose loading
+            raises or that is not a valid image (see "Bad input" in the
+            module docstring).
 
     The dataset itself must be picklable for use with ``DataLoader`` workers.
     """
 
-    def __init__(self, dataset: Any, *, crop: str = "center") -> None:
-        super().__init__(crop)
+    def __init__(self, dataset: Any, *, crop: str = "center", on_bad_image: str = "raise") -> None:
+        super().__init__(crop, on_bad_image)
         if len(dataset) == 0:
             raise ValueError("source dataset is empty")
         self.dataset = dataset
@@ -479,7 +585,10 @@ class DatasetPaintings(_ImageSource):
     def __len__(self) -> int:
         return len(self.dataset)
 
-    def _image(self, index: int, size: PaintingSize) -> Image.Image:
+    def _name(self, index: int) -> str:
+        return f"dataset item {index}"
+
+    def _read(self, index: int, size: PaintingSize) -> Image.Image:
         item = self.dataset[index]
         if isinstance(item, (tuple, list)) and item:
             item = item[0]
@@ -489,7 +598,7 @@ class DatasetPaintings(_ImageSource):
 def _item_to_image(item: Any, position: int) -> Image.Image:
     """A ``(3, h, w)`` tensor or PIL image -> PIL RGB image; else ``TypeError``."""
     if isinstance(item, torch.Tensor):
-        return _chw_to_image(_tensor_to_uint8(item, batched=False))
+        return _chw_to_image(_tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
     if isinstance(item, Image.Image):
         return _to_rgb(item)
     raise TypeError(
@@ -500,49 +609,12 @@ def _item_to_image(item: Any, position: int) -> Image.Image:
 # --------------------------------------------------------------------------- procedural paintings
 
 
-def _vivid_colors(rng: np.random.Generator, count: int) -> np.ndarray:
-    """``(count, 3)`` float RGB colours in ``0..255`` from random hue, saturation and value."""
-    hue = rng.random(count)
-    sat = rng.uniform(0.35, 1.0, count)
-    val = rng.uniform(0.3, 1.0, count)
-    k = (np.array([5.0, 3.0, 1.0]) + hue[:, None] * 6.0) % 6.0
-    rgb = val[:, None] * (1.0 - sat[:, None] * np.clip(np.minimum(k, 4.0 - k), 0.0, 1.0))
-    return rgb * 255.0
-
-
-def _pick_colors(rng: np.random.Generator, palette: np.ndarray, count: int, spread: float) -> np.ndarray:
-    """``(count, 3)`` ``uint8`` colours: random palette entries, each channel shifted by up to ``spread``."""
-    colors = palette[rng.integers(len(palette), size=count)] + rng.uniform(-spread, spread, (count, 3))
-    return np.clip(colors, 0, 255).round().astype(np.uint8)
-
-
-def _pick_color(rng: np.random.Generator, palette: np.ndarray, spread: float) -> tuple[int, ...]:
-    """One colour of :func:`_pick_colors` as a tuple for ``ImageDraw``."""
-    return tuple(_pick_colors(rng, palette, 1, spread)[0].tolist())
-
-
-def _upsampled_noise(values: np.ndarray, width: int, height: int) -> np.ndarray:
-    """Bicubic upsampling of a small float grid to ``(height, width)`` float32, aligned to the image."""
-    grid = Image.fromarray(values.astype(np.float32), "F")
-    return np.asarray(grid.resize((width, height), Image.Resampling.BICUBIC))
-
-
 class ProceduralPaintings(PaintingSource):
-    """Deterministic synthetic paintings: the built-in default source.
-
-    Each painting is layered: a smooth bicubic colour field, 8-19 filled
-    ellipses, polygons and rotated rectangles (random colours from a
-    per-painting palette, alpha 90..255), 6-14 opaque multi-bristle brush
-    strokes along cubic Bezier curves, then the levels are compressed to
-    28..228 and grey value noise is added at three scales: two size-relative
-    octaves and a grain of 2-pixel cells (see :func:`_add_texture`), so that
-    no region of about 8x8 pixels is flat. All geometry is relative to the
-    output size, so one index at two sizes shows the same painting; only the
-    grain depends on the pixel grid. Takes about 11 ms for 512x384 on one
-    CPU core.
+    """Deterministic synthetic paintings (:func:`sidar_torch.procedural.paint`): the built-in default source.
 
     ``painting(i, size)`` is a pure function of ``(i % count, size)``: it uses
-    its own ``numpy.random.default_rng([0x5EED, i % count])``.
+    its own ``numpy.random.default_rng([0x5EED, i % count])``. One index at two
+    sizes shows the same painting (all geometry is relative to the size).
 
     Args:
         count: number of distinct paintings (``len``), ``>= 1``.
@@ -561,91 +633,7 @@ class ProceduralPaintings(PaintingSource):
 
     def painting(self, index: int, size: PaintingSize) -> np.ndarray:
         height, width = _check_size(size)
-        rng = np.random.default_rng([self.SEED, _check_index(index, self.count)])
-        palette = _vivid_colors(rng, 6)
-        grid_h, grid_w = rng.integers(2, 5, size=2)
-        background = _pick_colors(rng, palette, grid_h * grid_w, 40).reshape(grid_h, grid_w, 3)
-        canvas = Image.fromarray(background, "RGB").resize((width, height), Image.Resampling.BICUBIC)
-        draw = ImageDraw.Draw(canvas, "RGBA")  # RGBA fills are alpha-blended onto the RGB canvas
-        scale = float(np.sqrt(width * height))
-        _draw_shapes(draw, rng, palette, width, height, scale)
-        _draw_strokes(draw, rng, palette, width, height, scale)
-        return _add_texture(canvas, rng)
-
-
-def _draw_shapes(
-    draw: ImageDraw.ImageDraw, rng: np.random.Generator, palette: np.ndarray, width: int, height: int, scale: float
-) -> None:
-    """Translucent ellipses, star-like polygons and rotated rectangles, largest first."""
-    count = int(rng.integers(8, 20))
-    radii = np.sort(np.exp(rng.uniform(np.log(0.03), np.log(0.35), count)))[::-1] * scale
-    for radius in radii:
-        cx, cy = rng.uniform(-0.1, 1.1, 2) * (width, height)
-        fill = (*_pick_color(rng, palette, 30), int(rng.integers(90, 256)))
-        kind = rng.integers(3)
-        if kind == 0:
-            rx, ry = radius * rng.uniform(0.4, 1.0, 2)
-            draw.ellipse((cx - rx, cy - ry, cx + rx, cy + ry), fill=fill)
-            continue
-        if kind == 1:
-            corners = int(rng.integers(3, 8))
-            angles = np.sort(rng.uniform(0, 2 * np.pi, corners))
-            lengths = radius * rng.uniform(0.35, 1.0, corners)
-        else:
-            half_w, half_h = radius * rng.uniform(0.3, 1.0, 2)
-            corner = np.arctan2(half_h, half_w)
-            angles = rng.uniform(0, np.pi) + np.array([corner, np.pi - corner, np.pi + corner, -corner])
-            lengths = np.full(4, np.hypot(half_w, half_h))
-        points = np.stack([cx + lengths * np.cos(angles), cy + lengths * np.sin(angles)], axis=1)
-        draw.polygon(points.ravel().tolist(), fill=fill)
-
-
-def _draw_strokes(
-    draw: ImageDraw.ImageDraw, rng: np.random.Generator, palette: np.ndarray, width: int, height: int, scale: float
-) -> None:
-    """Opaque brush strokes: parallel bristle lines of slightly different colours along Bezier curves."""
-    t = np.linspace(0.0, 1.0, 20)[:, None]
-    bernstein = np.hstack([(1 - t) ** 3, 3 * t * (1 - t) ** 2, 3 * t**2 * (1 - t), t**3])  # (20, 4)
-    offsets = np.linspace(-0.5, 0.5, 4)
-    for _ in range(int(rng.integers(6, 15))):
-        start = rng.uniform(-0.05, 1.05, 2)
-        controls = start + np.cumsum(rng.normal(0.0, 0.12, (4, 2)), axis=0)
-        curve = bernstein @ (controls * (width, height))  # (20, 2) pixels
-        tangent = np.gradient(curve, axis=0)
-        normal = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-9)
-        stroke_width = scale * np.exp(rng.uniform(np.log(0.012), np.log(0.06)))
-        bristle_width = max(1, round(stroke_width / len(offsets) * 1.6))
-        shades = _pick_colors(rng, palette[rng.integers(len(palette))][None], len(offsets), 35)
-        for offset, shade in zip(offsets, shades):
-            points = curve + offset * stroke_width * normal
-            draw.line(points.ravel().tolist(), fill=tuple(shade.tolist()), width=bristle_width, joint="curve")
-
-
-_COMPRESS_LEVELS = [28 + (200 * level + 127) // 255 for level in range(256)] * 3  # RGB lookup table 0..255 -> 28..228
-
-
-def _add_texture(canvas: Image.Image, rng: np.random.Generator) -> np.ndarray:
-    """Compress the canvas to levels 28..228 and add grey noise at three scales.
-
-    The noise is the sum of two size-relative octaves (12x16 and 48x64 grids,
-    up to +-18 and +-10 levels) and a grain of 2-pixel cells (up to +-14
-    levels), all bicubically interpolated.
-
-    Args:
-        canvas: RGB image of the output size.
-
-    Returns:
-        ``(H, W, 3)`` ``uint8`` C-contiguous array.
-    """
-    width, height = canvas.size
-    half = (width // 2 + 1, height // 2 + 1)
-    coarse = _upsampled_noise(rng.uniform(-18, 18, (12, 16)), *half)
-    medium = _upsampled_noise(rng.uniform(-10, 10, (48, 64)), *half)
-    grain = rng.uniform(-14, 14, (half[1], half[0]))
-    noise = _upsampled_noise(coarse + medium + grain, width, height).round().astype(np.int16)
-    out = np.asarray(canvas.point(_COMPRESS_LEVELS), dtype=np.int16) + noise[..., None]
-    return np.clip(out, 0, 255).astype(np.uint8)
+        return procedural.paint(np.random.default_rng([self.SEED, _check_index(index, self.count)]), height, width)
 
 
 # --------------------------------------------------------------------------- make_source
@@ -659,24 +647,24 @@ _ACCEPTED = (
 )
 
 
-def _source_from_path(path: str | os.PathLike[str], crop: str) -> ImageFiles:
+def _source_from_path(path: str | os.PathLike[str], crop: str, on_bad_image: str) -> ImageFiles:
     if not os.path.isdir(path):
         _check_files([path])
-        return ImageFiles([path], crop=crop)
+        return ImageFiles([path], crop=crop, on_bad_image=on_bad_image)
     files = _list_images(Path(path))
     if not files:
         raise ValueError(
             f"no image files ({', '.join(sorted(IMAGE_EXTENSIONS))}) found in folder {os.fspath(path)!r} or below"
         )
-    return ImageFiles(files, crop=crop)
+    return ImageFiles(files, crop=crop, on_bad_image=on_bad_image)
 
 
-def _source_from_sequence(items: Sequence[Any], crop: str) -> PaintingSource:
+def _source_from_sequence(items: Sequence[Any], crop: str, on_bad_image: str) -> PaintingSource:
     if len(items) == 0:
         raise ValueError("source is an empty list/tuple")
     if all(isinstance(item, (str, os.PathLike)) for item in items):
         _check_files(items)
-        return ImageFiles(items, crop=crop)
+        return ImageFiles(items, crop=crop, on_bad_image=on_bad_image)
     if all(isinstance(item, (torch.Tensor, Image.Image)) for item in items):
         return ImageList(items, crop=crop)
     raise TypeError(
@@ -693,7 +681,7 @@ def _is_dataset(obj: Any) -> bool:
     )
 
 
-def make_source(source: Any, *, crop: str = "center") -> PaintingSource:
+def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise") -> PaintingSource:
     """Build the painting source for ``source`` (see the module docstring for the accepted kinds).
 
     Args:
@@ -701,24 +689,31 @@ def make_source(source: Any, *, crop: str = "center") -> PaintingSource:
             a tensor, a :class:`PaintingSource`, or an indexable dataset.
         crop: ``"center"`` or ``"none"``, used by image-backed sources built
             here (ignored for ``None`` and for an existing source).
+        on_bad_image: ``"raise"`` or ``"skip"``: what sources that read
+            lazily (files, folders, datasets) do with an image that cannot be
+            read (see "Bad input" in the module docstring; ignored for the
+            other kinds and for an existing source).
 
     Raises:
         TypeError: ``source`` is of no accepted kind.
         FileNotFoundError: a path does not exist.
-        PermissionError: a folder cannot be read.
-        ValueError: empty folder/list/tensor, invalid tensor, invalid ``crop``.
+        IsADirectoryError: a path list holds a folder.
+        PermissionError: a folder or sub-folder cannot be listed.
+        ValueError: empty folder/list/tensor/dataset, invalid tensor, invalid
+            ``crop`` or ``on_bad_image``.
     """
-    crop = _check_crop(crop)
+    crop = _check_choice("crop", crop, CROP_MODES)
+    on_bad_image = _check_choice("on_bad_image", on_bad_image, ON_BAD_IMAGE)
     if source is None:
         return ProceduralPaintings()
     if isinstance(source, PaintingSource):
         return source
     if isinstance(source, (str, os.PathLike)):
-        return _source_from_path(source, crop)
+        return _source_from_path(source, crop, on_bad_image)
     if isinstance(source, torch.Tensor):
         return TensorPaintings(source, crop=crop)
     if isinstance(source, (list, tuple)):
-        return _source_from_sequence(source, crop)
+        return _source_from_sequence(source, crop, on_bad_image)
     if _is_dataset(source):
-        return DatasetPaintings(source, crop=crop)
+        return DatasetPaintings(source, crop=crop, on_bad_image=on_bad_image)
     raise TypeError(f"source must be one of: {_ACCEPTED}; got {type(source).__name__}")

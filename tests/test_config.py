@@ -31,6 +31,8 @@ def test_keyword_overrides_replace_preset_values():
     ("shadow_map_size", 1000), ("ambient", (float("nan"), 1.0)), ("aligned", "yes"),
     ("n_views", 2.5), ("plane_roughness", (0.5, 2.0)), ("light_types", {"spot", "point"}),
     ("spot_cone_deg", (120, 120)),
+    ("image_size", (64, 0)), ("n_views", -3), ("camera_height", (1.0, 0.5)), ("light_irradiance", (2.0, 1.0)),
+    ("min_coverage", 1.5), ("min_overlap", -0.1), ("on_bad_image", "ignore"), ("on_bad_image", None),
 ])
 def test_bad_values_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
@@ -40,6 +42,8 @@ def test_bad_values_raise_naming_the_field(field, value):
 def test_unknown_fields_and_presets_are_rejected():
     with pytest.raises(ValueError, match="n_veiws"):
         load_config("misaligned", n_veiws=3)
+    with pytest.raises(ValueError, match="n_veiws"):
+        SidarConfig().replace(n_veiws=3)
     with pytest.raises(ValueError, match="not a preset"):
         load_config("no_such_preset")
     with pytest.raises(FileNotFoundError):
@@ -58,6 +62,11 @@ def test_yaml_file_with_base_preset(tmp_path):
     loop.write_text("base: loop.yaml\n")
     with pytest.raises(ValueError, match="loops"):
         load_config(loop)
+
+
+def test_on_bad_image_switch():
+    assert SidarConfig().on_bad_image == "raise"
+    assert load_config("misaligned", on_bad_image="skip").on_bad_image == "skip"
 
 
 def test_too_many_shadowed_emitters_rejected():

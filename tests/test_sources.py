@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import os
 import pickle
+import struct
+import warnings
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +15,10 @@ import torch
 from PIL import Image
 from PIL import JpegImagePlugin
 
+from conftest import SMALL, small_config
+from sidar_torch import SidarDataset
 from sidar_torch.sources import (
+    BadImageWarning,
     DatasetPaintings,
     ImageFiles,
     ImageList,
@@ -58,6 +64,77 @@ def _single_pixel_source(image: Image.Image, tmp_path: Path, name: str = "img.pn
     return make_source(path).painting(0, (image.height, image.width))
 
 
+def _png16_rgb(path: Path, values: np.ndarray) -> Path:
+    """Write ``(h, w, 3)`` ``uint16`` ``values`` as a 16-bit RGB PNG (Pillow cannot write one)."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    height, width, _ = values.shape
+    rows = b"".join(b"\0" + row.astype(">u2").tobytes() for row in values)  # filter type 0 per row
+    header = struct.pack(">IIBBBBB", width, height, 16, 2, 0, 0, 0)  # 16 bits, colour type 2 (RGB)
+    chunks = chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunks)
+    return path
+
+
+def _lock(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Take away read permission on ``path``.
+
+    Root reads files whatever their mode, so where ``chmod`` does not stop this
+    process, Pillow's ``Image.open`` is made to fail for ``path`` as the OS would.
+    """
+    path.chmod(0)
+    if os.access(path, os.R_OK):
+        real_open = Image.open
+
+        def refusing_open(fp, *args, **kwargs):
+            if os.fspath(fp) == os.fspath(path):
+                raise PermissionError(13, "Permission denied", os.fspath(fp))
+            return real_open(fp, *args, **kwargs)
+
+        monkeypatch.setattr(Image, "open", refusing_open)
+
+
+BAD_FILE_KINDS = ["not_an_image", "truncated_png", "truncated_jpg", "corrupt_png", "no_permission", "deleted"]
+
+
+def _three_files(folder: Path, bad_kind: str) -> tuple[list[Path], list[np.ndarray]]:
+    """Files ``a.png``, ``b``, ``c.png`` of 64 x 64 random pixels; ``b`` is a JPEG for ``truncated_jpg``.
+
+    Returns the paths and the pixels of ``a`` and ``c``.
+    """
+    pixels = [_random_rgb(64, 64, seed) for seed in range(3)]
+    names = ["a.png", "b.jpg" if bad_kind == "truncated_jpg" else "b.png", "c.png"]
+    paths = [_save(Image.fromarray(p), folder / name) for p, name in zip(pixels, names)]
+    return paths, [pixels[0], pixels[2]]
+
+
+def _spoil(path: Path, kind: str, monkeypatch: pytest.MonkeyPatch) -> tuple[type[Exception], str]:
+    """Make the image file ``path`` unreadable in the way ``kind`` (one of :data:`BAD_FILE_KINDS`) says.
+
+    Returns the exception reading it raises with ``on_bad_image="raise"`` and words of
+    its message that name the problem.
+    """
+    data = path.read_bytes()
+    middle = len(data) // 2
+    if kind == "not_an_image":
+        path.write_text("hello, not an image")
+        return ValueError, "cannot identify image file"
+    if kind in ("truncated_png", "truncated_jpg"):
+        path.write_bytes(data[:middle])
+        return ValueError, "truncated"
+    if kind == "corrupt_png":
+        path.write_bytes(data[:middle] + bytes([data[middle] ^ 0xFF]) + data[middle + 1 :])  # one flipped byte
+        return ValueError, "broken data stream"
+    if kind == "no_permission":
+        _lock(path, monkeypatch)
+        return PermissionError, "Permission denied"
+    assert kind == "deleted"
+    path.unlink()
+    return FileNotFoundError, "No such file"
+
+
 class PairDataset:
     """A torchvision-style dataset of (image tensor, label) pairs."""
 
@@ -85,6 +162,18 @@ class BadItemDataset:
 
     def __getitem__(self, index: int) -> str:
         return "not an image"
+
+
+class FlakyDataset:
+    """Four grey tensors, but item 1 fails to load (as a broken file in an ImageFolder would) and item 2 is a string."""
+
+    def __len__(self) -> int:
+        return 4
+
+    def __getitem__(self, index: int) -> tuple[torch.Tensor | str, int]:
+        if index == 1:
+            raise OSError("cannot identify image file 'broken.jpg'")
+        return ("not an image" if index == 2 else torch.full((3, 4, 4), index / 10)), index
 
 
 def _build(kind: str, tmp_path: Path) -> PaintingSource:
@@ -176,6 +265,16 @@ def test_invalid_crop_raises(crop, tmp_path):
         make_source(None, crop=crop)
     with pytest.raises(ValueError, match="crop"):
         ImageFiles([tmp_path / "x.png"], crop=crop)
+
+
+@pytest.mark.parametrize("value", ["ignore", "", None, "SKIP"])
+def test_invalid_on_bad_image_raises_naming_it(value, tmp_path):
+    with pytest.raises(ValueError, match=r"on_bad_image must be one of \('raise', 'skip'\)"):
+        make_source(None, on_bad_image=value)
+    with pytest.raises(ValueError, match="on_bad_image"):
+        ImageFiles([tmp_path / "x.png"], on_bad_image=value)
+    with pytest.raises(ValueError, match="on_bad_image"):
+        DatasetPaintings(PilDataset(), on_bad_image=value)
 
 
 # --------------------------------------------------------------------------- procedural paintings
@@ -316,6 +415,12 @@ def test_cmyk_jpeg(tmp_path):
     assert (np.abs(out.astype(int) - RED) <= 8).all()
 
 
+def test_16_bit_rgb_png_keeps_the_high_byte(tmp_path):
+    values = np.array([[[0, 257, 65535], [32768, 1000, 65280]]], dtype=np.uint16)
+    out = make_source(_png16_rgb(tmp_path / "deep_rgb.png", values)).painting(0, (1, 2))
+    assert out.tolist() == [[[0, 1, 255], [128, 3, 255]]]  # v >> 8, as Pillow opens it
+
+
 def test_16_bit_png_is_scaled_not_clipped(tmp_path):
     image = Image.fromarray(np.array([[0, 257, 32768, 65535]], dtype=np.uint16))
     out = _single_pixel_source(image, tmp_path, "deep.png")
@@ -347,34 +452,102 @@ def test_one_pixel_image_is_upscaled(tmp_path):
 # --------------------------------------------------------------------------- files and folders
 
 
-@pytest.mark.parametrize("name", ["cut.png", "cut.jpg"])
-def test_truncated_file_raises_value_error_with_path(name, tmp_path):
-    full = _save(Image.fromarray(_random_rgb(64, 64)), tmp_path / f"full_{name}")
-    data = full.read_bytes()
-    path = tmp_path / name
-    path.write_bytes(data[: len(data) // 2])
-    source = make_source(path)  # lazy: nothing is decoded yet
-    with pytest.raises(ValueError, match="cannot decode") as info:
-        source.painting(0, (32, 32))
-    assert str(path) in str(info.value)
+@pytest.mark.parametrize("kind", BAD_FILE_KINDS)
+def test_bad_file_raises_naming_file_and_problem(kind, tmp_path, monkeypatch):
+    paths, _ = _three_files(tmp_path, kind)
+    source = make_source(tmp_path)  # default on_bad_image="raise"; files are listed, not read
+    error, problem = _spoil(paths[1], kind, monkeypatch)
+    with pytest.raises(error, match=problem) as info:
+        source.painting(1, (16, 16))
+    assert str(paths[1]) in str(info.value)
+    if error is ValueError:
+        assert "cannot decode image file" in str(info.value)
+    assert source.bad_images == {}
 
 
-def test_text_file_named_png_raises_value_error_with_path(tmp_path):
-    path = tmp_path / "notes.png"
-    path.write_text("hello, not an image")
-    source = make_source(tmp_path)
-    with pytest.raises(ValueError) as info:
+@pytest.mark.parametrize("kind", BAD_FILE_KINDS)
+def test_bad_file_is_skipped_with_one_warning_and_counted(kind, tmp_path, monkeypatch):
+    paths, (first, last) = _three_files(tmp_path, kind)
+    source = make_source(tmp_path, on_bad_image="skip")
+    _, problem = _spoil(paths[1], kind, monkeypatch)
+    with pytest.warns(BadImageWarning) as record:
+        out = source.painting(1, (64, 64))
+    np.testing.assert_array_equal(out, last)  # the next readable file
+    assert len(record) == 1
+    assert str(paths[1]) in str(record[0].message) and problem in str(record[0].message)
+    assert list(source.bad_images) == [str(paths[1])] and problem in source.bad_images[str(paths[1])]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # one warning per file: asking again is silent
+        np.testing.assert_array_equal(source.painting(1, (64, 64)), last)
+        np.testing.assert_array_equal(source.painting(0, (64, 64)), first)
+    assert len(source.bad_images) == 1
+
+
+def test_skip_takes_next_readable_image_wrapping_around_in_any_order(tmp_path):
+    pixels = [_random_rgb(8, 8, seed) for seed in range(4)]
+    paths = [_save(Image.fromarray(p), tmp_path / f"{name}.png") for p, name in zip(pixels, "abcd")]
+    for bad in (paths[1], paths[3]):
+        bad.write_text("not an image")
+    expected = {0: pixels[0], 1: pixels[2], 2: pixels[2], 3: pixels[0], 5: pixels[2], 7: pixels[0]}
+    for order in (sorted(expected), sorted(expected, reverse=True)):
+        source = make_source(tmp_path, on_bad_image="skip")
+        with pytest.warns(BadImageWarning):
+            got = {index: source.painting(index, (8, 8)) for index in order}
+        for index, painting in expected.items():
+            np.testing.assert_array_equal(got[index], painting)
+        assert sorted(source.bad_images) == [str(paths[1]), str(paths[3])]
+    fresh = pickle.loads(pickle.dumps(make_source(tmp_path, on_bad_image="skip")))  # as a new worker gets it
+    with pytest.warns(BadImageWarning):
+        np.testing.assert_array_equal(fresh.painting(3, (8, 8)), pixels[0])
+
+
+def test_skip_with_no_readable_image_raises_instead_of_looping(tmp_path):
+    for name in ("a.png", "b.jpg"):
+        (tmp_path / name).write_text("not an image")
+    source = make_source(tmp_path, on_bad_image="skip")
+    with pytest.warns(BadImageWarning) as record, pytest.raises(ValueError, match="none of the 2 images") as info:
+        source.painting(1, (8, 8))
+    assert len(record) == 2 and str(tmp_path / "b.jpg") in str(info.value) and "cannot identify" in str(info.value)
+    with warnings.catch_warnings(), pytest.raises(ValueError, match="none of the 2 images") as info:
+        warnings.simplefilter("error")  # known bad files are not read again
         source.painting(0, (8, 8))
-    assert str(path) in str(info.value) and "cannot identify" in str(info.value)
+    assert str(tmp_path / "a.png") in str(info.value)
 
 
-def test_nonexistent_path_raises_file_not_found(tmp_path):
+def test_dataset_item_that_fails_raises_or_is_skipped():
+    strict = make_source(FlakyDataset())
+    with pytest.raises(OSError, match="broken.jpg"):
+        strict.painting(1, (4, 4))
+    with pytest.raises(TypeError, match="painting item 2 .* got str"):
+        strict.painting(2, (4, 4))
+    lenient = make_source(FlakyDataset(), on_bad_image="skip")
+    with pytest.warns(BadImageWarning) as record:
+        assert (lenient.painting(1, (4, 4)) == 76).all()  # item 3: round(0.3 * 255)
+    messages = [str(warning.message) for warning in record]
+    assert "dataset item 1" in messages[0] and "OSError" in messages[0] and "broken.jpg" in messages[0]
+    assert "dataset item 2" in messages[1] and "TypeError" in messages[1]
+    assert sorted(lenient.bad_images) == ["dataset item 1", "dataset item 2"]
+
+
+def test_sidar_dataset_takes_on_bad_image_from_its_config(tmp_path):
+    _solid(tmp_path / "a.png", RED)
+    (tmp_path / "b.png").write_text("not an image")
+    strict = SidarDataset(tmp_path, config=small_config())
+    with pytest.raises(ValueError, match="b.png"):
+        strict.source.painting(1, SMALL)
+    lenient = SidarDataset(tmp_path, config=small_config(on_bad_image="skip"))
+    with pytest.warns(BadImageWarning, match="b.png"):
+        assert (lenient.source.painting(1, SMALL) == RED).all()
+
+
+@pytest.mark.parametrize("on_bad_image", ["raise", "skip"])
+def test_nonexistent_path_raises_file_not_found(on_bad_image, tmp_path):
     missing = tmp_path / "nope"
     with pytest.raises(FileNotFoundError, match="nope"):
-        make_source(missing)
+        make_source(missing, on_bad_image=on_bad_image)
     _solid(tmp_path / "ok.png", RED)
     with pytest.raises(FileNotFoundError, match="nope"):
-        make_source([tmp_path / "ok.png", missing])
+        make_source([tmp_path / "ok.png", missing], on_bad_image=on_bad_image)
 
 
 def test_folder_in_path_list_is_rejected(tmp_path):
@@ -383,11 +556,14 @@ def test_folder_in_path_list_is_rejected(tmp_path):
         make_source([tmp_path / "sub"])
 
 
-def test_folder_without_images_raises_value_error(tmp_path):
-    (tmp_path / "nested" / "deeper").mkdir(parents=True)
-    (tmp_path / "nested" / "readme.txt").write_text("no images here")
+@pytest.mark.parametrize("contents", ["nothing", "no_images"])
+@pytest.mark.parametrize("on_bad_image", ["raise", "skip"])
+def test_folder_without_images_raises_value_error(contents, on_bad_image, tmp_path):
+    if contents == "no_images":
+        (tmp_path / "nested" / "deeper").mkdir(parents=True)
+        (tmp_path / "nested" / "readme.txt").write_text("no images here")
     with pytest.raises(ValueError, match="no image files") as info:
-        make_source(tmp_path)
+        make_source(tmp_path, on_bad_image=on_bad_image)
     assert str(tmp_path) in str(info.value)
 
 
@@ -426,7 +602,8 @@ def test_folder_is_scanned_recursively_in_sorted_order(tmp_path):
         assert np.abs(source.painting(index, (8, 8)).astype(int) - color).max() <= 3
 
 
-def test_unreadable_folder_raises_permission_error_naming_it(tmp_path, monkeypatch):
+@pytest.mark.parametrize("on_bad_image", ["raise", "skip"])
+def test_unreadable_folder_raises_permission_error_naming_it(on_bad_image, tmp_path, monkeypatch):
     _solid(tmp_path / "ok.png", RED)
     locked = tmp_path / "locked"
     locked.mkdir()
@@ -439,7 +616,7 @@ def test_unreadable_folder_raises_permission_error_naming_it(tmp_path, monkeypat
 
     monkeypatch.setattr(os, "scandir", scandir)
     with pytest.raises(PermissionError, match="locked"):
-        make_source(tmp_path)
+        make_source(tmp_path, on_bad_image=on_bad_image)
 
 
 def test_files_are_opened_lazily(tmp_path, monkeypatch):
@@ -509,12 +686,12 @@ def test_tensor_paintings_index_the_batch():
         (torch.rand(2, 4, 5, 5), r"got \(2, 4, 5, 5\)"),
         (torch.rand(5, 5, 3), r"got \(5, 5, 3\)"),
         (torch.rand(3, 0, 4), "empty"),
-        (torch.tensor(float("nan")).expand(3, 2, 2), "NaN"),
-        (torch.tensor(float("inf")).expand(3, 2, 2), "NaN or infinite"),
-        (torch.full((3, 2, 2), 1.5), r"\[0, 1\]"),
-        (torch.full((3, 2, 2), -0.1), r"\[0, 1\]"),
-        (torch.zeros(3, 2, 2, dtype=torch.int64), "dtype"),
-        (torch.zeros(3, 2, 2, dtype=torch.bool), "dtype"),
+        (torch.tensor(float("nan")).expand(3, 2, 2), "must be finite, got NaN"),
+        (torch.tensor(float("inf")).expand(3, 2, 2), "must be finite, got NaN or infinite"),
+        (torch.full((3, 2, 2), 1.5), r"must be in \[0, 1\], got range \[1.5, 1.5\]"),
+        (torch.full((3, 2, 2), -0.1), r"must be in \[0, 1\]"),
+        (torch.zeros(3, 2, 2, dtype=torch.int64), "dtype must be a float type or torch.uint8, got torch.int64"),
+        (torch.zeros(3, 2, 2, dtype=torch.bool), "dtype must be a float type or torch.uint8, got torch.bool"),
     ],
 )
 def test_invalid_tensors_raise_value_error(tensor, message):
@@ -541,9 +718,13 @@ def test_list_of_pil_and_tensors_keeps_order_and_sizes():
         assert out.shape == (40, 320, 3) and (out == color).all()
 
 
-def test_list_item_with_wrong_shape_is_rejected():
-    with pytest.raises(ValueError, match=r"\(3, h, w\), got \(2, 3, 4, 4\)"):
+def test_invalid_item_tensor_is_rejected_naming_its_position():
+    with pytest.raises(ValueError, match=r"painting item 1 must have shape \(3, h, w\), got \(2, 3, 4, 4\)"):
         make_source([torch.rand(3, 4, 4), torch.rand(2, 3, 4, 4)])
+    images = torch.rand(3, 3, 4, 4)
+    images[2, 0, 0, 0] = float("nan")
+    with pytest.raises(ValueError, match="painting item 2 values must be finite"):
+        make_source(PairDataset(images)).painting(2, (4, 4))
 
 
 def test_dataset_of_tensor_label_pairs():
