@@ -7,7 +7,9 @@
 """
 
 from .config import SidarConfig, available_presets, load_config
+from .augment import SidarAugment
 from .dataset import SidarDataset
+from .pairs import homography_pairs
 
-__all__ = ["SidarConfig", "SidarDataset", "available_presets", "load_config"]
+__all__ = ["SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "homography_pairs", "load_config"]
 __version__ = "0.1.0"

@@ -20,7 +20,7 @@ from .render import shared_renderer
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
 
-__all__ = ["SidarDataset", "sequence_homographies"]
+__all__ = ["SidarDataset", "render_sample", "sequence_homographies"]
 
 
 def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
@@ -40,6 +40,39 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
     H = geometry.homographies_from_points(points)
     error = geometry.point_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), points)
     return H, error
+
+
+def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int) -> dict[str, Any]:
+    """Render ``sequence`` with ``painting`` and assemble one sample dict (see :class:`SidarDataset`).
+
+    The one place where a sample is put together: :meth:`SidarDataset.sample` and
+    :class:`sidar_torch.SidarAugment` both call it.
+
+    Args:
+        sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
+        painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
+        config: gives the renderer's settings (image size, shadow-map size).
+        index: stored as the sample's ``index``.
+
+    Returns:
+        The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
+        ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
+    """
+    renderer = shared_renderer(config.image_size, config.shadow_map_size)
+    rendered = renderer.render(sequence, painting)
+    K, R, t = sequence.cameras()
+    homographies, homography_error = sequence_homographies(sequence)
+    return {
+        "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
+        "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
+        "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
+        "homographies": homographies.float(),
+        "homography_error": homography_error,
+        "K": torch.from_numpy(K).float(),
+        "R": torch.from_numpy(R).float(),
+        "t": torch.from_numpy(t).float(),
+        "index": index,
+    }
 
 
 def _check_int(name: str, value: Any, low: int) -> int:
@@ -103,21 +136,7 @@ class SidarDataset(IterableDataset):
         """Render sample ``index`` (a pure function of ``(seed, index)``); see the class docstring."""
         sequence = self.scene(index)
         painting = self.source.painting(index % len(self.source), self.config.image_size)
-        renderer = shared_renderer(self.config.image_size, self.config.shadow_map_size)
-        rendered = renderer.render(sequence, painting)
-        K, R, t = sequence.cameras()
-        homographies, homography_error = sequence_homographies(sequence)
-        return {
-            "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
-            "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
-            "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
-            "homographies": homographies.float(),
-            "homography_error": homography_error,
-            "K": torch.from_numpy(K).float(),
-            "R": torch.from_numpy(R).float(),
-            "t": torch.from_numpy(t).float(),
-            "index": index,
-        }
+        return render_sample(sequence, painting, self.config, index)
 
     def indices(self) -> Iterator[int]:
         """The indices this process draws: every ``n``-th index from its shard ``k`` of ``n``
