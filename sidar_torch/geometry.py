@@ -21,7 +21,11 @@ import numpy as np
 import torch
 
 __all__ = [
+    "clip_polygon",
+    "painting_pixel_area",
     "point_disagreement",
+    "polygon_area",
+    "visible_halfplanes",
     "corner_pixels",
     "fit_points",
     "homographies_from_points",
@@ -198,3 +202,77 @@ def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray) -> 
     a = np.einsum("ijab,inb->ijna", H_a, src)
     b = np.einsum("ijab,inb->ijna", H_b, src)
     return float(np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1).max())
+
+
+def visible_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """The part of the painting's plane a camera sees, as half-planes ``a . (x, y, 1) >= 0``.
+
+    A plane point ``(x, y, 0)`` is at camera point ``M (x, y, 1)`` with ``M = [r_1, r_2, t]``; it
+    is seen when it is in front of the camera and its pixel lies within the image's outer
+    edges, ``-0.5 <= u <= W - 0.5`` and ``-0.5 <= v <= H - 0.5`` (Kornia pixels).
+
+    Args:
+        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
+        image_size: ``(H, W)`` in pixels.
+
+    Returns:
+        ``(5, 3)`` float64 half-plane coefficients: four image edges and the camera's front.
+    """
+    h, w = image_size
+    e3 = np.array([0.0, 0.0, 1.0])
+    edges = np.stack([K[0] + 0.5 * e3, (w - 0.5) * e3 - K[0], K[1] + 0.5 * e3, (h - 0.5) * e3 - K[1], e3])
+    return edges @ np.column_stack([R[:, 0], R[:, 1], t])
+
+
+def clip_polygon(polygon: np.ndarray, halfplanes: np.ndarray) -> np.ndarray:
+    """Intersect a convex polygon with half-planes (Sutherland-Hodgman).
+
+    Args:
+        polygon: ``(N, 2)`` vertices in order.
+        halfplanes: ``(M, 3)``, keeping points with ``a . (x, y, 1) >= 0``.
+
+    Returns:
+        ``(K, 2)`` vertices of the intersection (``K = 0`` when it is empty).
+    """
+    for a in halfplanes:
+        if len(polygon) == 0:
+            break
+        side = polygon @ a[:2] + a[2]
+        kept = []
+        for k in range(len(polygon)):
+            p, q, sp, sq = polygon[k - 1], polygon[k], side[k - 1], side[k]
+            if (sp >= 0) != (sq >= 0):
+                kept.append(p + (q - p) * (sp / (sp - sq)))
+            if sq >= 0:
+                kept.append(q)
+        polygon = np.array(kept).reshape(-1, 2)
+    return polygon
+
+
+def polygon_area(polygon: np.ndarray) -> float:
+    """Area of a simple polygon ``(N, 2)`` (shoelace formula), 0 for fewer than 3 vertices."""
+    if len(polygon) < 3:
+        return 0.0
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * abs(float(x @ np.roll(y, -1) - y @ np.roll(x, -1)))
+
+
+def painting_pixel_area(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                        others: tuple[np.ndarray, ...] = ()) -> float:
+    """Pixels of a camera's image covered by the painting, optionally only where other cameras see it too.
+
+    The painting's rectangle is clipped to the camera's visible half-planes (and to each of
+    ``others``, half-planes from :func:`visible_halfplanes`), projected into the image and
+    measured: exact for the pinhole model.
+
+    Args:
+        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
+        image_size: ``(H, W)`` of the image and of the painting (same aspect).
+        others: ``(5, 3)`` half-planes of further cameras.
+    """
+    region = plane_corners(image_size)[:, :2]
+    for halfplanes in (visible_halfplanes(K, R, t, image_size), *others):
+        region = clip_polygon(region, halfplanes)
+    if len(region) < 3:
+        return 0.0
+    return polygon_area(project(K, R, t, np.column_stack([region, np.zeros(len(region))])))

@@ -171,6 +171,10 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
     return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows)
 
 
+CAMERA_ATTEMPTS = 1000
+"""Draws per view before the sampler gives up on ``min_coverage`` / ``min_overlap``."""
+
+
 def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camera]:
     size = config.image_size
     reference = Camera(*geometry.reference_camera(size, rng.uniform(*config.camera_height)))
@@ -178,10 +182,42 @@ def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camer
         return [reference] * config.n_views
     cameras = [reference]
     for _ in range(config.n_views - 1):
-        position = _camera_position(config, rng)
-        K = geometry.intrinsics_from_fov(rng.uniform(*config.fov_deg), size)
-        cameras.append(Camera(K, *geometry.look_at(position)))
+        for _ in range(CAMERA_ATTEMPTS):
+            position = _camera_position(config, rng)
+            K = geometry.intrinsics_from_fov(rng.uniform(*config.fov_deg), size)
+            camera = Camera(K, *geometry.look_at(position))
+            if _meets_guarantees(camera, cameras, config):
+                break
+        else:
+            raise ValueError(
+                f"config fields 'min_coverage' ({config.min_coverage}) and 'min_overlap' "
+                f"({config.min_overlap}): no camera met them in {CAMERA_ATTEMPTS} draws from "
+                f"camera_xy={config.camera_xy}, camera_height={config.camera_height}, fov_deg="
+                f"{config.fov_deg}, max_tilt_deg={config.max_tilt_deg}; lower them or narrow the camera ranges")
+        cameras.append(camera)
     return cameras
+
+
+def _meets_guarantees(camera: Camera, previous: list[Camera], config: SidarConfig) -> bool:
+    """Whether the painting covers at least ``min_coverage`` of the camera's image, and each of the
+    camera and every ``previous`` one sees at least ``min_overlap`` of the other's painting pixels."""
+    if config.min_coverage == 0 and config.min_overlap == 0:
+        return True
+    size = config.image_size
+    seen = geometry.painting_pixel_area(camera.K, camera.R, camera.t, size)
+    if seen < config.min_coverage * size[0] * size[1] or seen == 0:
+        return False
+    if config.min_overlap == 0:
+        return True
+    mine = geometry.visible_halfplanes(camera.K, camera.R, camera.t, size)
+    for other in previous:
+        theirs = geometry.visible_halfplanes(other.K, other.R, other.t, size)
+        both = geometry.painting_pixel_area(camera.K, camera.R, camera.t, size, (theirs,))
+        other_seen = geometry.painting_pixel_area(other.K, other.R, other.t, size)
+        other_both = geometry.painting_pixel_area(other.K, other.R, other.t, size, (mine,))
+        if both < config.min_overlap * seen or other_both < config.min_overlap * other_seen:
+            return False
+    return True
 
 
 def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: int = 64) -> np.ndarray:
