@@ -166,7 +166,7 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
     views = []
     for camera in cameras:
         if content is None or config.scene_per_view:
-            content = _sample_content(config, rng, size)
+            content = _sample_content(config, rng, size, cameras)
         views.append(ViewScene(camera, *content))
     return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows)
 
@@ -238,11 +238,12 @@ def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: in
     return np.array([0.0, 0.0, z])
 
 
-def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]):
+def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int], cameras: list[Camera]):
     n_lights = rng.integers(config.n_lights[0], config.n_lights[1] + 1)
     lights = tuple(_sample_light(config, rng, size) for _ in range(n_lights))
     n_occluders = rng.integers(config.n_occluders[0], config.n_occluders[1] + 1)
-    occluders = tuple(_sample_occluder(config, rng) for _ in range(n_occluders))
+    centres = np.stack([camera.position for camera in cameras])
+    occluders = tuple(o for o in (_sample_occluder(config, rng, centres) for _ in range(n_occluders)) if o is not None)
     plane = Material(np.ones(4), rng.uniform(*config.plane_metallic), rng.uniform(*config.plane_roughness))
     return lights, occluders, plane, rng.uniform(*config.ambient)
 
@@ -295,14 +296,33 @@ def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[in
         position = position * 1.25
 
 
-def _sample_occluder(config: SidarConfig, rng: np.random.Generator) -> Occluder:
+OCCLUDER_ATTEMPTS = 100
+"""Placements tried for an occluder before it is left out of the view."""
+
+CAMERA_CLEARANCE = 0.01
+"""Least gap (painting units) between a camera and an occluder's bounding sphere: far more than
+the renderer's near plane (under 1e-3), so no occluder is cut open by it."""
+
+
+def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.ndarray) -> Occluder | None:
+    """An occluder clear of every camera centre ``cameras (V, 3)``, or ``None`` when
+    :data:`OCCLUDER_ATTEMPTS` placements all enclose a camera.
+
+    A camera inside an occluder would not see it (back faces are culled) while its shadow falls
+    on the view, and the mask would miss it.
+    """
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
-    xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
-    position = np.array([xy[0], xy[1], rng.uniform(*config.occluder_height)])
     rotation = _random_rotation(rng)
     scale = rng.uniform(*config.occluder_size, size=3)
     kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
-    return Occluder(shape, position, rotation, scale, _occluder_material(kind, rng))
+    material = _occluder_material(kind, rng)
+    radius = float(np.linalg.norm(scale))  # the unit primitive lies within the box |x_k| <= 1
+    for _ in range(OCCLUDER_ATTEMPTS):
+        xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
+        position = np.array([xy[0], xy[1], rng.uniform(*config.occluder_height)])
+        if np.linalg.norm(cameras - position, axis=1).min() > radius + CAMERA_CLEARANCE:
+            return Occluder(shape, position, rotation, scale, material)
+    return None
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:

@@ -57,3 +57,24 @@ def test_scene_per_view_false_keeps_one_scene():
     assert all(v.lights == first.lights and v.occluders == first.occluders for v in seq.views)
     seq = sample_sequence(small_config(n_occluders=(2, 2)), np.random.default_rng(3))
     assert any(v.occluders != seq.views[0].occluders for v in seq.views[1:])
+
+
+def test_no_occluder_encloses_a_camera():
+    # Occluders drawn in the cameras' own height band, large: many placements would enclose one.
+    from sidar_torch.render.meshes import unit_primitive
+
+    cfg = small_config(n_views=6, n_occluders=(6, 6), occluder_height=(0.7, 1.0), occluder_xy=0.3,
+                       occluder_size=(0.1, 0.2), occluder_shapes=("sphere", "cube"))
+    placed = 0
+    for seed in range(20):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        centres = np.stack([v.camera.position for v in seq.views])
+        for view in seq.views:
+            placed += len(view.occluders)
+            for occluder in view.occluders:
+                mesh = unit_primitive(occluder.shape).copy()
+                mesh.apply_transform(occluder.object_to_world())
+                # Inside a convex mesh = behind the plane of every face.
+                side = np.einsum("fa,cfa->cf", mesh.face_normals, centres[:, None] - mesh.triangles[None, :, 0])
+                assert not (side < 0).all(axis=1).any()
+    assert placed > 20 * 6 * 6 // 2  # most occluders still find a place
