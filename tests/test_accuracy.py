@@ -113,3 +113,17 @@ def test_accuracy_report_runs_and_meets_its_targets():
     assert report["homography"]["float64_px"] <= 1e-6
     assert report["label"][0]["min_psnr_db"] >= 45
     assert "257x131" in format_report(report) and "float64" in format_report(report)
+
+
+@pytest.mark.parametrize("overrides", [
+    dict(max_tilt_deg=85, camera_xy=3.0),             # grazing views
+    dict(fov_deg=(10, 20)),                           # narrow lenses
+    dict(fov_deg=(110, 120)),                         # wide lenses
+    dict(camera_height=(0.1, 0.2)),                   # very close
+    dict(camera_height=(20, 30), fov_deg=(10, 12)),   # very far
+], ids=["grazing", "narrow", "wide", "close", "far"])
+def test_hard_views_still_agree_with_their_homographies_when_rendered(overrides):
+    found = np.concatenate([lengths(warp_residuals(**pick(ambient_sample((131, 257), index, **overrides))))
+                            for index in range(3)])
+    assert len(found) >= 5
+    assert np.median(found) <= 0.05 and found.max() <= 0.2, (np.median(found), found.max())
