@@ -34,7 +34,6 @@ __all__ = [
     "homography_errors",
     "psnr",
     "speckle_paintings",
-    "visible_painting_points",
     "warp_residuals",
 ]
 
@@ -219,26 +218,6 @@ def warp_residuals(images: torch.Tensor, masks: torch.Tensor, homographies: torc
     return results
 
 
-def visible_painting_points(sequence: SceneSequence, grid: int = 17) -> tuple[np.ndarray, np.ndarray]:
-    """A ``grid x grid`` lattice of painting points, where each view sees them.
-
-    Returns:
-        ``(V, N, 2)`` float64 pixel coordinates of the ``N = grid**2`` points in every view, and
-        ``(V, N)`` bool: the point is in front of the camera and inside the image.
-    """
-    h, w = sequence.image_size
-    K, R, t = sequence.cameras()
-    corners = geometry.plane_corners(sequence.image_size)
-    s = np.linspace(0.0, 1.0, grid)
-    u, v = np.meshgrid(s, s)
-    points = corners[0] + u.reshape(-1, 1) * (corners[1] - corners[0]) + v.reshape(-1, 1) * (corners[3] - corners[0])
-    pixels = geometry.project(K, R, t, points)
-    depth = np.einsum("vab,nb->vna", R, points)[..., 2] + t[:, None, 2]
-    inside = (depth > 0) & (pixels[..., 0] >= -0.5) & (pixels[..., 0] <= w - 0.5) \
-        & (pixels[..., 1] >= -0.5) & (pixels[..., 1] <= h - 0.5)
-    return pixels, inside
-
-
 @dataclass(frozen=True)
 class HomographyError:
     """How far one sample's handed-out homographies are from the true ones, in pixels of the target
@@ -261,29 +240,15 @@ class HomographyError:
 
 def homography_errors(sequence: SceneSequence, grid: int = 17) -> HomographyError:
     """Compare a sequence's homographies (as :func:`sidar_torch.dataset.sequence_homographies`
-    computes them) with the analytic plane-induced ones on :func:`visible_painting_points`."""
+    computes them) with the analytic plane-induced ones at the painting points of a
+    ``grid x grid`` lattice that both views of a pair see."""
     H64, _ = sequence_homographies(sequence)
     K, R, t = sequence.cameras()
     truth = geometry.plane_induced_homographies(K, R, t)
-    pixels, inside = visible_painting_points(sequence, grid)
-    v = len(sequence.views)
-    both = inside[:, None] & inside[None, :] & ~np.eye(v, dtype=bool)[..., None]  # (V, V, N)
-    expected = _apply(truth, pixels)
+    pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size, grid)
+    both = geometry.shared_points(inside)
     H32 = H64.float()
     cycle = (H32 @ H32.transpose(0, 1) - torch.eye(3)).abs().amax().item()
-    return HomographyError(_largest(_apply(H64.numpy(), pixels), expected, both),
-                           _largest(_apply(H32.double().numpy(), pixels), expected, both),
+    return HomographyError(geometry.point_disagreement(H64.numpy(), truth, pixels, both),
+                           geometry.point_disagreement(H32.double().numpy(), truth, pixels, both),
                            cycle, int(both.any(-1).sum()))
-
-
-def _apply(H: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Map view-i points ``(V, N, 2)`` by every ``H[i, j]`` (``(V, V, 3, 3)``): ``(V, V, N, 2)``."""
-    q = np.einsum("ijab,inb->ijna", H, np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2))
-    return q[..., :2] / q[..., 2:]
-
-
-def _largest(a: np.ndarray, b: np.ndarray, where: np.ndarray) -> float:
-    """Largest distance between points ``(..., 2)`` of ``a`` and ``b`` where ``where (...)``, else 0."""
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        distance = np.linalg.norm(a - b, axis=-1)
-    return float(distance[where].max(initial=0.0))

@@ -31,15 +31,17 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
     :func:`sidar_torch.geometry.homographies_from_points`).
 
     Returns:
-        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in pixels
-        between where they and the analytic plane-induced homographies send those points.
+        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in view-j pixels
+        between where they and the analytic plane-induced homographies send the painting points
+        both views of a pair see (a 17 x 17 lattice, :func:`sidar_torch.geometry.visible_plane_points`):
+        the DLT is exact at its own four points, so the error shows elsewhere.
     """
     K, R, t = sequence.cameras()
     centres = np.stack([view.camera.position for view in sequence.views])
-    points = geometry.project(K, R, t, geometry.fit_points(centres))
-    H = geometry.homographies_from_points(points)
-    error = geometry.point_disagreement(H.numpy(), geometry.plane_induced_homographies(K, R, t), points)
-    return H, error
+    H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.fit_points(centres)))
+    pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
+    truth = geometry.plane_induced_homographies(K, R, t)
+    return H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int) -> dict[str, Any]:

@@ -25,6 +25,8 @@ __all__ = [
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
+    "shared_points",
+    "visible_plane_points",
     "visible_halfplanes",
     "corner_pixels",
     "fit_points",
@@ -217,17 +219,53 @@ def plane_induced_homographies(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> n
     return normalize_det(torch.from_numpy(H)).numpy()
 
 
-def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray) -> float:
+def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray, where: np.ndarray | None = None) -> float:
     """Largest distance in pixels between where two sets of homographies send the same points.
 
     Args:
         H_a, H_b: ``(V, V, 3, 3)`` homographies (any scale), ``H[i, j]`` from view i to view j.
         points: ``(V, N, 2)`` the points in each view's pixels.
+        where: ``(V, V, N)`` bool, which points to compare for each pair (default: all).
+
+    Returns:
+        The largest distance in view-j pixels (0 when ``where`` selects nothing).
     """
     src = np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2)
     a = np.einsum("ijab,inb->ijna", H_a, src)
     b = np.einsum("ijab,inb->ijna", H_b, src)
-    return float(np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1).max())
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # unselected points may map to infinity
+        distance = np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1)
+    return float(distance.max() if where is None else distance[where].max(initial=0.0))
+
+
+def visible_plane_points(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                         grid: int = 17) -> tuple[np.ndarray, np.ndarray]:
+    """A ``grid x grid`` lattice over the painting, and which cameras see each of its points.
+
+    Args:
+        K, R: ``(V, 3, 3)``; t: ``(V, 3)`` float64 cameras.
+        image_size: ``(H, W)`` of the views and the painting.
+
+    Returns:
+        ``(V, N, 2)`` float64 pixel coordinates of the ``N = grid**2`` points in every view, and
+        ``(V, N)`` bool: the point is in front of the camera and inside the image's outer edges.
+    """
+    h, w = image_size
+    corners = plane_corners(image_size)
+    u, v = (c.reshape(-1, 1) for c in np.meshgrid(np.linspace(0, 1, grid), np.linspace(0, 1, grid)))
+    points = corners[0] + u * (corners[1] - corners[0]) + v * (corners[3] - corners[0])
+    depth = np.einsum("vab,nb->vna", R, points)[..., 2] + t[:, None, 2]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # points in the camera's plane
+        pixels = project(K, R, t, points)
+        inside = (depth > 0) & (pixels[..., 0] >= -0.5) & (pixels[..., 0] <= w - 0.5) \
+            & (pixels[..., 1] >= -0.5) & (pixels[..., 1] <= h - 0.5)
+    return pixels, inside
+
+
+def shared_points(inside: np.ndarray) -> np.ndarray:
+    """``(V, V, N)`` bool: point ``n`` is seen by both views ``i != j``, from ``inside (V, N)``."""
+    v = len(inside)
+    return inside[:, None] & inside[None, :] & ~np.eye(v, dtype=bool)[..., None]
 
 
 def visible_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:

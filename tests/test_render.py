@@ -5,7 +5,7 @@ import gc
 import numpy as np
 import pytest
 
-from sidar_torch import geometry
+from sidar_torch import SidarDataset, geometry
 from sidar_torch.render import SceneRenderer, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -146,3 +146,11 @@ def test_wrong_inputs_are_rejected():
         renderer.render(one_view(SMALL), np.zeros((*SMALL, 3), np.float32))
     with pytest.raises(ValueError, match="image_size"):
         renderer.render(one_view((64, 64)), np.zeros((64, 64, 3), np.uint8))
+
+
+def test_a_camera_a_thousandth_above_a_wide_painting_still_sees_it():
+    # The near plane follows the camera down: at far / 2000 it would clip the painting away.
+    cfg = small_config("ambient", image_size=(64, 512), camera_height=(1e-3, 1e-3), n_views=3, max_tilt_deg=30)
+    s = SidarDataset(config=cfg, seed=0).sample(0)
+    assert float(s["masks"][0].mean()) == 0.0  # the reference view is all painting
+    assert float(s["masks"][1:].mean()) < 0.5

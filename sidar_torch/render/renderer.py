@@ -35,7 +35,7 @@ from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS
 from ..geometry import look_at, plane_corners
-from ..scene import Camera, Light, Material, SceneSequence, ViewScene
+from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
 from .programs import ProgramCache
@@ -95,10 +95,22 @@ def _gl_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def _clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, float]:
-    """Near and far clip distances: far beyond the painting's farthest corner, near at far / 2000
-    (24-bit depth then resolves about 1e-4 painting units at the painting)."""
+    """Near and far clip distances (painting units, along the optical axis).
+
+    Far lies beyond the painting's farthest corner. Near is far / 2000 (24-bit depth then resolves
+    about 1e-4 painting units at the painting), or less for a camera closer to the painting than
+    that: every painting point is at least the camera's height ``z`` away, and every occluder at
+    least :data:`~sidar_torch.scene.CAMERA_CLEARANCE`; a point at distance ``r`` inside the view
+    is at depth at least ``r cos(theta)``, ``theta`` the angle of the image's farthest corner
+    from the axis. Near is half the smaller such depth.
+    """
     zfar = 2.0 * float(np.linalg.norm(plane_corners(image_size) - camera.position, axis=1).max())
-    return zfar / 2000.0, zfar
+    h, w = image_size
+    f = camera.K[0, 0]
+    corner = np.hypot(max(camera.K[0, 2] + 0.5, w - 0.5 - camera.K[0, 2]), max(camera.K[1, 2] + 0.5, h - 0.5 - camera.K[1, 2]))
+    cos_corner = f / np.hypot(f, corner)
+    nearest = min(float(camera.position[2]), CAMERA_CLEARANCE) * cos_corner
+    return min(zfar / 2000.0, nearest / 2), zfar
 
 
 def _gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
