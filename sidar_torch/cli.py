@@ -70,6 +70,39 @@ def _accuracy(args: argparse.Namespace) -> None:
         Path(args.markdown).write_text(text + "\n")
 
 
+def _parse_size(text: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT`` (``512x384``) -> ``(H, W)``."""
+    w, _, h = text.lower().partition("x")
+    try:
+        size = (int(h), int(w))
+    except ValueError:
+        size = (0, 0)
+    if min(size) < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected WIDTHxHEIGHT in pixels, e.g. 512x384")
+    return size
+
+
+def _bench(args: argparse.Namespace) -> None:
+    from . import bench
+
+    changes = {"presets": args.presets, "sizes": args.sizes, "workers": args.workers, "samples": args.samples}
+    changes = {k: tuple(v) if isinstance(v, list) else v for k, v in changes.items() if v is not None}
+    try:
+        factory = bench.BenchSettings.quick if args.quick else bench.BenchSettings
+        settings = factory(**changes, overrides=_parse_set(args.set))
+        for preset in settings.presets:  # fail before measuring anything
+            load_config(preset, **settings.overrides)
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"bench: {error}") from error
+    report = bench.run_bench(settings, log=lambda line: print(line, file=sys.stderr))
+    text = bench.format_report(report)
+    print(text)
+    for path, content in ((args.out_md, text + "\n"), (args.out_json, json.dumps(report, indent=2) + "\n")):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(content)
+    print(f"wrote {args.out_md} and {args.out_json}", file=sys.stderr)
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m sidar_torch", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -92,6 +125,31 @@ def _parser() -> argparse.ArgumentParser:
     accuracy.add_argument("--json", default=None, help="also write the figures as JSON to this path")
     accuracy.add_argument("--markdown", default=None, help="also write the table as markdown to this path")
     accuracy.set_defaults(run=_accuracy)
+    bench = commands.add_parser(
+        "bench", help="measure sequences/s, where the time goes, a kornia baseline and memory (prints a table)",
+        description="Sequences/s and views/s of each preset and size in this process (median after a "
+                    "warm-up sample, with the time of each step) and through a DataLoader; kornia's 2-D "
+                    "augmentation pipeline per image at the same sizes and our per-view cost against it; "
+                    "peak memory. Prints a markdown table and writes it as markdown and JSON. Full run: "
+                    "every preset at 256x192, 512x384 and 1024x768, main process and 1 and 2 workers "
+                    "(several minutes on 2 cores).")
+    bench.add_argument("--quick", action="store_true",
+                       help="misaligned and ambient at 256x192, 4 samples, main process, 1 and 2 workers "
+                            "(about a minute); the options below still apply")
+    bench.add_argument("--presets", nargs="+", default=None, metavar="PRESET",
+                       help=f"presets or YAML paths to measure (default: all of {', '.join(available_presets())})")
+    bench.add_argument("--sizes", nargs="+", type=_parse_size, default=None, metavar="WxH",
+                       help="output sizes, width x height (default: 256x192 512x384 1024x768)")
+    bench.add_argument("--workers", nargs="+", type=int, default=None, metavar="N",
+                       help="0 measures in this process, with the time of each step; N >= 1 through a "
+                            "DataLoader with N workers (default: 0 1 2)")
+    bench.add_argument("--samples", type=int, default=None,
+                       help="measured samples per row, after the warm-up (default 8, quick 4)")
+    bench.add_argument("--out-md", default="out/bench.md", help="markdown output path (default out/bench.md)")
+    bench.add_argument("--out-json", default="out/bench.json", help="JSON output path (default out/bench.json)")
+    bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a config field of every preset (repeatable), e.g. --set n_views=4")
+    bench.set_defaults(run=_bench)
     return parser
 
 

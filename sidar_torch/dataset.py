@@ -19,6 +19,7 @@ from .config import SidarConfig, load_config
 from .render import shared_renderer
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
+from .timing import timed
 
 __all__ = ["SidarDataset", "render_sample", "sequence_homographies"]
 
@@ -44,7 +45,8 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
     return H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))
 
 
-def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int) -> dict[str, Any]:
+def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
+                  timings: dict[str, float] | None = None) -> dict[str, Any]:
     """Render ``sequence`` with ``painting`` and assemble one sample dict (see :class:`SidarDataset`).
 
     The one place where a sample is put together: :meth:`SidarDataset.sample` and
@@ -55,26 +57,31 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
         config: gives the renderer's settings (image size, shadow-map size).
         index: stored as the sample's ``index``.
+        timings: if given, seconds spent are added to its keys: the renderer's steps (see
+            :meth:`sidar_torch.render.SceneRenderer.render`), ``"homographies"`` and ``"tensors"``
+            (conversion of the pixels to float tensors).
 
     Returns:
         The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
         ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
     """
     renderer = shared_renderer(config.image_size, config.shadow_map_size)
-    rendered = renderer.render(sequence, painting)
-    K, R, t = sequence.cameras()
-    homographies, homography_error = sequence_homographies(sequence)
-    return {
-        "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
-        "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
-        "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
-        "homographies": homographies.float(),
-        "homography_error": homography_error,
-        "K": torch.from_numpy(K).float(),
-        "R": torch.from_numpy(R).float(),
-        "t": torch.from_numpy(t).float(),
-        "index": index,
-    }
+    rendered = renderer.render(sequence, painting, timings)
+    with timed(timings, "homographies"):
+        K, R, t = sequence.cameras()
+        homographies, homography_error = sequence_homographies(sequence)
+    with timed(timings, "tensors"):
+        return {
+            "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
+            "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
+            "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
+            "homographies": homographies.float(),
+            "homography_error": homography_error,
+            "K": torch.from_numpy(K).float(),
+            "R": torch.from_numpy(R).float(),
+            "t": torch.from_numpy(t).float(),
+            "index": index,
+        }
 
 
 def _check_int(name: str, value: Any, low: int) -> int:
