@@ -39,8 +39,8 @@ MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
 
 LIGHT_TYPES = ("spot", "point", "area")
-OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus")
-OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent")
+OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull")
+OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
 
 Range = tuple[float, float]
@@ -70,7 +70,12 @@ class SidarConfig:
         n_lights: range of the number of lights.
         light_types: light kinds to draw from (``spot``, ``point``, ``area``).
         light_xy, light_height: light position box, like the cameras'.
-        light_irradiance: range of each light's irradiance at the painting's centre.
+        light_irradiance, spot_irradiance, area_irradiance: ranges of a point, spot and area
+            light's irradiance at the painting's centre (an area light's summed over its emitters).
+            The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area
+            1-2 kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen
+            so that the fraction of blown-out painting pixels matches the paper's renders
+            (``scripts/exposure.py``).
         light_saturation_max: colour is HSV(U(0, 1), U(0, this), 1).
         spot_cone_deg: range of a spot light's full cone angle.
         area_light_size: side of a square area light.
@@ -81,8 +86,17 @@ class SidarConfig:
         occluder_xy, occluder_height: box of occluder centres.
         occluder_size: range of an occluder's half-extent along each of its axes.
         occluders_visible: false makes occluders invisible to cameras; they still cast shadows.
+        mask_min_opacity: occluders whose material opacity (alpha) is below this are left out of
+            the masks: the painting seen through them counts as visible. 0 (the paper's choice)
+            masks every occluder, however transparent.
         shadows: whether lights cast shadows.
         plane_roughness, plane_metallic: ranges of the painting's material.
+        plane_specular: range of the painting's specular level (dielectric reflectance at normal
+            incidence ``0.08 * level``, Blender's convention: 0.5 is 4 %).
+        plane_coat, plane_coat_roughness: ranges of the weight and roughness of a clear coat on
+            the painting (a second, sharper specular lobe with 4 % reflectance).
+        plane_diffuse: a purely diffuse painting (metallic 0, roughness 1, no specular, no coat),
+            overriding the other ``plane_*`` ranges.
         scene_per_view: draw new lights, occluders and painting material for every view.
 
     Rendering
@@ -108,12 +122,14 @@ class SidarConfig:
     light_types: tuple[str, ...] = LIGHT_TYPES
     light_xy: float = 10 / 7
     light_height: Range = (10 / 7, 15 / 7)
-    light_irradiance: Range = (0.5, 3.0)
+    light_irradiance: Range = (0.5, 1.75)
+    spot_irradiance: Range = (0.5, 5.0)
+    area_irradiance: Range = (2.0, 4.0)
     light_saturation_max: float = 0.3
     spot_cone_deg: Range = (10.0, 90.0)
     area_light_size: float = 0.3
     area_light_samples: int = 4
-    ambient: Range = (0.1, 0.3)
+    ambient: Range = (0.0, 0.02)
 
     n_occluders: IntRange = (0, 3)
     occluder_shapes: tuple[str, ...] = OCCLUDER_SHAPES
@@ -122,10 +138,15 @@ class SidarConfig:
     occluder_height: Range = (1 / 7, 5 / 7)
     occluder_size: Range = (0.1 / 7, 1.1 / 7)
     occluders_visible: bool = True
+    mask_min_opacity: float = 0.0
     shadows: bool = True
 
     plane_roughness: Range = (0.4, 1.0)
     plane_metallic: Range = (0.0, 0.2)
+    plane_specular: Range = (0.0, 1.0)
+    plane_coat: Range = (0.0, 1.0)
+    plane_coat_roughness: Range = (0.03, 0.3)
+    plane_diffuse: bool = False
     scene_per_view: bool = True
 
     shadow_map_size: int = 1024
@@ -197,6 +218,7 @@ def _validate(c: SidarConfig) -> None:
     need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
     need(c.area_light_size > 0, "area_light_size", "> 0")
     need(c.area_light_samples >= 1, "area_light_samples", "at least 1")
+    need(0 <= c.mask_min_opacity <= 1, "mask_min_opacity", "a value in [0, 1]")
     size = c.shadow_map_size
     need(size >= 16 and size & (size - 1) == 0, "shadow_map_size", "a power of two >= 16")
     need(len(c.light_types) > 0 and set(c.light_types) <= set(LIGHT_TYPES),
@@ -208,9 +230,11 @@ def _validate(c: SidarConfig) -> None:
     bounded = {
         "camera_height": (1e-3, math.inf), "fov_deg": (1.0, 170.0), "n_lights": (0, 8),
         "light_height": (1e-3, math.inf), "light_irradiance": (0.0, math.inf),
+        "spot_irradiance": (0.0, math.inf), "area_irradiance": (0.0, math.inf),
         "spot_cone_deg": (1.0, 114.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
         "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
-        "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0),
+        "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0), "plane_specular": (0.0, 1.0),
+        "plane_coat": (0.0, 1.0), "plane_coat_roughness": (0.0, 1.0),
     }
     for name, (lo, hi) in bounded.items():
         low, high = getattr(c, name)

@@ -69,11 +69,24 @@ class Camera(_Plain):
 
 @dataclass(frozen=True, eq=False)
 class Material(_Plain):
-    """A metallic-roughness surface. ``base_color (4,)`` is linear RGBA; alpha < 1 is blended."""
+    """A metallic-roughness surface with an optional clear coat (all factors in [0, 1]).
+
+    Attributes:
+        base_color: ``(4,)`` linear RGBA; alpha < 1 is blended (the opacity at normal incidence;
+            towards grazing angles it rises with the Fresnel reflectance, see ``render.programs``).
+        metallic, roughness: glTF metallic-roughness factors.
+        specular: dielectric reflectance at normal incidence is ``0.08 * specular`` (Blender's
+            convention; 0.5 is glTF's 4 %, 0 a purely diffuse dielectric).
+        coat, coat_roughness: weight and roughness of a clear coat, a second specular lobe of 4 %
+            reflectance over the base.
+    """
 
     base_color: np.ndarray
     metallic: float
     roughness: float
+    specular: float = 0.5
+    coat: float = 0.0
+    coat_roughness: float = 0.0
 
     @property
     def transparent(self) -> bool:
@@ -104,14 +117,16 @@ class Light(_Plain):
 
 @dataclass(frozen=True, eq=False)
 class Occluder(_Plain):
-    """A unit primitive (``shape``: half-extent 1 along each axis) scaled by ``scale (3,)``,
-    rotated by ``rotation (3, 3)`` and centred at ``position (3,)``."""
+    """A unit primitive (``shape``, within the box ``|x_k| <= 1``; ``variant`` picks one of the
+    :data:`HULL_VARIANTS` for a ``hull``, else 0) scaled by ``scale (3,)``, rotated by
+    ``rotation (3, 3)`` and centred at ``position (3,)``."""
 
     shape: str
     position: np.ndarray
     rotation: np.ndarray
     scale: np.ndarray
     material: Material
+    variant: int = 0
 
     def object_to_world(self) -> np.ndarray:
         """``(4, 4)`` float64 transform from the unit primitive's frame to the world."""
@@ -141,12 +156,15 @@ class SceneSequence(_Plain):
         views: ``V`` view scenes; view 0's camera is the fronto-parallel reference.
         occluders_visible: false: occluders cast shadows but cameras do not see them.
         shadows: whether lights cast shadows.
+        mask_min_opacity: occluders whose ``material.base_color[3]`` is below this are left out
+            of the masks (0: every occluder is masked).
     """
 
     image_size: tuple[int, int]
     views: tuple[ViewScene, ...]
     occluders_visible: bool
     shadows: bool
+    mask_min_opacity: float = 0.0
 
     def cameras(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Stacked ``K (V, 3, 3)``, ``R (V, 3, 3)``, ``t (V, 3)`` float64."""
@@ -168,7 +186,7 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
         if content is None or config.scene_per_view:
             content = _sample_content(config, rng, size, cameras)
         views.append(ViewScene(camera, *content))
-    return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows)
+    return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows, config.mask_min_opacity)
 
 
 CAMERA_ATTEMPTS = 1000
@@ -244,8 +262,18 @@ def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[i
     n_occluders = rng.integers(config.n_occluders[0], config.n_occluders[1] + 1)
     centres = np.stack([camera.position for camera in cameras])
     occluders = tuple(o for o in (_sample_occluder(config, rng, centres) for _ in range(n_occluders)) if o is not None)
-    plane = Material(np.ones(4), rng.uniform(*config.plane_metallic), rng.uniform(*config.plane_roughness))
-    return lights, occluders, plane, rng.uniform(*config.ambient)
+    return lights, occluders, _plane_material(config, rng), rng.uniform(*config.ambient)
+
+
+def _plane_material(config: SidarConfig, rng: np.random.Generator) -> Material:
+    """The painting's material: white base (the texture gives its colour), the rest from the
+    ``plane_*`` ranges, or purely diffuse when ``plane_diffuse`` is set (no draws then)."""
+    if config.plane_diffuse:
+        return Material(np.ones(4), 0.0, 1.0, specular=0.0)
+    metallic, roughness, specular, coat, coat_roughness = (rng.uniform(*r) for r in (
+        config.plane_metallic, config.plane_roughness, config.plane_specular, config.plane_coat,
+        config.plane_coat_roughness))
+    return Material(np.ones(4), metallic, roughness, specular, coat, coat_roughness)
 
 
 def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]) -> Light:
@@ -253,7 +281,8 @@ def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int
     xy = rng.uniform(-config.light_xy, config.light_xy, size=2)
     position = np.array([xy[0], xy[1], rng.uniform(*config.light_height)])
     color = np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, config.light_saturation_max), 1.0))
-    irradiance = rng.uniform(*config.light_irradiance)
+    irradiance = rng.uniform(*{"spot": config.spot_irradiance, "point": config.light_irradiance,
+                               "area": config.area_irradiance}[kind])
     if kind == "spot":
         outer = min(math.radians(rng.uniform(*config.spot_cone_deg)) / 2, MAX_EMITTER_CONE)
         inner = outer * (1.0 - rng.uniform())
@@ -296,6 +325,9 @@ def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[in
         position = position * 1.25
 
 
+HULL_VARIANTS = 8
+"""Distinct ``hull`` primitives an occluder can be (see ``render.meshes``)."""
+
 OCCLUDER_ATTEMPTS = 100
 """Placements tried for an occluder before it is left out of the view."""
 
@@ -314,6 +346,7 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
     rotation = _random_rotation(rng)
     scale = rng.uniform(*config.occluder_size, size=3)
+    variant = int(rng.integers(HULL_VARIANTS)) if shape == "hull" else 0
     kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
     material = _occluder_material(kind, rng)
     radius = float(np.linalg.norm(scale))  # the unit primitive lies within the box |x_k| <= 1
@@ -321,7 +354,7 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
         xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
         position = np.array([xy[0], xy[1], rng.uniform(*config.occluder_height)])
         if np.linalg.norm(cameras - position, axis=1).min() > radius + CAMERA_CLEARANCE:
-            return Occluder(shape, position, rotation, scale, material)
+            return Occluder(shape, position, rotation, scale, material, variant)
     return None
 
 
@@ -336,9 +369,25 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
 
 
 def _occluder_material(kind: str, rng: np.random.Generator) -> Material:
+    """An occluder material of one of ``config.OCCLUDER_MATERIALS``:
+
+    * ``diffuse``: Lambertian (no specular); ``glossy``: dielectric with a sharp highlight;
+      ``metallic``: metal tinted by its colour;
+    * ``transparent``: alpha 0.2-0.7, tinted; ``glass``: nearly clear (alpha 0.05-0.25, pale
+      tint) with a sharp clear-coat highlight; both get more opaque towards grazing angles;
+    * ``principled``: every factor random (base colour, metallic, roughness, specular, coat).
+    """
+    if kind == "glass":
+        rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
+        return Material(np.array([*rgb, rng.uniform(0.05, 0.25)]), 0.0, rng.uniform(0.02, 0.1), 0.5,
+                        1.0, rng.uniform(0.02, 0.08))
     rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+    if kind == "principled":
+        metallic, roughness, specular, coat = rng.uniform(size=4)
+        return Material(np.array([*rgb, 1.0]), metallic, roughness, specular, coat, rng.uniform(0.03, 0.3))
     alpha = rng.uniform(0.2, 0.7) if kind == "transparent" else 1.0
     metallic = 1.0 if kind == "metallic" else 0.0
     roughness = {"diffuse": 1.0, "glossy": rng.uniform(0.05, 0.3),
                  "metallic": rng.uniform(0.05, 0.4), "transparent": rng.uniform(0.05, 0.5)}[kind]
-    return Material(np.array([*rgb, alpha]), metallic, roughness)
+    specular = {"diffuse": 0.0, "glossy": 1.0}.get(kind, 0.5)
+    return Material(np.array([*rgb, alpha]), metallic, roughness, specular)

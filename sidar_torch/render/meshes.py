@@ -1,8 +1,12 @@
 """Unit occluder primitives (trimesh) and the painting's plane, as pyrender meshes.
 
-Each unit primitive has half-extent 1 along x and y (the torus 0.3 along z) and is centred
-at the origin; a scene's occluder scales, rotates and places it. Meshes are pooled: a renderer
-uploads each pooled mesh once and reuses it with a new pose and material in every view.
+Each unit primitive is centred at the origin and lies within the box ``|x_k| <= 1`` (the
+scene sampler's bounding sphere relies on it): half-extent 1 along x and y for the sphere,
+cube, cylinder, cone and torus (the torus 0.3 along z); the capsule is 0.5 wide and 2 long
+along z; the icosahedron's vertices lie on the unit sphere; a ``hull`` is the convex hull of
+random points on the unit sphere, one of :data:`sidar_torch.scene.HULL_VARIANTS` fixed variants
+(variant ``k`` drawn with ``default_rng(k)``). A scene's occluder scales, rotates and places it. Meshes are pooled: a renderer uploads each pooled mesh
+once and reuses it with a new pose and material in every view.
 """
 
 from __future__ import annotations
@@ -18,37 +22,49 @@ from .. import geometry
 
 __all__ = ["MeshPool", "plane_mesh", "unit_primitive"]
 
-_UNIT_PRIMITIVES: dict[str, Callable[[], trimesh.Trimesh]] = {
-    "sphere": lambda: trimesh.creation.icosphere(subdivisions=3, radius=1.0),
-    "cube": lambda: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
-    "cylinder": lambda: trimesh.creation.cylinder(radius=1.0, height=2.0, sections=48),
-    "cone": lambda: trimesh.creation.cone(radius=1.0, height=2.0, sections=48).apply_translation((0, 0, -1.0)),
-    "torus": lambda: trimesh.creation.torus(major_radius=0.7, minor_radius=0.3, major_sections=48,
-                                            minor_sections=24),
+
+def _hull(variant: int) -> trimesh.Trimesh:
+    """Convex hull of 8-15 points drawn uniformly on the unit sphere (a pebble or crystal)."""
+    rng = np.random.default_rng(variant)
+    points = rng.normal(size=(rng.integers(8, 16), 3))
+    return trimesh.convex.convex_hull(points / np.linalg.norm(points, axis=1, keepdims=True))
+
+
+_UNIT_PRIMITIVES: dict[str, Callable[[int], trimesh.Trimesh]] = {
+    "sphere": lambda _: trimesh.creation.icosphere(subdivisions=3, radius=1.0),
+    "cube": lambda _: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
+    "cylinder": lambda _: trimesh.creation.cylinder(radius=1.0, height=2.0, sections=48),
+    "cone": lambda _: trimesh.creation.cone(radius=1.0, height=2.0, sections=48).apply_translation((0, 0, -1.0)),
+    "torus": lambda _: trimesh.creation.torus(major_radius=0.7, minor_radius=0.3, major_sections=48,
+                                              minor_sections=24),
+    "capsule": lambda _: trimesh.creation.capsule(height=1.0, radius=0.5, count=(32, 16)),
+    "icosahedron": lambda _: trimesh.creation.icosahedron(),
+    "hull": _hull,
 }
-_SMOOTH = {"sphere", "torus"}
+_SMOOTH = {"sphere", "torus", "capsule"}
 """Shapes shaded with smooth vertex normals; the others keep sharp edges (flat face normals)."""
 
 
-def unit_primitive(shape: str) -> trimesh.Trimesh:
-    """The unit primitive of ``shape`` as a trimesh (see module docstring for its size)."""
-    return _UNIT_PRIMITIVES[shape]()
+def unit_primitive(shape: str, variant: int = 0) -> trimesh.Trimesh:
+    """The unit primitive of ``shape`` as a trimesh (see module docstring for its size);
+    ``variant`` picks a hull (``0 <= variant < scene.HULL_VARIANTS``) and is ignored by other shapes."""
+    return _UNIT_PRIMITIVES[shape](variant)
 
 
 class MeshPool:
     """pyrender meshes of each shape, created on demand and reused (one GL upload each).
 
-    ``take(shape, k)`` returns the ``k``-th mesh of that shape, so a view with two spheres
-    uses two distinct meshes (each carries its own material).
+    ``take(shape, variant, k)`` returns the ``k``-th mesh of that shape and variant, so a view
+    with two spheres uses two distinct meshes (each carries its own material).
     """
 
     def __init__(self) -> None:
-        self._meshes: dict[str, list[pyrender.Mesh]] = defaultdict(list)
+        self._meshes: dict[tuple[str, int], list[pyrender.Mesh]] = defaultdict(list)
 
-    def take(self, shape: str, k: int) -> pyrender.Mesh:
-        meshes = self._meshes[shape]
+    def take(self, shape: str, variant: int, k: int) -> pyrender.Mesh:
+        meshes = self._meshes[shape, variant]
         while len(meshes) <= k:
-            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape), smooth=shape in _SMOOTH))
+            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape, variant), smooth=shape in _SMOOTH))
         return meshes[k]
 
 

@@ -18,6 +18,19 @@
 4. **The lit shader's output encoding is a gamma-2.2 approximation** (``pow(x, 1/2.2)``)
    although it decodes textures with the exact sRGB curve, so an ambient-only render is up to
    9 levels off its texture. :data:`SHADER_PATCHES` swaps in the exact sRGB encoding.
+5. **pyrender's material has no specular level, clear coat or Fresnel opacity.** Nothing here
+   emits light, so the material's ``emissive_factor`` uniform (always bound by pyrender) carries
+   ``(specular, coat, coat_roughness)`` instead (see :func:`surface_factors`), and emission is
+   dropped:
+
+   * the dielectric reflectance at normal incidence is ``0.08 * specular`` (pyrender: fixed 4 %);
+   * a clear coat adds a second GGX lobe of 4 % reflectance and its own roughness, and the base
+     layer below it gets the light the coat does not reflect (``1 - coat * F_coat``);
+   * a blended (transparent) surface's opacity rises from its alpha towards 1 with the Schlick
+     Fresnel reflectance of the view direction (4 % at normal incidence), so glass reads darker
+     or brighter at its silhouette, and specular light (coat and base, unshadowed) raises the
+     opacity too, so a highlight on clear glass shows at full strength instead of being blended
+     away. There is no refraction: what lies behind a transparent object is seen undisplaced.
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it.
@@ -27,11 +40,12 @@ from __future__ import annotations
 
 import os
 
+import numpy as np
 from OpenGL import GL
 from OpenGL.GL import shaders as gl_shaders
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
-__all__ = ["ProgramCache", "SHADER_PATCHES"]
+__all__ = ["ProgramCache", "SHADER_PATCHES", "surface_factors"]
 
 _SPOT_SHADOW_LOOKUP = """
 float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
@@ -51,10 +65,41 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
 }
 """
 
+_SURFACE_BRDF = """
+        vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
+
+        // Clear coat: a GGX lobe of 4 % reflectance and roughness material.emissive_factor.z.
+        float coat = material.emissive_factor.y;
+        PBRInfo coat_info = PBRInfo(nl, nv, nh, lh, vh, max(material.emissive_factor.z, min_roughness),
+                                    0.0, vec3(0.04), vec3(0.0));
+        float coat_f = specular_reflection(coat_info).x * coat;
+        float coat_spec = coat_f * geometric_occlusion(coat_info) * microfacet_distribution(coat_info)
+                        / (4.0 * nl * nv + 0.001);
+        specular_light += nl * radiance * (spec_contrib + coat_spec);
+
+        vec3 color = nl * radiance * ((diffuse_contrib + spec_contrib) * (1.0 - coat_f) + coat_spec);
+"""
+
+_SURFACE_GLOBALS = """
+vec3 specular_light = vec3(0.0);  // specular light reflected towards the camera, unshadowed
+
+vec3 compute_brdf("""
+
+_FRESNEL_ALPHA = """vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"""
+
 _EXACT_SRGB_ENCODE = """
+float surface_alpha(float alpha, vec3 n)
+{
+    // Opacity of a blended surface: Schlick-Fresnel towards grazing views, plus its specular light.
+    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
+    float fresnel = 0.04 + 0.96 * pow(1.0 - nv, 5.0);
+    return clamp(mix(alpha, 1.0, fresnel) + max(specular_light.r, max(specular_light.g, specular_light.b)),
+                 0.0, 1.0);
+}
+
 vec3 linear_to_srgb(vec3 c)
 {
-    c = clamp(c, 0.0, 1.0);
+    c = clamp(c + max(max(c.r, max(c.g, c.b)) - 1.0, 0.0), 0.0, 1.0);  // over-exposure spills into white
     return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
 }
 
@@ -68,12 +113,25 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
          "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
         ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
-        ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)",
-         "vec4(linear_to_srgb(color.xyz), color.a * base_color.a)"),
+        ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
+        ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),
+        ("""
+        vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
+
+        vec3 color = nl * radiance * (diffuse_contrib + spec_contrib);
+""", _SURFACE_BRDF),
+        ("vec3 dialectric_spec = vec3(min_roughness);", "vec3 dialectric_spec = vec3(0.08 * material.emissive_factor.x);"),
+        ("    color.xyz += emissive * material.emissive_factor;\n", ""),
     ],
 }
 """Per shader file, ``(old, new)`` text replacements, applied after pyrender has resolved the
 ``#ifdef`` lines (so no pattern may contain one)."""
+
+
+def surface_factors(specular: float, coat: float, coat_roughness: float) -> np.ndarray:
+    """The ``(3,)`` float32 value of a material's ``emissiveFactor`` that the patched shader reads as
+    specular level, clear-coat weight and clear-coat roughness (all in [0, 1]; see quirk 5)."""
+    return np.array([specular, coat, coat_roughness], dtype=np.float32)
 
 
 class _PatchedProgram(ShaderProgram):
