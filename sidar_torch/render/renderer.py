@@ -16,6 +16,10 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 and once per sequence the **label**: the painting through view 0's camera, unlit and without
 occluders (the texture as the reference camera samples it).
 
+``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
+(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``label``, ``readback``; see
+:meth:`_GLRenderer.draw` for how GL time is attributed).
+
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
 occluder parts behind it are farther from the light than the plane, so they cannot darken it
@@ -37,6 +41,7 @@ from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 from ..config import MAX_SHADOWED_LIGHTS
 from ..geometry import look_at, plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
+from ..timing import timed
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
 from .programs import ProgramCache, surface_factors
@@ -224,7 +229,8 @@ class _GLRenderer(pyrender.Renderer):
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
-             seg_node_map: dict | None = None) -> np.ndarray:
+             seg_node_map: dict | None = None, timings: dict[str, float] | None = None,
+             step: str = "colour") -> np.ndarray:
         """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -232,22 +238,36 @@ class _GLRenderer(pyrender.Renderer):
             seen: mesh nodes the camera sees.
             casters: mesh nodes drawn into shadow maps.
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
+            timings: if given, seconds are added to ``"upload"`` (new textures and meshes),
+                ``"shadow"`` (shadow-map passes), ``step`` (the forward pass) and ``"readback"``.
+            step: the name the forward pass is timed under (``"colour"``, ``"mask"``, ``"label"``).
+
+        Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
+        ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
+        so a pass's time is its own. When timing, each step also ends with ``glFinish`` (a no-op
+        here, but it keeps asynchronous drivers, e.g. a GPU under EGL, from billing the draws
+        to ``readback``); it does not change a pixel.
         """
-        self._update_context(scene, flags)
+        with timed(timings, "upload", GL.glFinish):
+            self._update_context(scene, flags)
         if flags & RenderFlags.SHADOWS_SPOT:
+            with timed(timings, "shadow", GL.glFinish):
+                for node in scene.mesh_nodes:
+                    node.mesh.is_visible = node in casters
+                for light_node in scene.light_nodes:
+                    self._shadow_mapping_pass(scene, light_node, flags)
+        with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
-                node.mesh.is_visible = node in casters
-            for light_node in scene.light_nodes:
-                self._shadow_mapping_pass(scene, light_node, flags)
-        for node in scene.mesh_nodes:
-            node.mesh.is_visible = node in seen
-        self._forward_pass(scene, flags, seg_node_map=seg_node_map)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)  # shadow passes leave their framebuffer bound
-        GL.glReadBuffer(GL.GL_FRONT)
-        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        pixels = GL.glReadPixels(0, 0, self.viewport_width, self.viewport_height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
-        image = np.frombuffer(pixels, dtype=np.uint8).reshape(self.viewport_height, self.viewport_width, 4)
-        return np.ascontiguousarray(image[::-1])  # OpenGL's first row is the bottom one
+                node.mesh.is_visible = node in seen
+            self._forward_pass(scene, flags, seg_node_map=seg_node_map)
+        with timed(timings, "readback"):
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)  # shadow passes leave their framebuffer bound
+            GL.glReadBuffer(GL.GL_FRONT)
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            pixels = GL.glReadPixels(0, 0, self.viewport_width, self.viewport_height, GL.GL_RGBA,
+                                     GL.GL_UNSIGNED_BYTE)
+            image = np.frombuffer(pixels, dtype=np.uint8).reshape(self.viewport_height, self.viewport_width, 4)
+            return np.ascontiguousarray(image[::-1])  # OpenGL's first row is the bottom one
 
 
 class SceneRenderer:
@@ -278,12 +298,23 @@ class SceneRenderer:
         """Number of shader programs built so far (constant once every variant has been used)."""
         return len(self._gl._program_cache)
 
-    def render(self, sequence: SceneSequence, painting: np.ndarray) -> RenderedSequence:
+    @property
+    def shadow_map_count(self) -> int:
+        """Number of pooled spot lights, each with its own ``shadow_map_size``-square float32
+        shadow map: grows to the most emitters one view has used, then stays."""
+        return len(self._lights)
+
+    def render(self, sequence: SceneSequence, painting: np.ndarray,
+               timings: dict[str, float] | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
             sequence: the scenes; its ``image_size`` must be this renderer's.
             painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel).
+            timings: if given, seconds spent are added to its keys ``"upload"`` (painting
+                texture and meshes), ``"graph"`` (building pyrender scenes), ``"shadow"``,
+                ``"colour"``, ``"mask"`` and ``"label"`` (draw passes) and ``"readback"``; the
+                pixels are the same either way.
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
@@ -292,13 +323,14 @@ class SceneRenderer:
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
         self._platform.make_current()
-        texture = self._painting_texture(painting)
+        with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
+            texture = self._painting_texture(painting)
         views, masks = [], []
         for view in sequence.views:
-            image, mask = self._render_view(view, sequence, texture)
+            image, mask = self._render_view(view, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
-        label = self._render_label(sequence.views[0].camera, texture)
+        label = self._render_label(sequence.views[0].camera, texture, timings)
         return RenderedSequence(np.stack(views), np.stack(masks), label)
 
     def close(self) -> None:
@@ -332,28 +364,31 @@ class SceneRenderer:
         _add(scene, pose, camera=gl_cam)
         return scene, plane
 
-    def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture):
-        scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
-        occluders, opaque_enough = set(), set()
-        counts: dict[tuple[str, int], int] = {}
-        for occ in view.occluders:
-            key = (occ.shape, occ.variant)
-            mesh = self._meshes.take(*key, counts.setdefault(key, 0))
-            counts[key] += 1
-            mesh.primitives[0].material = _gl_material(occ.material)
-            node = _add(scene, occ.object_to_world(), mesh=mesh)
-            occluders.add(node)
-            if occ.material.base_color[3] >= sequence.mask_min_opacity:
-                opaque_enough.add(node)
-        self._add_lights(scene, view.lights)
+    def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture,
+                     timings: dict[str, float] | None = None):
+        with timed(timings, "graph"):
+            scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
+            occluders, opaque_enough = set(), set()
+            counts: dict[tuple[str, int], int] = {}
+            for occ in view.occluders:
+                key = (occ.shape, occ.variant)
+                mesh = self._meshes.take(*key, counts.setdefault(key, 0))
+                counts[key] += 1
+                mesh.primitives[0].material = _gl_material(occ.material)
+                node = _add(scene, occ.object_to_world(), mesh=mesh)
+                occluders.add(node)
+                if occ.material.base_color[3] >= sequence.mask_min_opacity:
+                    opaque_enough.add(node)
+            self._add_lights(scene, view.lights)
         visible = occluders if sequence.occluders_visible else set()
         # With no occluder nothing can cast a shadow (the painting is not a caster), so the
         # unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if sequence.shadows and occluders else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders)
+        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders, timings=timings, step="colour")
         masked = visible & opaque_enough
         seg_map = {plane: 255, **{node: 0 for node in masked}}
-        seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map)
+        seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
+                            timings=timings, step="mask")
         return image[..., :3], seg[..., 0] < 128
 
     def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...]) -> None:
@@ -376,10 +411,12 @@ class SceneRenderer:
             self._lights.append(light)
         return self._lights[k]
 
-    def _render_label(self, camera: Camera, texture: pyrender.Texture) -> np.ndarray:
+    def _render_label(self, camera: Camera, texture: pyrender.Texture,
+                      timings: dict[str, float] | None = None) -> np.ndarray:
         plain = Material(np.ones(4), 0.0, 1.0)
-        scene, plane = self._new_scene(camera, 1.0, texture, plain)
-        return self._gl.draw(scene, RenderFlags.FLAT, seen={plane})[..., :3]
+        with timed(timings, "graph"):
+            scene, plane = self._new_scene(camera, 1.0, texture, plain)
+        return self._gl.draw(scene, RenderFlags.FLAT, seen={plane}, timings=timings, step="label")[..., :3]
 
 
 _SHARED: dict[tuple[int, tuple[int, int], int], SceneRenderer] = {}
