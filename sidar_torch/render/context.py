@@ -35,7 +35,8 @@ def _disable_disk_cache_unless_worker() -> None:
     context inherits the parent's GL screen without that thread, and deadlocks at the first
     draw that compiles a new shader variant. Mesa reads ``MESA_SHADER_CACHE_DISABLE`` when
     the process's first context is created, so it is set here, unless this process is a
-    DataLoader worker (which forks nothing and keeps warm compiles) or the user set it.
+    DataLoader worker (which forks nothing) or the user set it. A worker forked after its
+    parent rendered inherits the parent's screen, created without the cache, and compiles cold.
     """
     from torch.utils.data import get_worker_info
 
