@@ -90,6 +90,13 @@ def _check_int(name: str, value: Any, low: int) -> int:
     return int(value)
 
 
+def _process_group_rank() -> tuple[int, int] | None:
+    """``(rank, world_size)`` from ``torch.distributed`` if its process group is initialised, else None."""
+    if torch.distributed.is_available() and torch.distributed.is_initialized():
+        return torch.distributed.get_rank(), torch.distributed.get_world_size()
+    return None
+
+
 class SidarDataset(IterableDataset):
     """SIDAR sequences rendered on the fly, for ``torch.utils.data.DataLoader``.
 
@@ -101,7 +108,7 @@ class SidarDataset(IterableDataset):
         config: a :class:`SidarConfig`, a preset name or a YAML path (default ``"misaligned"``).
         seed: the dataset's seed (integer >= 0).
         length: ``None`` for an endless stream, or ``N``: indices ``0..N-1``, each exactly once
-            across all DataLoader workers.
+            across all DataLoader workers and distributed ranks.
         crop: how paintings are fitted to the output aspect, ``"center"`` or ``"none"``.
 
     Each sample is a dict (``V`` views of ``H x W`` pixels):
@@ -119,6 +126,18 @@ class SidarDataset(IterableDataset):
 
     Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
     created at the first sample: each DataLoader worker makes its own and reuses it.
+
+    Sharding: the ``num_workers`` DataLoader workers of each of the ``world_size`` ranks split
+    the indices into ``n = world_size * num_workers`` shards; worker ``w`` of rank ``r`` draws shard
+    ``k = r * num_workers + w``: indices ``k, k + n, k + 2n, ...`` (below ``length`` if finite).
+    So no two (rank, worker) pairs draw the same index, and a finite ``length`` is covered exactly
+    once. The rank and world size come from ``torch.distributed`` when its process group is
+    initialised; else from the rank this dataset was pickled with (a ``spawn``/``forkserver``
+    worker of an initialised rank); else from the ``RANK`` and ``WORLD_SIZE`` environment
+    variables (``torchrun`` sets them before ``init_process_group``); else rank 0 of 1. Every rank
+    must use the same ``num_workers``. Shards differ in size by at most one sample: for equal
+    batch counts on every rank under DDP, make ``length`` a multiple of
+    ``world_size * num_workers * batch_size``.
     """
 
     def __init__(self, source: Any = None, config: SidarConfig | str | os.PathLike | None = None,
@@ -148,14 +167,47 @@ class SidarDataset(IterableDataset):
         return render_sample(sequence, painting, self.config, index)
 
     def indices(self) -> Iterator[int]:
-        """The indices this process draws: every ``n``-th index from its shard ``k`` of ``n``
-        (``n`` DataLoader workers; ``k`` this worker's id), up to ``length`` if finite."""
+        """The indices this process draws: ``k, k + n, k + 2n, ...`` (below ``length`` if finite)
+        for its shard ``k`` of ``n`` (see "Sharding" in the class docstring).
+
+        Raises:
+            ValueError: ``RANK``/``WORLD_SIZE`` in the environment are not a valid rank of a world.
+        """
+        rank, world_size = self._rank_and_world_size()
         info = get_worker_info()
-        shard, n_shards = (info.id, info.num_workers) if info is not None else (0, 1)
-        index = shard
+        worker, num_workers = (info.id, info.num_workers) if info is not None else (0, 1)
+        index, n_shards = rank * num_workers + worker, world_size * num_workers
         while self.length is None or index < self.length:
             yield index
             index += n_shards
+
+    def _rank_and_world_size(self) -> tuple[int, int]:
+        """``(rank, world_size)`` of this process, from the first of: the initialised process group,
+        the rank recorded when this dataset was pickled, ``RANK``/``WORLD_SIZE``, ``(0, 1)``."""
+        known = _process_group_rank() or self.__dict__.get("_pickled_rank")
+        if known is not None:
+            return known
+        env_rank, env_world_size = os.environ.get("RANK"), os.environ.get("WORLD_SIZE")
+        if env_rank is None and env_world_size is None:
+            return 0, 1
+        if env_rank is None or env_world_size is None:
+            raise ValueError(f"environment: set both RANK and WORLD_SIZE (torchrun does) or neither, got "
+                             f"RANK={env_rank!r} WORLD_SIZE={env_world_size!r}")
+        try:
+            rank, world_size = int(env_rank), int(env_world_size)
+        except ValueError:
+            raise ValueError(f"environment: expected integers RANK and WORLD_SIZE, got RANK={env_rank!r} "
+                             f"WORLD_SIZE={env_world_size!r}") from None
+        if not 0 <= rank < world_size:
+            raise ValueError(f"environment: expected 0 <= RANK < WORLD_SIZE, got RANK={rank} WORLD_SIZE={world_size}")
+        return rank, world_size
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled state, with this process's distributed rank: a ``spawn``/``forkserver``
+        DataLoader worker unpickles the dataset where no process group is initialised."""
+        state = dict(self.__dict__)
+        state["_pickled_rank"] = _process_group_rank() or state.get("_pickled_rank")
+        return state
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
         for index in self.indices():

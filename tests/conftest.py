@@ -1,7 +1,10 @@
 """Shared test settings: small images keep rendering fast on CPU."""
 
+import hashlib
+
 import numpy as np
 import pytest
+import torch
 
 import sidar_torch  # noqa: F401  (selects the OSMesa platform before anything imports OpenGL)
 from sidar_torch import load_config
@@ -17,6 +20,21 @@ def small_config(preset="misaligned", **overrides):
 def textured_painting(size, seed=0):
     """``(H, W, 3)`` uint8 random texture: every pixel differs from its neighbours."""
     return np.random.default_rng(seed).integers(0, 256, (*size, 3), dtype=np.uint8)
+
+
+def sample_digest(sample):
+    """``{key: SHA-256 hex}`` of a sample dict: tensors by dtype, shape and bytes, other values by
+    ``repr``. Equal digests mean byte-identical samples; being strings, they compare across
+    processes, and a mismatch names the key."""
+    digests = {}
+    for key, value in sample.items():
+        if isinstance(value, torch.Tensor):
+            value = value.contiguous()
+            data = f"{value.dtype} {tuple(value.shape)} ".encode() + value.numpy().tobytes()
+        else:
+            data = repr(value).encode()
+        digests[key] = hashlib.sha256(data).hexdigest()
+    return digests
 
 
 @pytest.fixture

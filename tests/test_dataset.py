@@ -1,6 +1,10 @@
-"""SidarDataset end to end: format, determinism, sharding, worker processes, and geometry by rendering."""
+"""SidarDataset end to end: format, determinism, sharding, and geometry by rendering.
+
+Worker processes, ranks and runs are in ``test_processes.py``.
+"""
 
 import math
+from types import SimpleNamespace
 
 import kornia
 import numpy as np
@@ -10,17 +14,12 @@ from PIL import Image
 from torch.utils.data import DataLoader
 
 from sidar_torch import SidarDataset, available_presets
+from sidar_torch import dataset as dataset_module
 from sidar_torch.dataset import sequence_homographies
 
-from conftest import small_config
+from conftest import sample_digest, small_config
 
 KEYS = {"images", "masks", "label", "homographies", "homography_error", "K", "R", "t", "index"}
-
-
-def assert_same_sample(a, b):
-    assert a.keys() == b.keys()
-    for key in a:
-        assert torch.equal(torch.as_tensor(a[key]), torch.as_tensor(b[key])), key
 
 
 def test_sample_format():
@@ -50,22 +49,8 @@ def test_sample_format():
 def test_same_seed_and_index_same_sample_different_seed_differs():
     cfg = small_config()
     a = SidarDataset(config=cfg, seed=1).sample(7)
-    assert_same_sample(a, SidarDataset(config=cfg, seed=1).sample(7))
+    assert sample_digest(a) == sample_digest(SidarDataset(config=cfg, seed=1).sample(7))
     assert not torch.equal(a["images"], SidarDataset(config=cfg, seed=2).sample(7)["images"])
-
-
-@pytest.mark.parametrize("context", ["fork", "spawn"])
-def test_workers_yield_each_index_once_with_the_same_content(context):
-    # The parent renders first, with a simpler preset, so the workers must compile shader
-    # variants the parent never built: that is what deadlocked forked children while Mesa's
-    # disk-cache thread lived in the parent. The timeout turns a hang into a failure.
-    SidarDataset(config=small_config("ambient", n_views=1), seed=0).sample(0)
-    ds = SidarDataset(config=small_config(n_views=2, n_lights=(2, 3), n_occluders=(1, 2)), seed=4, length=7)
-    loader = DataLoader(ds, batch_size=None, num_workers=2, multiprocessing_context=context, timeout=300)
-    got = {int(s["index"]): s for s in loader}
-    assert sorted(got) == list(range(7))
-    for i in range(7):
-        assert_same_sample(got[i], ds.sample(i))
 
 
 def test_endless_stream_and_finite_length():
@@ -75,6 +60,36 @@ def test_endless_stream_and_finite_length():
     stream = iter(ds.indices())
     assert [next(stream) for _ in range(5)] == [0, 1, 2, 3, 4]
     assert list(SidarDataset(config=small_config(), length=3).indices()) == [0, 1, 2]
+
+
+def test_shards_by_rank_from_the_environment_then_by_worker(monkeypatch):
+    # torchrun sets RANK and WORLD_SIZE before the process group exists; DataLoader workers are
+    # stood in for by a patched get_worker_info.
+    ds = SidarDataset(config=small_config(), length=13)
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    drawn = {}
+    for rank in range(2):
+        monkeypatch.setenv("RANK", str(rank))
+        for worker in range(3):
+            info = SimpleNamespace(id=worker, num_workers=3)
+            monkeypatch.setattr(dataset_module, "get_worker_info", lambda: info)
+            drawn[rank, worker] = list(ds.indices())
+    assert drawn[1, 1] == [4, 10]  # shard 1 * 3 + 1 of 6
+    assert sorted(sum(drawn.values(), [])) == list(range(13))
+
+
+@pytest.mark.parametrize("env, match", [
+    ({"RANK": "1"}, "both RANK and WORLD_SIZE"),
+    ({"RANK": "one", "WORLD_SIZE": "2"}, "integers RANK and WORLD_SIZE.*'one'"),
+    ({"RANK": "2", "WORLD_SIZE": "2"}, "0 <= RANK < WORLD_SIZE, got RANK=2 WORLD_SIZE=2"),
+])
+def test_a_bad_rank_environment_raises(monkeypatch, env, match):
+    for name in ("RANK", "WORLD_SIZE"):
+        monkeypatch.delenv(name, raising=False)
+    for name, value in env.items():
+        monkeypatch.setenv(name, value)
+    with pytest.raises(ValueError, match=match):
+        next(SidarDataset(config=small_config()).indices())
 
 
 def test_batches_from_a_folder_of_images_through_two_workers(tmp_path):
