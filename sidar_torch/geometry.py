@@ -21,10 +21,12 @@ import numpy as np
 import torch
 
 __all__ = [
+    "ball_may_be_seen",
     "clip_polygon",
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
+    "shadow_may_reach",
     "shared_points",
     "visible_plane_points",
     "visible_halfplanes",
@@ -282,10 +284,27 @@ def visible_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: 
     Returns:
         ``(5, 3)`` float64 half-plane coefficients: four image edges and the camera's front.
     """
+    return _view_edges(K, image_size) @ np.column_stack([R[:, 0], R[:, 1], t])
+
+
+def _view_edges(K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """``(5, 3)``: camera-frame points ``X`` inside the view have ``a . X >= 0`` for every row ``a``
+    (four image edges at the outer pixel borders, then the camera's front)."""
     h, w = image_size
     e3 = np.array([0.0, 0.0, 1.0])
-    edges = np.stack([K[0] + 0.5 * e3, (w - 0.5) * e3 - K[0], K[1] + 0.5 * e3, (h - 0.5) * e3 - K[1], e3])
-    return edges @ np.column_stack([R[:, 0], R[:, 1], t])
+    return np.stack([K[0] + 0.5 * e3, (w - 0.5) * e3 - K[0], K[1] + 0.5 * e3, (h - 0.5) * e3 - K[1], e3])
+
+
+def ball_may_be_seen(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                     centre: np.ndarray, radius: float) -> bool:
+    """Whether a ball ``|X - centre| <= radius`` (world) may show in a camera's image.
+
+    Conservative: ``False`` only when the ball lies wholly outside one of the view's bounding
+    planes (the four image edges and the camera's front).
+    """
+    edges = _view_edges(K, image_size)
+    distance = edges @ (R @ centre + t) / np.linalg.norm(edges, axis=1)
+    return bool((distance >= -radius).all())
 
 
 def clip_polygon(polygon: np.ndarray, halfplanes: np.ndarray) -> np.ndarray:
@@ -340,3 +359,28 @@ def painting_pixel_area(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size:
     if len(region) < 3:
         return 0.0
     return polygon_area(project(K, R, t, np.column_stack([region, np.zeros(len(region))])))
+
+
+def shadow_may_reach(emitter: np.ndarray, centre: np.ndarray, radius: float, region: np.ndarray) -> bool:
+    """Whether a ball can shadow any part of a region of the painting's plane, lit from a point.
+
+    Conservative: ``False`` only when the shadow certainly misses. The ball ``|X - centre| <= radius``
+    lies in the cube of half-side ``radius`` around ``centre``; seen from ``emitter`` (above the
+    cube), its shadow on ``z = 0`` lies in the convex hull of the cube's 8 corners projected from
+    the emitter, and so in their bounding box, which is tested against the region.
+
+    Args:
+        emitter: ``(3,)`` light position (world, painting units), ``z > 0``.
+        centre, radius: the ball (world, painting units).
+        region: ``(N, 2)`` convex polygon on the plane ``z = 0`` (e.g. what a camera sees).
+    """
+    if len(region) < 3:
+        return False
+    if centre[2] + radius >= emitter[2]:
+        return True  # the ball reaches the light's height: its shadow is unbounded
+    corners = centre + radius * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+    scale = emitter[2] / (emitter[2] - corners[:, 2])
+    shadow = emitter[:2] + scale[:, None] * (corners[:, :2] - emitter[:2])
+    (x0, y0), (x1, y1) = shadow.min(axis=0), shadow.max(axis=0)
+    box = np.array([[1.0, 0, -x0], [-1.0, 0, x1], [0, 1.0, -y0], [0, -1.0, y1]])
+    return len(clip_polygon(region, box)) >= 3

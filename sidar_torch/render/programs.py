@@ -48,6 +48,8 @@ from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 __all__ = ["ProgramCache", "SHADER_PATCHES", "surface_factors"]
 
 _SPOT_SHADOW_LOOKUP = """
+uniform int n_shadowed_spot_lights;
+
 float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
 {
     vec4 proj_coords = light_matrix * vec4(frag_position.xyz, 1.0);
@@ -110,8 +112,10 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
     "mesh.frag": [
         ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
          "sampler2DShadow shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
+        # Only the first n_shadowed_spot_lights lights can shadow what the camera sees: the others
+        # skip the lookup (a uniform branch), which would return "lit".
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
-         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
+         "float shadow = i >= n_shadowed_spot_lights ? 0.0 : spot_shadow(\n            spot_lights[i].light_matrix,"),
         ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
         ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),

@@ -39,7 +39,7 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS
-from ..geometry import look_at, plane_corners
+from ..geometry import ball_may_be_seen, clip_polygon, look_at, plane_corners, shadow_may_reach, visible_halfplanes
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
@@ -173,6 +173,7 @@ class _GLRenderer(pyrender.Renderer):
         self._unused_shadow_map = self.new_shadow_map()
         self._unused_shadow_map._add_to_context()
         self._make_depth_compare(self._unused_shadow_map)
+        self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
 
     def new_shadow_map(self) -> pyrender.Texture:
         """A depth texture for one light's shadow map (uploaded at first use)."""
@@ -218,6 +219,7 @@ class _GLRenderer(pyrender.Renderer):
         """
         super()._bind_lighting(scene, program, node, flags)
         if flags & RenderFlags.SHADOWS_SPOT:
+            program.set_uniform("n_shadowed_spot_lights", self._n_shadowed)
             for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
                 self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
 
@@ -229,14 +231,16 @@ class _GLRenderer(pyrender.Renderer):
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
-             seg_node_map: dict | None = None, timings: dict[str, float] | None = None,
-             step: str = "colour") -> np.ndarray:
+             shadowed: set = frozenset(), seg_node_map: dict | None = None,
+             timings: dict[str, float] | None = None, step: str = "colour") -> np.ndarray:
         """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
             seen: mesh nodes the camera sees.
             casters: mesh nodes drawn into shadow maps.
+            shadowed: light nodes that get a shadow map and lookup (with ``SHADOWS_SPOT``); they
+                must be the first spot lights in the scene's order.
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
             timings: if given, seconds are added to ``"upload"`` (new textures and meshes),
                 ``"shadow"`` (shadow-map passes), ``step`` (the forward pass) and ``"readback"``.
@@ -254,8 +258,9 @@ class _GLRenderer(pyrender.Renderer):
             with timed(timings, "shadow", GL.glFinish):
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters
-                for light_node in scene.light_nodes:
+                for light_node in scene.light_nodes & shadowed:
                     self._shadow_mapping_pass(scene, light_node, flags)
+        self._n_shadowed = len(shadowed)
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
@@ -278,8 +283,9 @@ class SceneRenderer:
         shadow_map_size: side of each shadow map, texels (power of two).
     """
 
-    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024):
+    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True):
         self.image_size = tuple(image_size)
+        self.skip_idle_shadows = skip_idle_shadows
         h, w = self.image_size
         self._platform = open_context(w, h)
         # Destroying the context frees every GL object in it; it needs no current context, so a
@@ -379,29 +385,64 @@ class SceneRenderer:
                 occluders.add(node)
                 if occ.material.base_color[3] >= sequence.mask_min_opacity:
                     opaque_enough.add(node)
-            self._add_lights(scene, view.lights)
+            order, n_shadowed = self._casting_emitters(view, sequence.occluders_visible)
+            shadowed = self._add_lights(scene, view.lights, order, n_shadowed if sequence.shadows else 0)
         visible = occluders if sequence.occluders_visible else set()
-        # With no occluder nothing can cast a shadow (the painting is not a caster), so the
-        # unshadowed draw gives the same pixels without the shadow passes.
-        flags = RenderFlags.SHADOWS_SPOT if sequence.shadows and occluders else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders, timings=timings, step="colour")
+        # With no emitter that can cast a shadow on what the camera sees (the painting is not a
+        # caster), the unshadowed draw gives the same pixels without the shadow passes.
+        flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
+        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders, shadowed=shadowed,
+                              timings=timings, step="colour")
         masked = visible & opaque_enough
         seg_map = {plane: 255, **{node: 0 for node in masked}}
         seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                             timings=timings, step="mask")
         return image[..., :3], seg[..., 0] < 128
 
-    def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...]) -> None:
-        k = 0
-        for light in lights:
-            for position in light.emitters:
-                gl_light = self._light(k)
-                gl_light.color = light.color
-                gl_light.intensity = light.intensity
-                gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
-                gl_light.innerConeAngle = light.inner_cone
-                _add(scene, _gl_pose(*look_at(position)), light=gl_light)  # aimed at the centre
-                k += 1
+    def _casting_emitters(self, view: ViewScene, occluders_visible: bool = True) -> tuple[list[tuple[int, int]], int]:
+        """Every emitter as ``(light, emitter)`` indices, those that may shadow something the camera
+        sees first, and how many those are (all when :attr:`skip_idle_shadows` is false).
+
+        Safe to skip an emitter's shadow pass and lookup (its lookup would return "lit" at every
+        pixel) when no visible occluder is in view (occluders shadow themselves and each other) and no
+        occluder's shadow from it can fall on the part of the painting the camera sees (see
+        :func:`sidar_torch.geometry.shadow_may_reach`). Both tests are conservative.
+        """
+        cam = view.camera
+        emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
+        balls = [(occ.position, float(np.linalg.norm(occ.scale))) for occ in view.occluders]
+        if not balls:
+            return emitters, 0
+        if occluders_visible and any(ball_may_be_seen(cam.K, cam.R, cam.t, self.image_size, c, r) for c, r in balls):
+            return emitters, len(emitters)
+        region = clip_polygon(plane_corners(self.image_size)[:, :2],
+                              visible_halfplanes(cam.K, cam.R, cam.t, self.image_size))
+        casting = {(a, b) for a, b in emitters
+                   if any(shadow_may_reach(view.lights[a].emitters[b], c, r, region) for c, r in balls)}
+        # The same order either way, so skipping changes no rounding of the shader's sum.
+        order = sorted(emitters, key=lambda ab: ab not in casting)
+        return order, len(casting) if self.skip_idle_shadows else len(order)
+
+    def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...], order: list[tuple[int, int]],
+                    n_shadowed: int) -> set[pyrender.Node]:
+        """Add the emitters ``order`` (``(light, emitter)`` indices) as spot lights, in that order;
+        returns the nodes of the first ``n_shadowed``, which get shadows.
+
+        The order is fixed for a given view whatever ``n_shadowed`` is: the shader sums lights in
+        insertion order, and it looks shadows up only for the first ``n_shadowed`` spot lights.
+        """
+        shadowed = set()
+        for k, (a, b) in enumerate(order):
+            light = lights[a]
+            gl_light = self._light(k)
+            gl_light.color = light.color
+            gl_light.intensity = light.intensity
+            gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
+            gl_light.innerConeAngle = light.inner_cone
+            node = _add(scene, _gl_pose(*look_at(light.emitters[b])), light=gl_light)  # aimed at the centre
+            if k < n_shadowed:
+                shadowed.add(node)
+        return shadowed
 
     def _light(self, k: int) -> pyrender.SpotLight:
         """The ``k``-th pooled spot light, with its own shadow map (allocated once)."""
