@@ -1,0 +1,354 @@
+"""Speed against error: ``python -m sidar_torch sweep [--quick] [--out-dir DIR]``.
+
+Sweeps the renderer's quality knobs and reports, for every setting, the time per view against
+the error it leaves:
+
+* **knobs**: output resolution, shadow-map size (``SidarConfig.shadow_map_size``) and
+  supersampling ``s`` (views drawn at ``s`` times the resolution, then area-averaged ``s x s``
+  in linear light, see :func:`render_views`);
+* **time per view**: median over the same ``scenes`` sequences of the default preset, in this
+  process (one untimed warm-up sequence per setting first), of the renderer's whole call
+  (views, masks and label; for ``s > 1`` the larger draw and the downsampling) divided by the
+  number of views. Torch runs one thread, llvmpipe rasterises in the calling thread (as in
+  ``bench``), so figures are per core;
+* **image PSNR** (dB) of the views against a high-quality reference render of the same scenes at
+  the same output size: largest shadow maps, supersampled (:attr:`SweepSettings.reference`).
+  One PSNR per setting, from the mean squared error over every pixel of every view of every
+  scene (occluders and background included);
+* **warp residual** (median / max Lucas-Kanade displacement, pixels; see
+  :func:`sidar_torch.accuracy.warp_residuals`) per resolution and supersampling, on ambient,
+  occluder-free speckle scenes (no lights, so the shadow-map size cannot change them);
+* **label PSNR** (:func:`sidar_torch.accuracy_report.label_row`) per resolution. The label is an
+  unlit, fronto-parallel, occluder-free draw that shows the texture exactly; it does not depend
+  on the shadow maps, and a supersampled preset would still draw it at the output size.
+
+Supersampled cameras: pixel ``(u, v)`` of the output averages pixels ``(su + a, sv + b)``,
+``0 <= a, b < s``, of the large draw, whose centres average to ``(su + (s - 1) / 2, ...)``. So
+the large camera is ``K_s = [[s, 0, (s - 1) / 2], [0, s, (s - 1) / 2], [0, 0, 1]] @ K``, which
+puts every output pixel's centre exactly where ``K`` does: the homographies are unchanged. The
+painting texture is upsampled bilinearly (texel centres kept), which is what magnifying the
+original texture samples anyway.
+
+A setting is **Pareto-optimal** (at its resolution) when no other setting of that resolution is
+at least as fast and at least as close to the reference, and strictly better in one. The
+reference itself is left out of the front (its PSNR against itself is infinite).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import statistics
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from .accuracy import psnr, speckle_paintings, warp_residuals
+from .accuracy_report import label_row
+from .bench import DEFAULT_PRESET
+from .config import load_config
+from .dataset import SidarDataset, sequence_homographies
+from .render import SceneRenderer
+from .scene import SceneSequence
+
+__all__ = ["SweepSettings", "format_report", "pareto_front", "plot_front", "render_views", "run_sweep",
+           "supersampled_sequence", "write_outputs"]
+
+_WARMUP_INDEX = 1_000_000
+"""Index of each setting's untimed warm-up sequence, apart from the measured ``0 .. scenes - 1``."""
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """What the sweep measures.
+
+    Attributes:
+        sizes: output sizes ``(H, W)``.
+        shadow_map_sizes: shadow-map sides, texels (powers of two).
+        supersampling: factors ``s`` (1: none).
+        reference: ``(shadow_map_size, supersampling)`` of the reference render.
+        scenes: sequences of ``preset`` per setting (timed and compared with the reference).
+        residual_samples: ambient speckle samples per resolution and factor for the warp residual.
+        label_samples: samples per resolution for the label PSNR.
+        preset: the configuration the scenes come from.
+        n_views: views per sequence (``None``: the preset's).
+        seed: dataset seed.
+    """
+
+    sizes: tuple[tuple[int, int], ...] = ((192, 256), (384, 512))
+    shadow_map_sizes: tuple[int, ...] = (256, 512, 1024, 2048, 4096)
+    supersampling: tuple[int, ...] = (1, 2)
+    reference: tuple[int, int] = (4096, 2)
+    scenes: int = 6
+    residual_samples: int = 3
+    label_samples: int = 3
+    preset: str = DEFAULT_PRESET
+    n_views: int | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.sizes or not self.shadow_map_sizes or not self.supersampling:
+            raise ValueError("sizes, shadow_map_sizes and supersampling: expected at least one each")
+        if any(len(s) != 2 or min(s) < 1 for s in self.sizes):
+            raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {self.sizes}")
+        if any(s < 16 or s & (s - 1) for s in (*self.shadow_map_sizes, self.reference[0])):
+            raise ValueError(f"shadow_map_sizes, reference: expected powers of two >= 16, got "
+                             f"{self.shadow_map_sizes}, {self.reference}")
+        if any(s < 1 for s in (*self.supersampling, self.reference[1])):
+            raise ValueError(f"supersampling, reference: expected factors >= 1, got {self.supersampling}, "
+                             f"{self.reference}")
+        if min(self.scenes, self.residual_samples, self.label_samples) < 1:
+            raise ValueError("scenes, residual_samples, label_samples: expected >= 1")
+
+    @classmethod
+    def quick(cls, **changes: Any) -> "SweepSettings":
+        """A minute or two on 2 cores: 256x192, shadow maps 256 / 1024 / 2048, 3 scenes of 3 views."""
+        return cls(**{"sizes": ((192, 256),), "shadow_map_sizes": (256, 1024), "supersampling": (1, 2),
+                      "reference": (2048, 2), "scenes": 3, "residual_samples": 2, "label_samples": 2,
+                      "n_views": 3, **changes})
+
+    def settings(self) -> list[tuple[int, int]]:
+        """Every ``(shadow_map_size, supersampling)`` measured at each size, the reference included."""
+        grid = [(m, s) for s in self.supersampling for m in self.shadow_map_sizes]
+        return grid + [self.reference] * (self.reference not in grid)
+
+
+def supersampled_sequence(sequence: SceneSequence, factor: int) -> SceneSequence:
+    """``sequence`` drawn at ``factor`` times its resolution, pixel centres kept (module docstring)."""
+    if factor == 1:
+        return sequence
+    S = np.array([[factor, 0, (factor - 1) / 2], [0, factor, (factor - 1) / 2], [0, 0, 1.0]])
+    views = tuple(replace(v, camera=replace(v.camera, K=S @ v.camera.K)) for v in sequence.views)
+    h, w = sequence.image_size
+    return replace(sequence, image_size=(factor * h, factor * w), views=views)
+
+
+def _to_linear(srgb: torch.Tensor) -> torch.Tensor:
+    return torch.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def _to_srgb(linear: torch.Tensor) -> torch.Tensor:
+    return torch.where(linear <= 0.0031308, linear * 12.92, 1.055 * linear.clamp(min=0) ** (1 / 2.4) - 0.055)
+
+
+def render_views(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray,
+                 factor: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
+    """The views and masks of ``sequence`` at its own size, drawn at ``factor`` times that size.
+
+    Args:
+        renderer: a renderer of size ``factor * sequence.image_size``.
+        painting: ``(H, W, 3)`` uint8 at ``sequence.image_size``; upsampled bilinearly for ``factor > 1``.
+
+    Returns:
+        views ``(V, 3, H, W)`` float32 in [0, 1] on the 8-bit grid (each ``factor x factor`` block
+        averaged in linear light, then re-encoded to sRGB and rounded as the renderer does), and
+        masks ``(V, 1, H, W)`` float32, 1 where any pixel of the block does not see the painting.
+    """
+    if factor > 1:
+        up = F.interpolate(torch.from_numpy(painting).permute(2, 0, 1)[None].double(), scale_factor=factor,
+                           mode="bilinear", align_corners=False)
+        painting = up[0].permute(1, 2, 0).round().clamp(0, 255).to(torch.uint8).numpy()
+    rendered = renderer.render(supersampled_sequence(sequence, factor), painting)
+    views = torch.from_numpy(rendered.views).permute(0, 3, 1, 2).double() / 255
+    masks = torch.from_numpy(rendered.masks).unsqueeze(1).double()
+    if factor > 1:
+        views = _to_srgb(F.avg_pool2d(_to_linear(views), factor))
+        views = (views * 255).round().clamp(0, 255) / 255
+        masks = F.max_pool2d(masks, factor)
+    return views.float(), masks.float()
+
+
+def _dataset(settings: SweepSettings, size: tuple[int, int]) -> SidarDataset:
+    extra = {} if settings.n_views is None else {"n_views": settings.n_views}
+    return SidarDataset(None, load_config(settings.preset, image_size=size, **extra), seed=settings.seed)
+
+
+def _measure_setting(dataset: SidarDataset, shadow_map_size: int, factor: int,
+                     scenes: int) -> tuple[list[float], list[torch.Tensor]]:
+    """Seconds per sequence and the views of scenes ``0 .. scenes - 1`` (one warm-up first)."""
+    h, w = dataset.config.image_size
+    renderer = SceneRenderer((factor * h, factor * w), shadow_map_size)
+    try:
+        seconds, views = [], []
+        for index in [_WARMUP_INDEX, *range(scenes)]:
+            sequence = dataset.scene(index)
+            painting = dataset.source.painting(index % len(dataset.source), (h, w))
+            start = time.perf_counter()
+            images, _ = render_views(renderer, sequence, painting, factor)
+            if index != _WARMUP_INDEX:
+                seconds.append(time.perf_counter() - start)
+                views.append(images)
+        return seconds, views
+    finally:
+        renderer.close()  # large shadow maps and buffers: free them before the next setting
+
+
+def residual_row(size: tuple[int, int], factor: int, samples: int, seed: int) -> dict[str, Any]:
+    """Warp residual (pixels) of ``samples`` ambient, occluder-free speckle samples at ``size``,
+    drawn with supersampling ``factor`` (shadow maps play no part: no lights)."""
+    config = load_config("ambient", image_size=size, n_views=4)
+    dataset = SidarDataset(speckle_paintings(samples, size, seed), config, seed=seed)
+    renderer = SceneRenderer((factor * size[0], factor * size[1]), config.shadow_map_size)
+    lengths = []
+    try:
+        for index in range(samples):
+            sequence = dataset.scene(index)
+            views, masks = render_views(renderer, sequence, dataset.source.painting(index, size), factor)
+            for pair in warp_residuals(views, masks, sequence_homographies(sequence)[0]):
+                lengths.append(np.linalg.norm(pair.displacements, axis=1))
+    finally:
+        renderer.close()
+    if not sum(map(len, lengths)):
+        raise ValueError(f"size {size}: no textured patch seen by two views; use a larger size")
+    lengths = np.concatenate(lengths)
+    return {"median_px": float(np.median(lengths)), "max_px": float(lengths.max()), "patches": len(lengths)}
+
+
+def pareto_front(rows: list[dict[str, Any]]) -> list[int]:
+    """Indices of the rows no other row dominates (``ms_per_view`` lower is better, ``image_psnr_db``
+    higher is better; rows with an infinite PSNR, the reference, are left out)."""
+    finite = [k for k, r in enumerate(rows) if math.isfinite(r["image_psnr_db"])]
+
+    def dominates(a: dict[str, Any], b: dict[str, Any]) -> bool:
+        return (a["ms_per_view"] <= b["ms_per_view"] and a["image_psnr_db"] >= b["image_psnr_db"]
+                and (a["ms_per_view"] < b["ms_per_view"] or a["image_psnr_db"] > b["image_psnr_db"]))
+
+    return [k for k in finite if not any(dominates(rows[j], rows[k]) for j in finite if j != k)]
+
+
+def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every measurement, as plain data (see :func:`format_report`); ``log`` gets progress lines."""
+    start, load_start, threads = time.perf_counter(), os.getloadavg()[0], torch.get_num_threads()
+    torch.set_num_threads(1)
+    rows, residuals, labels = [], [], []
+    try:
+        for size in settings.sizes:
+            label = f"{size[1]}x{size[0]}"
+            dataset = _dataset(settings, size)
+            measured = {}
+            for smap, factor in [settings.reference] + [s for s in settings.settings() if s != settings.reference]:
+                measured[smap, factor] = _measure_setting(dataset, smap, factor, settings.scenes)
+                log(f"{label}, shadow map {smap}, supersampling {factor}: done ({time.perf_counter() - start:.0f} s)")
+            reference = torch.stack([v for views in measured[settings.reference][1] for v in views])
+            size_rows = []
+            for smap, factor in settings.settings():
+                seconds, views = measured[smap, factor]
+                size_rows.append({
+                    "size": label, "shadow_map_size": smap, "supersampling": factor,
+                    "reference": (smap, factor) == tuple(settings.reference),
+                    "ms_per_view": 1e3 * statistics.median(seconds) / dataset.config.n_views,
+                    "image_psnr_db": psnr(torch.stack([v for vs in views for v in vs]), reference)})
+            for k in pareto_front(size_rows):
+                size_rows[k]["pareto"] = True
+            rows += [{"pareto": False, **r} for r in size_rows]
+            for factor in sorted(set(settings.supersampling) | {settings.reference[1]}):
+                residuals.append({"size": label, "supersampling": factor,
+                                  **residual_row(size, factor, settings.residual_samples, settings.seed)})
+            labels.append(label_row(size, settings.label_samples, settings.seed))
+            log(f"{label}: residuals and label done ({time.perf_counter() - start:.0f} s)")
+    finally:
+        torch.set_num_threads(threads)
+    return {"settings": asdict(settings), "views_per_scene": dataset.config.n_views, "rows": rows,
+            "residuals": residuals, "labels": labels, "load_start": load_start, "load_end": os.getloadavg()[0],
+            "cpus": os.cpu_count(), "seconds": time.perf_counter() - start}
+
+
+def _db(value: float) -> str:
+    return "inf (reference)" if math.isinf(value) else f"{value:.2f}"
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The sweep as markdown: the speed-against-error table, residuals and label PSNR."""
+    s = report["settings"]
+    ref = f"shadow map {s['reference'][0]}, {s['reference'][1]}x{s['reference'][1]} supersampling"
+    lines = [f"Speed against error: '{s['preset']}' preset, {s['scenes']} scenes of {report['views_per_scene']} "
+             f"views per setting; image PSNR against the reference render ({ref}) at the same size. "
+             "* = Pareto-optimal at its size.", "",
+             "| size | shadow map | supersampling | ms per view | image PSNR (dB) | Pareto |",
+             "|---|---|---|---|---|---|"]
+    for r in report["rows"]:
+        lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['supersampling']}x | {r['ms_per_view']:.1f} "
+                     f"| {_db(r['image_psnr_db'])} | {'*' if r['pareto'] else ''} |")
+    lines += ["", "Warp residual (ambient speckle scenes, 4 views; shadow maps play no part):", "",
+              "| size | supersampling | patches | median px | max px |", "|---|---|---|---|---|"]
+    for r in report["residuals"]:
+        lines.append(f"| {r['size']} | {r['supersampling']}x | {r['patches']} | {r['median_px']:.4f} "
+                     f"| {r['max_px']:.4f} |")
+    lines += ["", "| label size | samples | worst label PSNR (dB) |", "|---|---|---|"]
+    for r in report["labels"]:
+        value = "inf (identical)" if math.isinf(r["min_psnr_db"]) else f"{r['min_psnr_db']:.1f}"
+        lines.append(f"| {r['size']} | {r['samples']} | {value} |")
+    lines += ["", f"Measured in {report['seconds']:.0f} s on {report['cpus']} CPUs (load average "
+              f"{report['load_start']:.1f} at the start, {report['load_end']:.1f} at the end)."]
+    return "\n".join(lines)
+
+
+_COLOURS = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (148, 103, 189), (255, 127, 14), (23, 190, 207)]
+
+
+def plot_front(report: dict[str, Any], path: str | os.PathLike) -> None:
+    """Scatter of time per view (x, log scale) against image PSNR (y), one colour per size, each
+    point labelled ``shadow map / supersampling``; Pareto-optimal points filled and joined."""
+    from PIL import Image, ImageDraw
+
+    rows = [r for r in report["rows"] if math.isfinite(r["image_psnr_db"])]
+    width, height, left, right, top, bottom = 900, 600, 70, 30, 40, 60
+    image = Image.new("RGB", (width, height), "white")
+    draw = ImageDraw.Draw(image)
+    if not rows:
+        image.save(path)
+        return
+    xs = [math.log10(r["ms_per_view"]) for r in rows]
+    ys = [r["image_psnr_db"] for r in rows]
+    x0, x1 = min(xs) - 0.05, max(xs) + 0.05
+    y0, y1 = math.floor(min(ys)) - 1, math.ceil(max(ys)) + 1
+
+    def at(x: float, y: float) -> tuple[float, float]:
+        return (left + (x - x0) / (x1 - x0) * (width - left - right),
+                height - bottom - (y - y0) / (y1 - y0) * (height - top - bottom))
+
+    draw.rectangle([left, top, width - right, height - bottom], outline="black")
+    step = max(1, round((y1 - y0) / 10))
+    for y in range(int(y0), int(y1) + 1, step):
+        px, py = at(x0, y)
+        draw.line([px - 4, py, px, py], fill="black")
+        draw.text((px - 30, py - 6), f"{y}", fill="black")
+    for decade in range(math.floor(x0), math.ceil(x1) + 1):
+        for m in (1, 2, 5):
+            x = decade + math.log10(m)
+            if x0 <= x <= x1:
+                px, py = at(x, y0)
+                draw.line([px, py, px, py + 4], fill="black")
+                draw.text((px - 10, py + 8), f"{10 ** x:g}", fill="black")
+    draw.text((width / 2 - 120, height - 25), "time per view, ms (log scale, per core)", fill="black")
+    draw.text((5, 12), "image PSNR against the reference render, dB", fill="black")
+    for k, size in enumerate(dict.fromkeys(r["size"] for r in rows)):
+        colour = _COLOURS[k % len(_COLOURS)]
+        mine = [r for r in rows if r["size"] == size]
+        front = sorted((r for r in mine if r["pareto"]), key=lambda r: r["ms_per_view"])
+        draw.line([at(math.log10(r["ms_per_view"]), r["image_psnr_db"]) for r in front], fill=colour, width=2)
+        for r in mine:
+            px, py = at(math.log10(r["ms_per_view"]), r["image_psnr_db"])
+            draw.ellipse([px - 5, py - 5, px + 5, py + 5], outline=colour, width=2,
+                         fill=colour if r["pareto"] else "white")
+            draw.text((px + 7, py - 12), f"{r['shadow_map_size']}/{r['supersampling']}x", fill=colour)
+        draw.text((width - right - 260, top + 10 + 16 * k), f"{size} (filled: Pareto-optimal)", fill=colour)
+    draw.text((width - right - 260, top + 10 + 16 * (k + 1)), "labels: shadow map / supersampling", fill="black")
+    image.save(path)
+
+
+def write_outputs(report: dict[str, Any], out_dir: str | os.PathLike) -> dict[str, Path]:
+    """Write ``sweep.md``, ``sweep.json`` and ``sweep.png`` into ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"md": out / "sweep.md", "json": out / "sweep.json", "png": out / "sweep.png"}
+    paths["md"].write_text(format_report(report) + "\n")
+    paths["json"].write_text(json.dumps(report, indent=2, default=lambda v: str(v)) + "\n")
+    plot_front(report, paths["png"])
+    return paths

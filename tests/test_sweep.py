@@ -1,0 +1,107 @@
+"""The speed-against-error sweep on tiny settings: structure, pixel alignment of supersampling and
+that larger shadow maps come closer to the reference; never speed (that is what
+``python -m sidar_torch sweep`` prints)."""
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from sidar_torch import load_config, sweep
+from sidar_torch.accuracy import speckle_paintings
+from sidar_torch.cli import main
+from sidar_torch.dataset import SidarDataset
+from sidar_torch.render import SceneRenderer
+
+from conftest import SMALL
+
+TINY = sweep.SweepSettings(sizes=(SMALL,), shadow_map_sizes=(32, 128, 512), supersampling=(1,),
+                           reference=(2048, 1), scenes=2, residual_samples=1, label_samples=1,
+                           preset="shadows_only", n_views=3)
+
+
+@pytest.fixture(scope="module")
+def report():
+    return sweep.run_sweep(TINY, log=lambda line: None)
+
+
+def test_report_structure_and_outputs(report, tmp_path):
+    rows = report["rows"]
+    assert [(r["shadow_map_size"], r["supersampling"]) for r in rows] == [(32, 1), (128, 1), (512, 1), (2048, 1)]
+    assert all(r["size"] == "128x96" and r["ms_per_view"] > 0 for r in rows)
+    assert [r["reference"] for r in rows] == [False, False, False, True]
+    assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
+    assert any(r["pareto"] for r in rows[:-1])
+    assert [r["supersampling"] for r in report["residuals"]] == [1]
+    assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
+    assert report["labels"][0]["min_psnr_db"] >= 45
+    paths = sweep.write_outputs(report, tmp_path / "out")
+    assert "| 128x96 | 512 | 1x |" in paths["md"].read_text()
+    assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
+    with Image.open(paths["png"]) as image:
+        assert image.size == (900, 600)
+
+
+def test_larger_shadow_maps_come_closer_to_the_reference(report):
+    """The scenes have shadows (shadows_only: invisible occluders casting them), so the coarsest
+    map must be measurably worse, and no larger map worse than a smaller one."""
+    values = [r["image_psnr_db"] for r in report["rows"][:-1]]
+    assert all(math.isfinite(v) for v in values)
+    assert values == sorted(values), values
+    assert values[-1] > values[0] + 1.0, values
+
+
+def test_pareto_front():
+    rows = [{"ms_per_view": 1.0, "image_psnr_db": 30.0}, {"ms_per_view": 2.0, "image_psnr_db": 29.0},
+            {"ms_per_view": 2.0, "image_psnr_db": 35.0}, {"ms_per_view": 3.0, "image_psnr_db": math.inf},
+            {"ms_per_view": 2.5, "image_psnr_db": 35.0}]
+    assert sweep.pareto_front(rows) == [0, 2]
+
+
+def test_supersampled_views_keep_pixel_centres():
+    """An ambient scene drawn at 2x and area-averaged matches the 1x draw; a camera off by half
+    a 2x pixel does measurably worse, so the check can fail."""
+    config = load_config("ambient", image_size=SMALL, n_views=3)
+    dataset = SidarDataset(speckle_paintings(1, SMALL, 0, scale=3.0), config, seed=0)
+    sequence, painting = dataset.scene(0), dataset.source.painting(0, SMALL)
+    big = sweep.supersampled_sequence(sequence, 2)
+    assert big.image_size == (2 * SMALL[0], 2 * SMALL[1])
+    np.testing.assert_allclose(big.views[1].camera.K[:2, 2], 2 * sequence.views[1].camera.K[:2, 2] + 0.5)
+    one, two = SceneRenderer(SMALL, 64), SceneRenderer(big.image_size, 64)
+    try:
+        v1, m1 = sweep.render_views(one, sequence, painting, 1)
+        v2, m2 = sweep.render_views(two, sequence, painting, 2)
+        assert v2.shape == v1.shape and m2.shape == m1.shape
+        seen = (1 - m1) * (1 - m2)
+
+        def masked_psnr(a, b):
+            return 10 * math.log10(3 * float(seen.sum()) / float(((a - b) ** 2 * seen).sum()))
+
+        shift = np.array([[1, 0, -0.5], [0, 1, -0.5], [0, 0, 1.0]])  # half a 2x pixel up and left
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(sweep, "supersampled_sequence", lambda s, f: replace(big, views=tuple(
+                replace(v, camera=replace(v.camera, K=shift @ v.camera.K)) for v in big.views)))
+            v3, _ = sweep.render_views(two, sequence, painting, 2)
+        assert masked_psnr(v1, v2) > 40
+        assert masked_psnr(v1, v2) > masked_psnr(v1, v3) + 5
+    finally:
+        one.close()
+        two.close()
+
+
+def test_cli_writes_the_three_files(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(sweep.SweepSettings, "quick", classmethod(
+        lambda cls: TINY.__class__(**{**TINY.__dict__, "shadow_map_sizes": (64,), "scenes": 1})))
+    main(["sweep", "--quick", "--out-dir", str(tmp_path)])
+    assert "| 128x96 | 64 | 1x |" in capsys.readouterr().out
+    assert {p.name for p in tmp_path.iterdir()} == {"sweep.md", "sweep.json", "sweep.png"}
+
+
+def test_bad_settings_name_the_field():
+    with pytest.raises(ValueError, match="shadow_map_sizes"):
+        sweep.SweepSettings(shadow_map_sizes=(300,))
+    with pytest.raises(ValueError, match="supersampling"):
+        sweep.SweepSettings(supersampling=(0,))
