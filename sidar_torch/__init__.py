@@ -9,7 +9,11 @@
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .dataset import SidarDataset
+from .export import ExportedDataset, export_dataset
 from .pairs import homography_pairs
 
-__all__ = ["SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "homography_pairs", "load_config"]
+__all__ = [
+    "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "export_dataset",
+    "homography_pairs", "load_config",
+]
 __version__ = "0.1.0"

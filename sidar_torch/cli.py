@@ -103,6 +103,21 @@ def _bench(args: argparse.Namespace) -> None:
     print(f"wrote {args.out_md} and {args.out_json}", file=sys.stderr)
 
 
+def _export(args: argparse.Namespace) -> None:
+    from .export import export_dataset
+
+    try:
+        config = load_config(args.config, **_parse_set(args.set))
+        dataset = SidarDataset(source=args.source, config=config, seed=args.seed)
+        summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
+                                 workers=args.workers, progress=not args.no_progress)
+    except (ValueError, OSError, RuntimeError) as error:
+        raise SystemExit(f"export: {error}") from error
+    print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
+          f"({summary.present} of the {args.count} requested were already there); "
+          f"read them with sidar_torch.ExportedDataset({args.out!r})")
+
+
 def _sweep(args: argparse.Namespace) -> None:
     from . import sweep
 
@@ -165,6 +180,32 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                        help="override a config field of every preset (repeatable), e.g. --set n_views=4")
     bench.set_defaults(run=_bench)
+    export = commands.add_parser(
+        "export", help="write a frozen dataset: the paper's files per sequence, or tar shards (resumable)",
+        description="Render sequences START .. START+COUNT-1 and write them to OUT in the SIDAR paper's "
+                    "layout: a folder per sequence with <i>.png (views), <i>-m.png (masks, 255 = painting "
+                    "not visible), gt.png (label), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
+                    "variable H) and cameras.json (K, R, t, image size, homography error); export.json and "
+                    "config.yaml at the top. Each sequence appears at once (written to a temporary folder, "
+                    "then renamed); rerunning the same command resumes where an interrupted run stopped. "
+                    "Read the set back with sidar_torch.ExportedDataset(OUT).")
+    export.add_argument("--out", required=True, help="export folder (created if missing; rerun into it to resume)")
+    export.add_argument("--count", type=int, required=True, help="number of sequences to export")
+    export.add_argument("--start", type=int, default=0, help="first dataset index (default 0)")
+    export.add_argument("--config", default="misaligned",
+                        help=f"preset name ({', '.join(available_presets())}) or YAML path (default misaligned)")
+    export.add_argument("--source", default=None, help="image folder or file (default: built-in paintings)")
+    export.add_argument("--seed", type=int, default=0, help="dataset seed: sequence i is a function of (seed, i)")
+    export.add_argument("--shards", type=int, default=None, metavar="PER_SHARD",
+                        help="write WebDataset-style tar shards shard-00000.tar, ... of PER_SHARD sequences "
+                             "each (entries <i>.0.png, <i>.0-m.png, <i>.gt.png, <i>.homographies.npy, "
+                             "<i>.cameras.json) instead of one folder per sequence")
+    export.add_argument("--workers", type=int, default=0,
+                        help="render in this many DataLoader worker processes (default 0: in this process)")
+    export.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config field (repeatable), e.g. --set n_views=4 --set image_size=[192,256]")
+    export.add_argument("--no-progress", action="store_true", help="do not print the progress line on stderr")
+    export.set_defaults(run=_export)
     sweep = commands.add_parser(
         "sweep", help="speed against error of the quality knobs: table, JSON and a Pareto-front PNG",
         description="For output sizes 256x192 and 512x384, shadow maps of 256 to 4096 texels and 1x / 2x "

@@ -1,0 +1,63 @@
+"""Smoke runs of the examples' ``--quick`` modes, checking that what they print makes sense."""
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+def load(name):
+    spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_train_homography_quick(capsys):
+    results = load("train_homography").main(["--quick"])
+    assert set(results) == {"trained on SIDAR pairs", "trained on random-corner pairs", "no motion (predicts 0)"}
+    for row in results.values():
+        assert set(row) == {"SIDAR test pairs", "random-corner test pairs"}
+        assert all(math.isfinite(error) and error >= 0 for error in row.values())
+    # Random corners move each coordinate by U(-16, 16): standing still is off by about 12 px per corner.
+    assert 6 < results["no motion (predicts 0)"]["random-corner test pairs"] < 20
+    assert "| trained on SIDAR pairs" in capsys.readouterr().out
+
+
+def test_restoration_batch_quick(capsys):
+    results = load("restoration_batch").main(["--quick"])
+    assert all(5 < value < 60 for value in results.values())
+    out = capsys.readouterr().out
+    assert "network input (views and masks stacked) (2, 12, 48, 64) -> target (2, 3, 48, 64)" in out
+    assert "largest |H - I| 0.0e+00" in out
+
+
+def test_dense_correspondence_quick(capsys):
+    module = load("dense_correspondence")
+    results = module.main(["--quick"])
+    assert 0 < results["visible fraction"] < 1
+    assert results["forward-backward error, px (median; backward flow read bilinearly)"] < 0.1
+    assert results["colour difference along the flow"] < results["colour difference without the flow"]
+    assert "flow 1 -> 2 (2, 2, 48, 64), visible (2, 1, 48, 64)" in capsys.readouterr().out
+
+
+def test_flow_of_a_known_homography():
+    """A pure translation by (3, -2) px with no occlusion: the flow is (3, -2) everywhere and visible
+    wherever the moved pixel stays inside the image."""
+    torch = pytest.importorskip("torch")
+    module = load("dense_correspondence")
+    H = torch.eye(3).repeat(1, 2, 2, 1, 1)
+    H[0, 0, 1, :2, 2] = torch.tensor([3.0, -2.0])
+    masks = torch.zeros(1, 2, 1, 8, 10)
+    flow, visible = module.flow_and_visibility(H, masks, 0, 1)
+    assert torch.allclose(flow, torch.tensor([3.0, -2.0]).view(1, 2, 1, 1).expand(1, 2, 8, 10))
+    expected = torch.zeros(8, 10, dtype=torch.bool)
+    expected[2:, :7] = True
+    assert torch.equal(visible[0, 0], expected)
+    masks[0, 1, 0, 5, 5] = 1  # view 1 hides pixel (u=5, v=5), which view-0 pixel (2, 7) lands on
+    assert not module.flow_and_visibility(H, masks, 0, 1)[1][0, 0, 7, 2]
