@@ -1,6 +1,6 @@
 """HomographyNet on SIDAR pairs against HomographyNet on random-corner pairs, on CPU in a few minutes.
 
-    python examples/train_homography.py            # the full run (8.6 min on a busy 2-core machine)
+    python examples/train_homography.py            # the full run (about 5 minutes on 2 cores)
     python examples/train_homography.py --quick    # a smoke run (seconds)
 
 Two copies of one small HomographyNet-style regressor (DeTone et al. 2016: two 64 x 64 grey
