@@ -133,18 +133,23 @@ def _sweep(args: argparse.Namespace) -> None:
     print(f"wrote {paths['md']}, {paths['json']} and {paths['png']}", file=sys.stderr)
 
 
+def _dataset_options(command: argparse.ArgumentParser) -> None:
+    """The options naming a dataset: ``--config``, ``--source``, ``--seed`` and ``--set``."""
+    command.add_argument("--config", default="misaligned",
+                         help=f"preset name ({', '.join(available_presets())}) or YAML path (default misaligned)")
+    command.add_argument("--source", default=None, help="image folder or file (default: built-in paintings)")
+    command.add_argument("--seed", type=int, default=0, help="dataset seed: sample i is a function of (seed, i)")
+    command.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a config field (repeatable), e.g. --set n_views=4 --set image_size=[192,256]")
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="python -m sidar_torch", description=__doc__)
     commands = parser.add_subparsers(dest="command", required=True)
     preview = commands.add_parser("preview", help="render samples into a contact sheet PNG")
-    preview.add_argument("--config", default="misaligned",
-                         help=f"preset name ({', '.join(available_presets())}) or YAML path")
-    preview.add_argument("--source", default=None, help="image folder or file (default: built-in paintings)")
+    _dataset_options(preview)
     preview.add_argument("--samples", type=int, default=3, help="number of samples (rows of the sheet)")
-    preview.add_argument("--seed", type=int, default=0, help="dataset seed")
     preview.add_argument("--out", default="preview.png", help="output PNG path")
-    preview.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                         help="override a config field (repeatable), e.g. --set n_views=4")
     preview.set_defaults(run=_preview)
     accuracy = commands.add_parser(
         "accuracy", help="measure warp residuals, homography errors and label PSNR (prints a table)",
@@ -192,18 +197,13 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--out", required=True, help="export folder (created if missing; rerun into it to resume)")
     export.add_argument("--count", type=int, required=True, help="number of sequences to export")
     export.add_argument("--start", type=int, default=0, help="first dataset index (default 0)")
-    export.add_argument("--config", default="misaligned",
-                        help=f"preset name ({', '.join(available_presets())}) or YAML path (default misaligned)")
-    export.add_argument("--source", default=None, help="image folder or file (default: built-in paintings)")
-    export.add_argument("--seed", type=int, default=0, help="dataset seed: sequence i is a function of (seed, i)")
+    _dataset_options(export)
     export.add_argument("--shards", type=int, default=None, metavar="PER_SHARD",
                         help="write WebDataset-style tar shards shard-00000.tar, ... of PER_SHARD sequences "
                              "each (entries <i>.0.png, <i>.0-m.png, <i>.gt.png, <i>.homographies.npy, "
                              "<i>.cameras.json) instead of one folder per sequence")
     export.add_argument("--workers", type=int, default=0,
                         help="render in this many DataLoader worker processes (default 0: in this process)")
-    export.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a config field (repeatable), e.g. --set n_views=4 --set image_size=[192,256]")
     export.add_argument("--no-progress", action="store_true", help="do not print the progress line on stderr")
     export.set_defaults(run=_export)
     sweep = commands.add_parser(
