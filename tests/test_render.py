@@ -1,6 +1,8 @@
 """The renderer, proved by rendering: each pyrender/OSMesa quirk has a test that fails if it returns."""
 
 import gc
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -173,3 +175,15 @@ def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel():
         full = renderer.render(seq, painting)
         assert np.array_equal(fast.views, full.views) and np.array_equal(fast.masks, full.masks)
     assert skipped >= 10  # the skip did happen
+
+
+@pytest.mark.parametrize("setup, expected", [
+    # OSMesa missing: pyrender's OSMesa platform cannot be imported.
+    ("import sys; sys.modules['pyrender.platforms.osmesa'] = None", "apt-get install libosmesa6"),
+    ("import os; os.environ['PYOPENGL_PLATFORM'] = 'vulkan'", "expected 'osmesa' or 'egl'"),
+])
+def test_a_platform_that_cannot_open_says_what_is_missing(setup, expected):
+    script = f"{setup}\nfrom sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n"
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0
+    assert "RuntimeError" in result.stderr and expected in result.stderr, result.stderr[-500:]
