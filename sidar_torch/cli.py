@@ -133,6 +133,12 @@ def _sweep(args: argparse.Namespace) -> None:
     print(f"wrote {paths['md']}, {paths['json']} and {paths['png']}", file=sys.stderr)
 
 
+def _schema(args: argparse.Namespace) -> None:
+    from .schema import schema_markdown
+
+    print(schema_markdown())
+
+
 def _dataset_options(command: argparse.ArgumentParser) -> None:
     """The options naming a dataset: ``--config``, ``--source``, ``--seed`` and ``--set``."""
     command.add_argument("--config", default="misaligned",
@@ -219,6 +225,9 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--scenes", type=int, default=None, help="scenes per setting (default 6, quick 3)")
     sweep.add_argument("--out-dir", default="out", help="output folder (default out)")
     sweep.set_defaults(run=_sweep)
+    schema = commands.add_parser("schema", help="print every config field with its default, allowed values "
+                                                 "and meaning (a markdown table)")
+    schema.set_defaults(run=_schema)
     return parser
 
 

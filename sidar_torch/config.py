@@ -201,6 +201,18 @@ def _number(name: str, value: Any, kind: type) -> float | int:
     return kind(value)
 
 
+RANGE_BOUNDS: dict[str, tuple[float, float]] = {
+    "camera_height": (1e-3, math.inf), "fov_deg": (1.0, 170.0), "n_lights": (0, 8),
+    "light_height": (1e-3, math.inf), "light_irradiance": (0.0, math.inf),
+    "spot_irradiance": (0.0, math.inf), "area_irradiance": (0.0, math.inf),
+    "spot_cone_deg": (1.0, 114.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
+    "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
+    "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0), "plane_specular": (0.0, 1.0),
+    "plane_coat": (0.0, 1.0), "plane_coat_roughness": (0.0, 1.0),
+}
+"""Allowed ``(lowest low, highest high)`` of the bounded range fields."""
+
+
 def _validate(c: SidarConfig) -> None:
     def need(ok: bool, name: str, expected: str) -> None:
         if not ok:
@@ -227,16 +239,7 @@ def _validate(c: SidarConfig) -> None:
          "occluder_shapes", f"a non-empty subset of {OCCLUDER_SHAPES}")
     need(len(c.occluder_materials) > 0 and set(c.occluder_materials) <= set(OCCLUDER_MATERIALS),
          "occluder_materials", f"a non-empty subset of {OCCLUDER_MATERIALS}")
-    bounded = {
-        "camera_height": (1e-3, math.inf), "fov_deg": (1.0, 170.0), "n_lights": (0, 8),
-        "light_height": (1e-3, math.inf), "light_irradiance": (0.0, math.inf),
-        "spot_irradiance": (0.0, math.inf), "area_irradiance": (0.0, math.inf),
-        "spot_cone_deg": (1.0, 114.0), "ambient": (0.0, math.inf), "n_occluders": (0, 16),
-        "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
-        "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0), "plane_specular": (0.0, 1.0),
-        "plane_coat": (0.0, 1.0), "plane_coat_roughness": (0.0, 1.0),
-    }
-    for name, (lo, hi) in bounded.items():
+    for name, (lo, hi) in RANGE_BOUNDS.items():
         low, high = getattr(c, name)
         need(lo <= low <= high <= hi, name, f"a range (low, high) with {lo} <= low <= high <= {hi}")
     samples = c.area_light_samples if "area" in c.light_types else 1

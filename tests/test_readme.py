@@ -42,3 +42,18 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
     code = python_blocks()[3] + "\nassert list(ds.indices())[:3] == [0, 1, 2]\ntorch.distributed.destroy_process_group()\n"
     result = run(code, env)
     assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_readme_config_table_is_the_generated_schema():
+    from sidar_torch.schema import schema_markdown
+
+    text = README.read_text()
+    start = text.index("<!-- schema:")
+    table = text[text.index("\n", start) + 1:text.index("<!-- end schema -->")].rstrip("\n")
+    assert table == schema_markdown()
+
+
+def test_every_config_field_has_a_meaning_in_the_schema():
+    from sidar_torch.schema import schema_rows
+
+    assert all(row["meaning"] for row in schema_rows()), [row["name"] for row in schema_rows() if not row["meaning"]]
