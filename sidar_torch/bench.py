@@ -69,6 +69,12 @@ _WARMUP_INDEX = 1_000_000
 """Index of the warm-up sample, apart from the measured indices ``0 .. samples - 1``."""
 
 
+def check_sizes(sizes: tuple[tuple[int, int], ...]) -> None:
+    """Raise ``ValueError`` naming ``sizes`` unless every entry is an ``(H, W)`` pair of positive integers."""
+    if any(len(s) != 2 or min(s) < 1 for s in sizes):
+        raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {sizes}")
+
+
 @dataclass(frozen=True)
 class BenchSettings:
     """What the benchmark measures.
@@ -95,8 +101,7 @@ class BenchSettings:
     def __post_init__(self) -> None:
         if not self.presets or not self.sizes or not self.workers:
             raise ValueError("presets, sizes and workers: expected at least one each")
-        if any(len(s) != 2 or min(s) < 1 for s in self.sizes):
-            raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {self.sizes}")
+        check_sizes(self.sizes)
         if any(w < 0 for w in self.workers):
             raise ValueError(f"workers: expected counts >= 0, got {self.workers}")
         if self.samples < 1 or self.kornia_images < 1:

@@ -51,7 +51,7 @@ import torch.nn.functional as F
 
 from .accuracy import psnr, speckle_paintings, warp_residuals
 from .accuracy_report import label_row
-from .bench import DEFAULT_PRESET
+from .bench import DEFAULT_PRESET, check_sizes
 from .config import load_config
 from .dataset import SidarDataset, sequence_homographies
 from .render import SceneRenderer
@@ -95,8 +95,7 @@ class SweepSettings:
     def __post_init__(self) -> None:
         if not self.sizes or not self.shadow_map_sizes or not self.supersampling:
             raise ValueError("sizes, shadow_map_sizes and supersampling: expected at least one each")
-        if any(len(s) != 2 or min(s) < 1 for s in self.sizes):
-            raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {self.sizes}")
+        check_sizes(self.sizes)
         if any(s < 16 or s & (s - 1) for s in (*self.shadow_map_sizes, self.reference[0])):
             raise ValueError(f"shadow_map_sizes, reference: expected powers of two >= 16, got "
                              f"{self.shadow_map_sizes}, {self.reference}")
