@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
@@ -38,6 +38,9 @@ class AccuracySettings:
         scenes: random scenes of the ``preset`` for the homography error.
         preset: the configuration whose cameras the homography sweep draws.
         seed: seed of every dataset and sweep.
+        overrides: config fields applied to every configuration the report loads (the residual's
+            ambient scenes, the homography sweep's ``preset`` and the label's); ``image_size`` and
+            ``n_views`` come from ``sizes`` and ``n_views``.
     """
 
     sizes: tuple[tuple[int, int], ...] = ((131, 257), (192, 256), (384, 512), (768, 1024))
@@ -46,15 +49,25 @@ class AccuracySettings:
     scenes: int = 100_000
     preset: str = "misaligned"
     seed: int = 0
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        reserved = {"image_size", "n_views"} & set(self.overrides)
+        if reserved:
+            raise ValueError(f"overrides: {sorted(reserved)} come from sizes and n_views; leave them out")
+        for preset in ("ambient", self.preset, "misaligned"):  # fail before measuring anything
+            load_config(preset, **self.overrides)
 
     @classmethod
-    def quick(cls) -> "AccuracySettings":
-        return cls(sizes=((131, 257), (192, 256)), samples=3, scenes=2000)
+    def quick(cls, **changes: Any) -> "AccuracySettings":
+        """About a minute: two small sizes, 3 samples each, 2,000 scenes."""
+        return cls(**{"sizes": ((131, 257), (192, 256)), "samples": 3, "scenes": 2000, **changes})
 
 
-def alignment_row(size: tuple[int, int], samples: int, n_views: int, seed: int) -> dict[str, Any]:
+def alignment_row(size: tuple[int, int], samples: int, n_views: int, seed: int,
+                  overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Warp residuals of ``samples`` ambient, occluder-free samples at ``size`` (one table row)."""
-    config = load_config("ambient", image_size=size, n_views=n_views)
+    config = load_config("ambient", **(overrides or {}), image_size=size, n_views=n_views)
     dataset = SidarDataset(speckle_paintings(samples, size, seed), config, seed=seed)
     lengths, maes, pairs = [], [], 0
     for index in range(samples):
@@ -72,10 +85,10 @@ def alignment_row(size: tuple[int, int], samples: int, n_views: int, seed: int) 
             "max_px": float(lengths.max()), "photometric_mae_levels": 255 * float(np.mean(maes))}
 
 
-def homography_row(preset: str, scenes: int, seed: int,
-                   progress: Callable[[int], None] | None = None) -> dict[str, Any]:
-    """Largest homography errors over ``scenes`` random scenes of ``preset``."""
-    config = load_config(preset)
+def homography_row(preset: str, scenes: int, seed: int, progress: Callable[[int], None] | None = None,
+                   overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Largest homography errors over ``scenes`` random scenes of ``preset`` (with ``overrides``)."""
+    config = load_config(preset, **(overrides or {}))
     worst = {"float64_px": 0.0, "float32_px": 0.0, "cycle32": 0.0}
     for index in range(scenes):
         e = homography_errors(sample_sequence(config, np.random.default_rng([seed, index])))
@@ -86,9 +99,10 @@ def homography_row(preset: str, scenes: int, seed: int,
     return {"preset": preset, "scenes": scenes, "views": config.n_views, **worst}
 
 
-def label_row(size: tuple[int, int], samples: int, seed: int) -> dict[str, Any]:
+def label_row(size: tuple[int, int], samples: int, seed: int, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """PSNR of the label against the (fitted) procedural painting, worst of ``samples``."""
-    dataset = SidarDataset(None, load_config("misaligned", image_size=size, n_views=1), seed=seed)
+    config = load_config("misaligned", **(overrides or {}), image_size=size, n_views=1)
+    dataset = SidarDataset(None, config, seed=seed)
     values = []
     for index in range(samples):
         painting = dataset.source.painting(index, size)
@@ -102,7 +116,7 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
     start = time.perf_counter()
     alignment = []
     for size in settings.sizes:
-        alignment.append(alignment_row(size, settings.samples, settings.n_views, settings.seed))
+        alignment.append(alignment_row(size, settings.samples, settings.n_views, settings.seed, settings.overrides))
         log(f"warp residual at {size[1]}x{size[0]}: done ({time.perf_counter() - start:.0f} s)")
     step = max(settings.scenes // 10, 1)
 
@@ -110,8 +124,8 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
         if done % step == 0:
             log(f"homography sweep: {done}/{settings.scenes} scenes ({time.perf_counter() - start:.0f} s)")
 
-    homography = homography_row(settings.preset, settings.scenes, settings.seed, progress)
-    labels = [label_row(size, settings.samples, settings.seed) for size in settings.sizes]
+    homography = homography_row(settings.preset, settings.scenes, settings.seed, progress, settings.overrides)
+    labels = [label_row(size, settings.samples, settings.seed, settings.overrides) for size in settings.sizes]
     return {"alignment": alignment, "homography": homography, "label": labels,
             "seconds": time.perf_counter() - start}
 

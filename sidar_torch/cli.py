@@ -53,11 +53,14 @@ def _preview(args: argparse.Namespace) -> None:
 def _accuracy(args: argparse.Namespace) -> None:
     from . import accuracy_report
 
-    settings = accuracy_report.AccuracySettings.quick() if args.quick else accuracy_report.AccuracySettings()
-    if args.scenes is not None:
-        if args.scenes < 1:
-            raise SystemExit(f"--scenes {args.scenes}: expected at least 1")
-        settings = dataclasses.replace(settings, scenes=args.scenes)
+    if args.scenes is not None and args.scenes < 1:
+        raise SystemExit(f"--scenes {args.scenes}: expected at least 1")
+    changes = {"preset": args.config, "overrides": _parse_set(args.set),
+               **({"scenes": args.scenes} if args.scenes is not None else {})}
+    try:
+        settings = (accuracy_report.AccuracySettings.quick if args.quick else accuracy_report.AccuracySettings)(**changes)
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"accuracy: {error}") from error
     # One thread: the sweep is a long run of tiny tensor operations, which torch's thread pool
     # slows down (a batched 3 x 3 determinant took 16 ms with 2 threads, 15 us with 1).
     torch.set_num_threads(1)
@@ -163,6 +166,11 @@ def _parser() -> argparse.ArgumentParser:
                     "against the analytic plane-induced homographies over 100,000 scenes, label PSNR.")
     accuracy.add_argument("--quick", action="store_true", help="two small sizes and 2,000 scenes (about a minute)")
     accuracy.add_argument("--scenes", type=int, default=None, help="scenes in the homography sweep")
+    accuracy.add_argument("--config", default="misaligned",
+                          help="preset name or YAML path whose cameras the homography sweep draws (default misaligned)")
+    accuracy.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                          help="override a config field of every configuration the report loads (repeatable), "
+                               "e.g. --set fov_deg=[20,40]; image_size and n_views come from the report's sizes")
     accuracy.add_argument("--json", default=None, help="also write the figures as JSON to this path")
     accuracy.add_argument("--markdown", default=None, help="also write the table as markdown to this path")
     accuracy.set_defaults(run=_accuracy)

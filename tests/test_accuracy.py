@@ -127,3 +127,29 @@ def test_hard_views_still_agree_with_their_homographies_when_rendered(overrides)
                             for index in range(3)])
     assert len(found) >= 5
     assert np.median(found) <= 0.05 and found.max() <= 0.2, (np.median(found), found.max())
+
+
+def test_accuracy_overrides_reach_every_configuration_the_report_loads(monkeypatch):
+    from sidar_torch import accuracy_report
+
+    loaded = []
+
+    def recording_load_config(preset, **fields):
+        loaded.append((preset, fields))
+        return load_config(preset, **fields)
+
+    monkeypatch.setattr(accuracy_report, "load_config", recording_load_config)
+    settings = AccuracySettings(sizes=((131, 257),), samples=1, n_views=2, scenes=2,
+                                overrides={"fov_deg": (30, 31)})
+    run_report(settings, log=lambda line: None)
+    assert {preset for preset, _ in loaded} == {"ambient", "misaligned"}
+    assert all(fields.get("fov_deg") == (30, 31) for _, fields in loaded)
+
+
+def test_accuracy_command_rejects_bad_overrides_before_measuring():
+    from sidar_torch import cli
+
+    with pytest.raises(SystemExit, match="n_veiws"):
+        cli.main(["accuracy", "--quick", "--set", "n_veiws=2"])
+    with pytest.raises(SystemExit, match="n_views"):
+        cli.main(["accuracy", "--quick", "--set", "n_views=2"])
