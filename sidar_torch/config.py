@@ -27,6 +27,7 @@ __all__ = [
     "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES",
     "ON_BAD_IMAGE",
+    "SHADOW_FILTERS",
     "SidarConfig",
     "available_presets",
     "load_config",
@@ -42,6 +43,7 @@ LIGHT_TYPES = ("spot", "point", "area")
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
+SHADOW_FILTERS = ("tent", "bilinear")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -101,6 +103,9 @@ class SidarConfig:
 
     Rendering
         shadow_map_size: side of each shadow map in texels (power of two).
+        shadow_filter: how a shadow-map lookup is filtered: ``"tent"``, a 3 x 3 tent-weighted
+            percentage-closer filter from 4 bilinear depth-compare taps, or ``"bilinear"``, a 2 x 2
+            filter from one tap (a quarter of the texture reads: shadow edges one texel sharper).
 
     Input
         on_bad_image: what a painting source does with an unreadable image: ``"raise"`` (an
@@ -150,6 +155,7 @@ class SidarConfig:
     scene_per_view: bool = True
 
     shadow_map_size: int = 1024
+    shadow_filter: str = "tent"
 
     on_bad_image: str = "raise"
 
@@ -226,6 +232,7 @@ def _validate(c: SidarConfig) -> None:
     need(c.occluder_xy >= 0, "occluder_xy", ">= 0")
     need(0 <= c.min_coverage <= 1, "min_coverage", "a fraction in [0, 1]")
     need(0 <= c.min_overlap <= 1, "min_overlap", "a fraction in [0, 1]")
+    need(c.shadow_filter in SHADOW_FILTERS, "shadow_filter", f"one of {SHADOW_FILTERS}")
     need(c.on_bad_image in ON_BAD_IMAGE, "on_bad_image", f"one of {ON_BAD_IMAGE}")
     need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
     need(c.area_light_size > 0, "area_light_size", "> 0")

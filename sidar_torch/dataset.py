@@ -65,7 +65,7 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
         ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
     """
-    renderer = shared_renderer(config.image_size, config.shadow_map_size)
+    renderer = shared_renderer(config.image_size, config.shadow_map_size, config.shadow_filter)
     rendered = renderer.render(sequence, painting, timings)
     with timed(timings, "homographies"):
         K, R, t = sequence.cameras()

@@ -1,14 +1,16 @@
 """The renderer, proved by rendering: each pyrender/OSMesa quirk has a test that fails if it returns."""
 
+import dataclasses
 import gc
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+import torch
 
 from sidar_torch import SidarDataset, geometry
-from sidar_torch.render import SceneRenderer, shared_renderer
+from sidar_torch.render import SceneRenderer, programs, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, small_config, textured_painting
@@ -175,6 +177,48 @@ def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel():
         full = renderer.render(seq, painting)
         assert np.array_equal(fast.views, full.views) and np.array_equal(fast.masks, full.masks)
     assert skipped >= 10  # the skip did happen
+
+
+def test_compiling_out_the_unused_point_and_directional_light_loops_changes_no_pixel(monkeypatch):
+    cfg = small_config("misaligned", n_views=3, n_occluders=(2, 3))
+    painting = textured_painting(SMALL)
+    sequences = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(3)]
+    fast = [SceneRenderer(SMALL).render(seq, painting) for seq in sequences]
+    loops = [(old, new) for old, new in programs.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
+    assert len(loops) == 2
+    kept = [patch for patch in programs.SHADER_PATCHES["mesh.frag"] if patch not in loops]
+    monkeypatch.setitem(programs.SHADER_PATCHES, "mesh.frag", kept)
+    renderer = SceneRenderer(SMALL)  # a new program cache: compiled without those two patches
+    for seq, expected in zip(sequences, fast):
+        assert np.array_equal(renderer.render(seq, painting).views, expected.views)
+
+
+def test_bilinear_shadow_filter_sharpens_shadow_edges_only():
+    # Coarse shadow maps (about 3 px per texel here) make the filters' footprints visible.
+    scene = dict(occluders=[cube((0.05, 0.02, 0.3), half=0.15)], lights=[overhead_spot()], ambient=0.0, visible=False)
+    painting = np.full((*SMALL, 3), 200, np.uint8)
+    tent = SceneRenderer(SMALL, 128).render(one_view(SMALL, **scene), painting).views[0, ..., 1].astype(int)
+    bilinear = SceneRenderer(SMALL, 128, shadow_filter="bilinear").render(one_view(SMALL, **scene),
+                                                                          painting).views[0, ..., 1].astype(int)
+    lit = SceneRenderer(SMALL, 128).render(one_view(SMALL, shadows=False, **scene), painting).views[0, ..., 1]
+    assert tent.min() == 0 and bilinear.min() == 0  # a full shadow under both
+    # Where the tent filter leaves the painting fully lit, so does the narrower bilinear one.
+    assert np.array_equal(bilinear[tent == lit], lit[tent == lit])
+    penumbra = {name: int(((view > 0) & (view < lit)).sum()) for name, view in (("tent", tent), ("bilinear", bilinear))}
+    assert 0 < penumbra["bilinear"] < 0.8 * penumbra["tent"], penumbra
+
+
+def test_config_shadow_filter_reaches_the_dataset_renderer():
+    images = {name: SidarDataset(None, small_config("shadows_only", n_views=2, shadow_filter=name, n_occluders=(3, 3)),
+                                 seed=0).sample(0)["images"] for name in ("tent", "bilinear")}
+    assert not torch.equal(images["tent"], images["bilinear"])
+
+
+def test_unknown_shadow_filter_is_named():
+    with pytest.raises(ValueError, match="shadow_filter"):
+        SceneRenderer(SMALL, shadow_filter="box")
+    with pytest.raises(ValueError, match="shadow_filter"):
+        small_config(shadow_filter="box")
 
 
 @pytest.mark.parametrize("setup, expected", [

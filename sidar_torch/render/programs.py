@@ -14,7 +14,9 @@
    a 3x3 grid of manual 4-tap bilinear compares, 36 texture reads per light per pixel (about
    50 ms per light at 512 x 384 on llvmpipe). Spot-light shadow maps here are depth-compare
    samplers (``sampler2DShadow``, set up by the renderer) read with 4 hardware-filtered taps
-   at +-0.5 texel: a 3 x 3 tent-weighted percentage-closer filter for 4 reads.
+   at +-0.5 texel: a 3 x 3 tent-weighted percentage-closer filter for 4 reads; or, with the
+   program define ``SIDAR_SHADOW_TAPS`` = 1 (config ``shadow_filter: bilinear``), one tap at
+   the centre: a 2 x 2 filter.
 4. **The lit shader's output encoding is a gamma-2.2 approximation** (``pow(x, 1/2.2)``)
    although it decodes textures with the exact sRGB curve, so an ambient-only render is up to
    9 levels off its texture. :data:`SHADER_PATCHES` swaps in the exact sRGB encoding.
@@ -31,6 +33,16 @@
      or brighter at its silhouette, and specular light (coat and base, unshadowed) raises the
      opacity too, so a highlight on clear glass shows at full strength instead of being blended
      away. There is no refraction: what lies behind a transparent object is seen undisplaced.
+
+6. **Loops cost even when they run zero times.** llvmpipe runs a fragment shader on 8-pixel
+   vectors and executes both sides of every branch under a lane mask, uniform conditions
+   included: only a loop's trip count saves work. pyrender's empty point- and
+   directional-light loops cost 13 ms per 512 x 384 view (the renderer makes only spot lights),
+   and a shadow lookup skipped with a branch (``i >= n_shadowed ? 0.0 : lookup``) was still
+   paid in full: the 4 filtered taps per light are two thirds of a lit view. So the point and
+   directional loops are compiled out, and the spot lights run in two loops: the first
+   ``n_shadowed_spot_lights`` with their shadow lookup, the rest without (the renderer orders
+   the lights so; the sum runs in the same order, so the pixels are the same either way).
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it.
@@ -58,14 +70,73 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
         return 0.0;
     }
     float compare = light_coords.z - max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;
+#if SIDAR_SHADOW_TAPS == 1
+    float lit = 4.0 * texture(shadow_map, vec3(light_coords.xy, compare));
+#else
     vec2 texel = 0.5 / vec2(textureSize(shadow_map, 0));
     float lit = texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, -texel.y), compare))
               + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, -texel.y), compare))
               + texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, texel.y), compare))
               + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, texel.y), compare));
+#endif
     return 1.0 - 0.25 * lit;
 }
 """
+
+_SPOT_LIGHT = """
+vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_diff, vec3 albedo,
+                out vec3 l)
+{
+    // pyrender's spot-light loop body, without the shadow: light i's reflected radiance.
+    vec3 position = spot_lights[i].position;
+    vec3 v = normalize(cam_pos - frag_position); // Vector towards camera
+    l = normalize(position - frag_position); // Vector towards light
+    vec3 direction = spot_lights[i].direction;
+    float las = spot_lights[i].light_angle_scale;
+    float lao = spot_lights[i].light_angle_offset;
+    float dist = length(position - frag_position);
+    float cd = clamp(dot(direction, -l), 0.0, 1.0);
+    float attenuation = clamp(cd * las + lao, 0.0, 1.0);
+    attenuation = attenuation * attenuation * spot_lights[i].intensity;
+    attenuation = attenuation / (dist * dist);
+    vec3 radiance = attenuation * spot_lights[i].color;
+    return compute_brdf(n, v, l, roughness, metallic, f0, c_diff, albedo, radiance);
+}
+"""
+
+_PYRENDER_SPOT_LOOP_HEAD = """    for (int i = 0; i < n_spot_lights; i++) {
+        vec3 position = spot_lights[i].position;
+        vec3 v = normalize(cam_pos - frag_position); // Vector towards camera
+        vec3 l = normalize(position - frag_position); // Vector towards light
+
+        // Compute attenuation and radiance
+        vec3 direction = spot_lights[i].direction;
+        float las = spot_lights[i].light_angle_scale;
+        float lao = spot_lights[i].light_angle_offset;
+        float dist = length(position - frag_position);
+        float cd = clamp(dot(direction, -l), 0.0, 1.0);
+        float attenuation = clamp(cd * las + lao, 0.0, 1.0);
+        attenuation = attenuation * attenuation * spot_lights[i].intensity;
+        attenuation = attenuation / (dist * dist);
+        vec3 radiance = attenuation * spot_lights[i].color;
+
+        // Compute outbound color
+        vec3 res = compute_brdf(n, v, l, roughness, metallic,
+                                f0, c_diff, base_color.rgb, radiance);
+"""
+
+_SHADOWED_SPOT_LOOP_HEAD = """    for (int i = 0; i < n_shadowed_spot_lights; i++) {  // lights with a shadow lookup
+        vec3 l;
+        vec3 res = spot_light(i, n, roughness, metallic, f0, c_diff, base_color.rgb, l);
+"""
+
+_UNSHADOWED_SPOT_LOOP = """        color.xyz += res;
+    }
+    for (int i = n_shadowed_spot_lights; i < n_spot_lights; i++) {  // the others: no lookup
+        vec3 l;
+        color.xyz += spot_light(i, n, roughness, metallic, f0, c_diff, base_color.rgb, l);
+    }
+    color.xyz += base_color.xyz * ambient_light;"""
 
 _SURFACE_BRDF = """
         vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
@@ -112,11 +183,15 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
     "mesh.frag": [
         ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
          "sampler2DShadow shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
-        # Only the first n_shadowed_spot_lights lights can shadow what the camera sees: the others
-        # skip the lookup (a uniform branch), which would return "lit".
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
-         "float shadow = i >= n_shadowed_spot_lights ? 0.0 : spot_shadow(\n            spot_lights[i].light_matrix,"),
-        ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
+         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
+        # Only the first n_shadowed_spot_lights lights can shadow what the camera sees: the others
+        # run in a second loop without the lookup, which would return "lit" (quirk 6).
+        (_PYRENDER_SPOT_LOOP_HEAD, _SHADOWED_SPOT_LOOP_HEAD),
+        ("        color.xyz += res;\n    }\n    color.xyz += base_color.xyz * ambient_light;", _UNSHADOWED_SPOT_LOOP),
+        ("for (int i = 0; i < n_directional_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
+        ("for (int i = 0; i < n_point_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
+        ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _SPOT_LIGHT + _EXACT_SRGB_ENCODE),
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
         ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),
         ("""
@@ -147,6 +222,9 @@ class _PatchedProgram(ShaderProgram):
             if text.count(old) != 1:
                 raise RuntimeError(f"pyrender shader {shader_filename!r} changed: cannot patch {old.strip()!r}")
             text = text.replace(old, new)
+        for name, value in self.defines.items():  # pyrender substituted its own before the patches
+            if name.startswith("SIDAR_"):
+                text = text.replace(name, str(value))
         return text
 
     def _add_to_context(self) -> None:
@@ -165,10 +243,17 @@ class ProgramCache(ShaderProgramCache):
     """pyrender's program cache for a single GL context: keyed by shader files and defines only.
 
     ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
+
+    Args:
+        shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
     """
 
+    def __init__(self, shadow_taps: int = 4):
+        super().__init__()
+        self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
+
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
-        defines = defines or {}
+        defines = {**(defines or {}), **self._extra_defines}
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:

@@ -38,7 +38,7 @@ import pyrender
 from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
-from ..config import MAX_SHADOWED_LIGHTS
+from ..config import MAX_SHADOWED_LIGHTS, SHADOW_FILTERS
 from ..geometry import ball_may_be_seen, clip_polygon, look_at, plane_corners, shadow_may_reach, visible_halfplanes
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
@@ -166,9 +166,9 @@ class _GLRenderer(pyrender.Renderer):
       their context, which :class:`SceneRenderer` destroys.
     """
 
-    def __init__(self, width: int, height: int, shadow_map_size: int):
+    def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int):
         super().__init__(width, height)
-        self._program_cache = ProgramCache()
+        self._program_cache = ProgramCache(shadow_taps)
         self.shadow_map_size = shadow_map_size
         self._unused_shadow_map = self.new_shadow_map()
         self._unused_shadow_map._add_to_context()
@@ -218,8 +218,9 @@ class _GLRenderer(pyrender.Renderer):
         bound, the layout is the same for every lit draw.
         """
         super()._bind_lighting(scene, program, node, flags)
-        if flags & RenderFlags.SHADOWS_SPOT:
-            program.set_uniform("n_shadowed_spot_lights", self._n_shadowed)
+        shadowed = bool(flags & RenderFlags.SHADOWS_SPOT)
+        program.set_uniform("n_shadowed_spot_lights", self._n_shadowed if shadowed else 0)
+        if shadowed:
             for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
                 self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
 
@@ -281,9 +282,16 @@ class SceneRenderer:
     Args:
         image_size: ``(H, W)`` of every view, in pixels.
         shadow_map_size: side of each shadow map, texels (power of two).
+        skip_idle_shadows: leave out the shadow pass and lookup of emitters that cannot shadow
+            what the camera sees (the pixels are the same; false only for tests).
+        shadow_filter: ``"tent"`` (3 x 3 percentage-closer filter, 4 taps) or ``"bilinear"``
+            (2 x 2, one tap); see ``SidarConfig.shadow_filter``.
     """
 
-    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True):
+    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True,
+                 shadow_filter: str = "tent"):
+        if shadow_filter not in SHADOW_FILTERS:
+            raise ValueError(f"shadow_filter: expected one of {SHADOW_FILTERS}, got {shadow_filter!r}")
         self.image_size = tuple(image_size)
         self.skip_idle_shadows = skip_idle_shadows
         h, w = self.image_size
@@ -291,7 +299,7 @@ class SceneRenderer:
         # Destroying the context frees every GL object in it; it needs no current context, so a
         # collected renderer cannot disturb another one mid-render. Runs at exit too.
         self._release = weakref.finalize(self, self._platform.delete_context)
-        self._gl = _GLRenderer(w, h, shadow_map_size)
+        self._gl = _GLRenderer(w, h, shadow_map_size, 1 if shadow_filter == "bilinear" else 4)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
@@ -460,12 +468,12 @@ class SceneRenderer:
         return self._gl.draw(scene, RenderFlags.FLAT, seen={plane}, timings=timings, step="label")[..., :3]
 
 
-_SHARED: dict[tuple[int, tuple[int, int], int], SceneRenderer] = {}
+_SHARED: dict[tuple[int, tuple[int, int], int, str], SceneRenderer] = {}
 _DISOWNED: list[SceneRenderer] = []
 """Renderers inherited from a parent process, kept alive and unused (see ``SceneRenderer.disown``)."""
 
 
-def shared_renderer(image_size: tuple[int, int], shadow_map_size: int) -> SceneRenderer:
+def shared_renderer(image_size: tuple[int, int], shadow_map_size: int, shadow_filter: str = "tent") -> SceneRenderer:
     """This process's renderer for these settings, created at first use and then reused.
 
     A forked child (a DataLoader worker) inherits its parent's renderers; it disowns them
@@ -474,7 +482,7 @@ def shared_renderer(image_size: tuple[int, int], shadow_map_size: int) -> SceneR
     pid = os.getpid()
     for key in [k for k in _SHARED if k[0] != pid]:
         _SHARED.pop(key).disown()
-    key = (pid, tuple(image_size), shadow_map_size)
+    key = (pid, tuple(image_size), shadow_map_size, shadow_filter)
     if key not in _SHARED:
-        _SHARED[key] = SceneRenderer(image_size, shadow_map_size)
+        _SHARED[key] = SceneRenderer(image_size, shadow_map_size, shadow_filter=shadow_filter)
     return _SHARED[key]
