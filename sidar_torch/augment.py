@@ -130,7 +130,7 @@ class SidarAugment(nn.Module):
         paintings = TensorPaintings(cpu, crop=self.crop)
         size = self.config.image_size
         samples = [
-            render_sample(sample_sequence(self.config, rng), paintings.painting(b, size), self.config, b)
+            render_sample(sample_sequence(self.config, rng), paintings.painting(b, size), self.config, b, rng=rng)
             for b, rng in enumerate(self._scene_rngs(len(cpu), generator))
         ]
         batch = {key: torch.stack([s[key] for s in samples]) for key in _TENSOR_KEYS}

@@ -46,15 +46,16 @@ from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 from .config import SidarConfig, available_presets, load_config
 from .dataset import SidarDataset, render_sample
 from .render import shared_renderer
+from .scene import sample_sequence
 from .timing import timed
 
 __all__ = ["BenchSettings", "STEPS", "format_report", "run_bench", "timed_sample"]
 
 STEPS = ("scene", "painting", "upload", "graph", "shadow", "colour", "mask", "label", "readback",
-         "homographies", "tensors")
+         "effects", "homographies", "tensors")
 """Steps of a sample, in order: scene sampling, painting (source image fitted to the size),
 texture and mesh uploads, pyrender scene graphs, shadow-map passes, lit colour passes, mask
-passes, label pass, glReadPixels, homographies, tensor conversion."""
+passes, label pass, glReadPixels, view effects (when on), homographies, tensor conversion."""
 
 DEFAULT_PRESET = "misaligned"
 """The preset ``SidarDataset`` uses when given none; the targets refer to it."""
@@ -144,10 +145,11 @@ def timed_sample(dataset: SidarDataset, index: int) -> dict[str, float]:
     timings: dict[str, float] = {}
     start = time.perf_counter()
     with timed(timings, "scene"):
-        sequence = dataset.scene(index)
+        rng = dataset.generator(index)
+        sequence = sample_sequence(dataset.config, rng)
     with timed(timings, "painting"):
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
-    render_sample(sequence, painting, dataset.config, index, timings)
+    render_sample(sequence, painting, dataset.config, index, timings, rng)
     timings["total"] = time.perf_counter() - start
     return timings
 

@@ -23,6 +23,7 @@ from typing import Any, Mapping
 import yaml
 
 __all__ = [
+    "BACKGROUNDS",
     "LIGHT_TYPES",
     "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES",
@@ -40,10 +41,11 @@ MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
 
 LIGHT_TYPES = ("spot", "point", "area")
-OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull")
+OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull", "prism")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
 SHADOW_FILTERS = ("tent", "bilinear")
+BACKGROUNDS = ("black", "view", "sequence")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -107,6 +109,24 @@ class SidarConfig:
             percentage-closer filter from 4 bilinear depth-compare taps, or ``"bilinear"``, a 2 x 2
             filter from one tap (a quarter of the texture reads: shadow edges one texel sharper).
 
+    View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
+    only, drawn after the scene so switching one on changes no scene, mask, label or homography;
+    see ``sidar_torch.artifacts``)
+        background: what the views show where nothing was drawn: ``"black"`` (the paper's),
+            ``"view"`` (a random colour per view) or ``"sequence"`` (one random colour per sample).
+        background_level: range each 8-bit sRGB channel of a background colour is drawn from, as
+            a fraction of 255.
+        exposure_jitter: scale each view's linear intensity by ``2 ** stops`` and raise it to a
+            power ``gamma`` (drawn per view).
+        exposure_stops: range of the exposure change, in stops (EV).
+        gamma: range of the exponent applied to a view's linear intensity (after exposure and noise).
+        sensor_noise: add Gaussian read noise and signal-dependent shot noise in linear light.
+        read_noise: range of a view's read-noise standard deviation (linear intensity, 1 is white).
+        shot_noise: range of a view's shot-noise scale ``k``: variance ``k * x`` at linear
+            intensity ``x`` (a Poisson count of ``x / k`` photons, times ``k``; Gaussian approximation).
+        jpeg: compress each view as JPEG and decode it (Pillow, in memory, 4:2:0 chroma).
+        jpeg_quality: range of a view's JPEG quality (Pillow's scale, 1-100).
+
     Input
         on_bad_image: what a painting source does with an unreadable image: ``"raise"`` (an
             error naming the file) or ``"skip"`` (a warning, and the next readable image).
@@ -156,6 +176,17 @@ class SidarConfig:
 
     shadow_map_size: int = 1024
     shadow_filter: str = "tent"
+
+    background: str = "black"
+    background_level: Range = (0.0, 1.0)
+    exposure_jitter: bool = False
+    exposure_stops: Range = (-1.0, 1.0)
+    gamma: Range = (0.8, 1.25)
+    sensor_noise: bool = False
+    read_noise: Range = (0.0, 0.01)
+    shot_noise: Range = (0.0, 0.002)
+    jpeg: bool = False
+    jpeg_quality: IntRange = (30, 95)
 
     on_bad_image: str = "raise"
 
@@ -215,6 +246,8 @@ RANGE_BOUNDS: dict[str, tuple[float, float]] = {
     "occluder_height": (0.0, math.inf), "occluder_size": (1e-4, math.inf),
     "plane_roughness": (0.0, 1.0), "plane_metallic": (0.0, 1.0), "plane_specular": (0.0, 1.0),
     "plane_coat": (0.0, 1.0), "plane_coat_roughness": (0.0, 1.0),
+    "background_level": (0.0, 1.0), "exposure_stops": (-8.0, 8.0), "gamma": (0.1, 10.0),
+    "read_noise": (0.0, 1.0), "shot_noise": (0.0, 1.0), "jpeg_quality": (1, 100),
 }
 """Allowed ``(lowest low, highest high)`` of the bounded range fields."""
 
@@ -234,6 +267,7 @@ def _validate(c: SidarConfig) -> None:
     need(0 <= c.min_overlap <= 1, "min_overlap", "a fraction in [0, 1]")
     need(c.shadow_filter in SHADOW_FILTERS, "shadow_filter", f"one of {SHADOW_FILTERS}")
     need(c.on_bad_image in ON_BAD_IMAGE, "on_bad_image", f"one of {ON_BAD_IMAGE}")
+    need(c.background in BACKGROUNDS, "background", f"one of {BACKGROUNDS}")
     need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
     need(c.area_light_size > 0, "area_light_size", "> 0")
     need(c.area_light_samples >= 1, "area_light_samples", "at least 1")

@@ -1,7 +1,8 @@
 """``SidarDataset``: paintings x random scenes x renderer -> samples of tensors, on the fly.
 
-A sample is a pure function of ``(seed, index)``: its scene is drawn with
-``numpy.random.default_rng([seed, index])`` and its painting is ``source[index % len(source)]``,
+A sample is a pure function of ``(seed, index)``: its scene, then its view effects (if any are
+switched on, see ``sidar_torch.artifacts``), are drawn with ``numpy.random.default_rng([seed,
+index])`` and its painting is ``source[index % len(source)]``,
 so the same sample comes out whatever the number of workers, ranks or the order of iteration.
 """
 
@@ -15,6 +16,7 @@ import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
 from . import geometry
+from .artifacts import apply_effects, draw_effects
 from .config import SidarConfig, load_config
 from .render import shared_renderer
 from .scene import SceneSequence, sample_sequence
@@ -46,7 +48,7 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None) -> dict[str, Any]:
+                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> dict[str, Any]:
     """Render ``sequence`` with ``painting`` and assemble one sample dict (see :class:`SidarDataset`).
 
     The one place where a sample is put together: :meth:`SidarDataset.sample` and
@@ -55,24 +57,32 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     Args:
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer's settings (image size, shadow-map size).
+        config: gives the renderer's settings (image size, shadow-map size) and the view effects
+            (:mod:`sidar_torch.artifacts`: background, exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
-            :meth:`sidar_torch.render.SceneRenderer.render`), ``"homographies"`` and ``"tensors"``
-            (conversion of the pixels to float tensors).
+            :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
+            any is on), ``"homographies"`` and ``"tensors"`` (conversion of the pixels to float tensors).
+        rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
+            when ``config`` switches an effect on (``ValueError`` otherwise).
 
     Returns:
         The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
         ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
     """
+    effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     renderer = shared_renderer(config.image_size, config.shadow_map_size, config.shadow_filter)
     rendered = renderer.render(sequence, painting, timings)
+    K, R, t = sequence.cameras()
+    views = rendered.views
+    if effects is not None:
+        with timed(timings, "effects"):
+            views = apply_effects(views, rendered.masks, K, R, t, effects)
     with timed(timings, "homographies"):
-        K, R, t = sequence.cameras()
         homographies, homography_error = sequence_homographies(sequence)
     with timed(timings, "tensors"):
         return {
-            "images": torch.from_numpy(rendered.views).permute(0, 3, 1, 2).float().div_(255),
+            "images": torch.from_numpy(views).permute(0, 3, 1, 2).float().div_(255),
             "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
             "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
             "homographies": homographies.float(),
@@ -155,16 +165,21 @@ class SidarDataset(IterableDataset):
             raise TypeError("SidarDataset is an endless stream (length=None) and has no len()")
         return self.length
 
+    def generator(self, index: int) -> np.random.Generator:
+        """A fresh copy of sample ``index``'s generator, ``numpy.random.default_rng([seed, index])``:
+        the scene sampler draws from it first, then the view effects."""
+        return np.random.default_rng([self.seed, _check_int("index", index, 0)])
+
     def scene(self, index: int) -> SceneSequence:
         """The scene description of sample ``index`` (no rendering)."""
-        index = _check_int("index", index, 0)
-        return sample_sequence(self.config, np.random.default_rng([self.seed, index]))
+        return sample_sequence(self.config, self.generator(index))
 
     def sample(self, index: int) -> dict[str, Any]:
         """Render sample ``index`` (a pure function of ``(seed, index)``); see the class docstring."""
-        sequence = self.scene(index)
+        rng = self.generator(index)
+        sequence = sample_sequence(self.config, rng)
         painting = self.source.painting(index % len(self.source), self.config.image_size)
-        return render_sample(sequence, painting, self.config, index)
+        return render_sample(sequence, painting, self.config, index, rng=rng)
 
     def indices(self) -> Iterator[int]:
         """The indices this process draws: ``k, k + n, k + 2n, ...`` (below ``length`` if finite)

@@ -118,7 +118,7 @@ class Light(_Plain):
 @dataclass(frozen=True, eq=False)
 class Occluder(_Plain):
     """A unit primitive (``shape``, within the box ``|x_k| <= 1``; ``variant`` picks one of the
-    :data:`HULL_VARIANTS` for a ``hull``, else 0) scaled by ``scale (3,)``, rotated by
+    :data:`SHAPE_VARIANTS` fixed meshes of a ``hull`` or ``prism``, else 0) scaled by ``scale (3,)``, rotated by
     ``rotation (3, 3)`` and centred at ``position (3,)``."""
 
     shape: str
@@ -328,6 +328,12 @@ def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[in
 HULL_VARIANTS = 8
 """Distinct ``hull`` primitives an occluder can be (see ``render.meshes``)."""
 
+PRISM_VARIANTS = 8
+"""Distinct ``prism`` (extruded polygon) primitives an occluder can be (see ``render.meshes``)."""
+
+SHAPE_VARIANTS = {"hull": HULL_VARIANTS, "prism": PRISM_VARIANTS}
+"""Shapes that come in several fixed variants, and how many; every other shape has one (variant 0)."""
+
 OCCLUDER_ATTEMPTS = 100
 """Placements tried for an occluder before it is left out of the view."""
 
@@ -346,7 +352,7 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
     rotation = _random_rotation(rng)
     scale = rng.uniform(*config.occluder_size, size=3)
-    variant = int(rng.integers(HULL_VARIANTS)) if shape == "hull" else 0
+    variant = int(rng.integers(SHAPE_VARIANTS[shape])) if shape in SHAPE_VARIANTS else 0
     kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
     material = _occluder_material(kind, rng)
     radius = float(np.linalg.norm(scale))  # the unit primitive lies within the box |x_k| <= 1

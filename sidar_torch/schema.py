@@ -18,7 +18,8 @@ from .config import SidarConfig
 __all__ = ["field_meanings", "schema_markdown", "schema_rows"]
 
 _CHOICES = {"light_types": config.LIGHT_TYPES, "occluder_shapes": config.OCCLUDER_SHAPES,
-            "occluder_materials": config.OCCLUDER_MATERIALS, "on_bad_image": config.ON_BAD_IMAGE}
+            "occluder_materials": config.OCCLUDER_MATERIALS, "on_bad_image": config.ON_BAD_IMAGE,
+            "background": config.BACKGROUNDS}
 
 
 def field_meanings() -> dict[str, str]:

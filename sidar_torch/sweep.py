@@ -51,6 +51,7 @@ import torch.nn.functional as F
 
 from .accuracy import psnr, speckle_paintings, warp_residuals
 from .accuracy_report import label_row
+from .artifacts import linear_to_srgb, srgb_to_linear
 from .bench import DEFAULT_PRESET, check_sizes
 from .config import load_config
 from .dataset import SidarDataset, sequence_homographies
@@ -128,14 +129,6 @@ def supersampled_sequence(sequence: SceneSequence, factor: int) -> SceneSequence
     return replace(sequence, image_size=(factor * h, factor * w), views=views)
 
 
-def _to_linear(srgb: torch.Tensor) -> torch.Tensor:
-    return torch.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
-
-
-def _to_srgb(linear: torch.Tensor) -> torch.Tensor:
-    return torch.where(linear <= 0.0031308, linear * 12.92, 1.055 * linear.clamp(min=0) ** (1 / 2.4) - 0.055)
-
-
 def render_views(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray,
                  factor: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
     """The views and masks of ``sequence`` at its own size, drawn at ``factor`` times that size.
@@ -157,7 +150,7 @@ def render_views(renderer: SceneRenderer, sequence: SceneSequence, painting: np.
     views = torch.from_numpy(rendered.views).permute(0, 3, 1, 2).double() / 255
     masks = torch.from_numpy(rendered.masks).unsqueeze(1).double()
     if factor > 1:
-        views = _to_srgb(F.avg_pool2d(_to_linear(views), factor))
+        views = linear_to_srgb(F.avg_pool2d(srgb_to_linear(views), factor))
         views = (views * 255).round().clamp(0, 255) / 255
         masks = F.max_pool2d(masks, factor)
     return views.float(), masks.float()

@@ -7,13 +7,15 @@ import math
 
 import numpy as np
 import pytest
+import torch
 
 from sidar_torch import SidarDataset, geometry, load_config
+from sidar_torch.artifacts import srgb_to_linear
 from sidar_torch.config import OCCLUDER_SHAPES
 from sidar_torch.exposure import view_exposure
 from sidar_torch.render import shared_renderer
 from sidar_torch.render.meshes import unit_primitive
-from sidar_torch.scene import HULL_VARIANTS, Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
+from sidar_torch.scene import SHAPE_VARIANTS, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, small_config
 from test_render import overhead_spot
@@ -23,11 +25,12 @@ CENTRE = (slice(H // 2 - 6, H // 2 + 6), slice(W // 2 - 6, W // 2 + 6))
 DIFFUSE = Material(np.ones(4), 0.0, 1.0, specular=0.0)
 
 
-def render(occluders=(), lights=(), plane=DIFFUSE, ambient=0.0, painting=100, mask_min_opacity=0.0, camera=None):
+def render(occluders=(), lights=(), plane=DIFFUSE, ambient=0.0, painting=100, mask_min_opacity=0.0, camera=None,
+           occluders_visible=True):
     """One reference-camera view of a flat painting of grey level (or RGB) ``painting``."""
     camera = camera or Camera(*geometry.reference_camera(SMALL, 0.9))
     view = ViewScene(camera, tuple(lights), tuple(occluders), plane, ambient)
-    sequence = SceneSequence(SMALL, (view,), True, True, mask_min_opacity)
+    sequence = SceneSequence(SMALL, (view,), occluders_visible, True, mask_min_opacity)
     texture = np.broadcast_to(np.asarray(painting, np.uint8), (*SMALL, 3)).copy()
     out = shared_renderer(SMALL, 1024).render(sequence, texture)
     return out.views[0].astype(int), out.masks[0]
@@ -39,7 +42,7 @@ def sphere(material, radius=0.15, height=0.3, shape="sphere", variant=0):
 
 @pytest.mark.parametrize("shape", OCCLUDER_SHAPES)
 def test_every_shape_fits_its_unit_box_renders_and_is_masked(shape):
-    for variant in range(HULL_VARIANTS if shape == "hull" else 1):
+    for variant in range(SHAPE_VARIANTS.get(shape, 1)):
         mesh = unit_primitive(shape, variant)
         assert np.abs(mesh.bounds).max() <= 1 + 1e-9 and mesh.is_watertight
     red = Material(np.array([0.8, 0.1, 0.1, 1.0]), 0.0, 1.0)
@@ -48,14 +51,27 @@ def test_every_shape_fits_its_unit_box_renders_and_is_masked(shape):
     assert (image[mask, 0] > 2 * image[mask, 1] + 10).mean() > 0.9  # the occluder's red, not the grey painting
 
 
-def test_hull_variants_are_drawn_deterministically_and_all_occur():
-    cfg = small_config(n_views=6, n_occluders=(3, 3), occluder_shapes=("hull",))
+@pytest.mark.parametrize("shape", sorted(SHAPE_VARIANTS))
+def test_shape_variants_are_drawn_deterministically_and_all_occur(shape):
+    cfg = small_config(n_views=6, n_occluders=(3, 3), occluder_shapes=(shape,))
     seq = sample_sequence(cfg, np.random.default_rng(5))
     assert seq == sample_sequence(cfg, np.random.default_rng(5))
     variants = {o.variant for s in range(10) for v in sample_sequence(cfg, np.random.default_rng(s)).views
                 for o in v.occluders}
-    assert variants == set(range(HULL_VARIANTS))
-    assert not np.array_equal(unit_primitive("hull", 0).vertices, unit_primitive("hull", 1).vertices[:8])
+    assert variants == set(range(SHAPE_VARIANTS[shape]))
+    assert not np.array_equal(unit_primitive(shape, 0).vertices[:8], unit_primitive(shape, 1).vertices[:8])
+    assert np.array_equal(unit_primitive(shape, 3).vertices, unit_primitive(shape, 3).vertices)
+
+
+def test_prism_is_an_extruded_star_shaped_polygon():
+    for variant in range(SHAPE_VARIANTS["prism"]):
+        prism = unit_primitive("prism", variant)
+        assert np.allclose(sorted(set(prism.vertices[:, 2].round(9))), [-1.0, 1.0])  # two caps only
+        outline = prism.vertices[prism.vertices[:, 2] > 0, :2]
+        radii = np.linalg.norm(outline, axis=1)
+        corners = np.unique(outline[radii > 1e-9].round(9), axis=0)
+        assert 5 <= len(corners) <= 9 and radii.max() <= 1 + 1e-9 and radii[radii > 1e-9].min() >= 0.4 - 1e-9
+        assert np.isclose(prism.volume, 2 * prism.area_faces[prism.face_normals[:, 2] > 0.5].sum())
 
 
 def test_glossy_occluder_shows_a_highlight_its_diffuse_twin_lacks():
@@ -85,6 +101,35 @@ def test_plane_diffuse_switch_and_plane_ranges():
     materials = [v.plane_material for v in sample_sequence(cfg, np.random.default_rng(0)).views]
     assert all(0.2 <= m.coat <= 0.4 and 0.6 <= m.specular <= 0.7 for m in materials)
     assert len({m.coat for m in materials}) == 6  # a new painting material for every view
+
+
+def shadow_darkening(occluder, light):
+    """``(H, W)`` fraction of the painting's linear light the occluder's shadow takes away (0 lit,
+    1 umbra), the occluder itself hidden from the camera."""
+    lit, shadowed = (render(occluders, [light], painting=200, occluders_visible=False)[0]
+                     for occluders in ([], [occluder]))
+    return 1 - srgb_to_linear(torch.from_numpy(shadowed / 255)).mean(2) / srgb_to_linear(torch.from_numpy(lit / 255)).mean(2)
+
+
+def test_area_lights_give_wider_penumbrae_than_spot_lights():
+    height, irradiance = 1.2, 1.5
+    centre = np.array([[0.0, 0.0, height]])
+    spot = Light("spot", centre, np.ones(3), irradiance * height**2, 0.6, 0.7)
+    grid = np.linspace(-0.2, 0.2, 3)  # a 0.4-wide square of 3 x 3 emitters around the spot's position
+    emitters = centre + np.array([[x, y, 0.0] for x in grid for y in grid])
+    area = Light("area", emitters, np.ones(3), irradiance * height**2 / len(emitters), 0.6, 0.7)
+    ball = sphere(Material(np.array([0.5, 0.5, 0.5, 1.0]), 0.0, 1.0), radius=0.12, height=0.35)
+    widths, counts = {}, {}
+    for light in (spot, area):
+        darkening = shadow_darkening(ball, light).numpy()
+        assert darkening[H // 2, W // 2] > 0.9  # umbra under the ball for both
+        penumbra = (darkening > 0.1) & (darkening < 0.9)
+        widths[light.kind] = penumbra[H // 2, W // 2:].sum()  # 10 %-90 % edge width along a radius, pixels
+        counts[light.kind] = penumbra.sum()
+    # Similar triangles: an emitter square of side 0.4 at 1.2, an edge at 0.35 -> about 0.16 painting
+    # units (15 pixels) of penumbra; the spot's edge is the shadow map's filtered texel, about 1 pixel.
+    assert widths["spot"] <= 3 and widths["area"] >= 10
+    assert counts["area"] > 10 * counts["spot"]
 
 
 def test_over_exposed_colours_go_to_white():

@@ -5,8 +5,10 @@ scene sampler's bounding sphere relies on it): half-extent 1 along x and y for t
 cube, cylinder, cone and torus (the torus 0.3 along z); the capsule is 0.5 wide and 2 long
 along z; the icosahedron's vertices lie on the unit sphere; a ``hull`` is the convex hull of
 random points on the unit sphere, one of :data:`sidar_torch.scene.HULL_VARIANTS` fixed variants
-(variant ``k`` drawn with ``default_rng(k)``). A scene's occluder scales, rotates and places it. Meshes are pooled: a renderer uploads each pooled mesh
-once and reuses it with a new pose and material in every view.
+(variant ``k`` drawn with ``default_rng(k)``); a ``prism`` is a random star-shaped polygon within
+the unit disc extruded from z = -1 to 1, one of :data:`sidar_torch.scene.PRISM_VARIANTS` fixed
+variants (likewise drawn). A scene's occluder scales, rotates and places it. Meshes are pooled:
+a renderer uploads each pooled mesh once and reuses it with a new pose and material in every view.
 """
 
 from __future__ import annotations
@@ -30,6 +32,26 @@ def _hull(variant: int) -> trimesh.Trimesh:
     return trimesh.convex.convex_hull(points / np.linalg.norm(points, axis=1, keepdims=True))
 
 
+def _prism(variant: int) -> trimesh.Trimesh:
+    """A star-shaped polygon of 5-9 vertices (angles sorted uniform draws at least 0.3 rad apart,
+    radii in [0.4, 1]) extruded along z from -1 to 1: a beam, plank, star or wedge once scaled.
+
+    The polygon is fanned from the origin, which sees every vertex (star-shaped), so no polygon
+    triangulation library is needed (``trimesh.creation.extrude_polygon`` would need shapely).
+    """
+    rng = np.random.default_rng(variant)
+    n = int(rng.integers(5, 10))
+    while True:
+        angles = np.sort(rng.uniform(0.0, 2 * np.pi, n))
+        if np.diff(np.append(angles, angles[0] + 2 * np.pi)).min() >= 0.3:
+            break
+    radii = rng.uniform(0.4, 1.0, n)
+    outline = np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+    fan = np.column_stack([np.zeros(n, int), 1 + np.arange(n), 1 + (np.arange(n) + 1) % n])
+    prism = trimesh.creation.extrude_triangulation(np.vstack([[0.0, 0.0], outline]), fan, 2.0)
+    return prism.apply_translation((0, 0, -1.0))
+
+
 _UNIT_PRIMITIVES: dict[str, Callable[[int], trimesh.Trimesh]] = {
     "sphere": lambda _: trimesh.creation.icosphere(subdivisions=3, radius=1.0),
     "cube": lambda _: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
@@ -40,6 +62,7 @@ _UNIT_PRIMITIVES: dict[str, Callable[[int], trimesh.Trimesh]] = {
     "capsule": lambda _: trimesh.creation.capsule(height=1.0, radius=0.5, count=(32, 16)),
     "icosahedron": lambda _: trimesh.creation.icosahedron(),
     "hull": _hull,
+    "prism": _prism,
 }
 _SMOOTH = {"sphere", "torus", "capsule"}
 """Shapes shaded with smooth vertex normals; the others keep sharp edges (flat face normals)."""
@@ -47,7 +70,8 @@ _SMOOTH = {"sphere", "torus", "capsule"}
 
 def unit_primitive(shape: str, variant: int = 0) -> trimesh.Trimesh:
     """The unit primitive of ``shape`` as a trimesh (see module docstring for its size);
-    ``variant`` picks a hull (``0 <= variant < scene.HULL_VARIANTS``) and is ignored by other shapes."""
+    ``variant`` picks a hull or prism (``0 <= variant < scene.HULL_VARIANTS`` or ``PRISM_VARIANTS``)
+    and is ignored by other shapes."""
     return _UNIT_PRIMITIVES[shape](variant)
 
 

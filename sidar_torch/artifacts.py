@@ -1,0 +1,245 @@
+"""View effects beyond the paper: coloured background, exposure and gamma jitter, sensor noise, JPEG.
+
+Each is a per-pixel 2-D change of a rendered view, switched on in :class:`~sidar_torch.config.SidarConfig`
+(all off by default). None moves a pixel, so every homography stays exact; the label and the
+masks are never touched. They follow a camera's pipeline, in this order, per view:
+
+1. **background**: pixels where the renderer drew nothing (see :func:`background_pixels`) take
+   the view's colour (8-bit sRGB);
+2. the 8-bit sRGB values are decoded to linear light (exact sRGB curve, float32);
+3. **exposure**: ``x * 2 ** stops``;
+4. **sensor noise**: ``+ sqrt(read ** 2 + shot * x) * n``, ``n`` standard normal per pixel and
+   channel: the Gaussian approximation of Poisson shot noise (``x / shot`` photons) plus
+   Gaussian read noise (Foi et al.'s Poissonian-Gaussian model). Linear light is where a
+   sensor's noise lives: shot noise grows with the light collected, not with the encoded value;
+5. clipping to [0, 1] (the sensor saturates), then **gamma**: ``x ** gamma``;
+6. exact sRGB encoding, rounded to 8 bits;
+7. **JPEG** at the view's quality (Pillow, in memory, 4:2:0 chroma subsampling), decoded back.
+
+Steps 2-6 run only when exposure jitter or sensor noise is on, else the 8-bit values pass
+through untouched (without noise they are a function of the 8-bit value: a 256-entry table per
+view). Exposure acts on the already rendered 8-bit view: pixels the renderer blew out (255)
+stay flat when darkened.
+
+Background limits (a post-process on the renderer's outputs, which do not say where nothing was
+drawn): a transparent occluder in front of the background was blended over black by the
+renderer and stays so (darker than it would look over the colour); an occluder pixel rendered
+exactly black outside the painting's outline takes the colour (see :func:`background_pixels`).
+Both are masked pixels. A textured background would need the same pixel set; it is left out.
+
+Randomness: :func:`draw_effects` draws, from the sample's generator after the scene sampler has
+drawn everything, and only for the effects that are on, in this order: background colours,
+exposure stops and gammas, read and shot noise levels, JPEG qualities (one per view each, or
+one colour per sample), then the noise field. So switching effects on leaves the scene, the
+masks, the label and the homographies unchanged.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from PIL import Image
+
+from . import geometry
+from .config import SidarConfig
+
+__all__ = ["ViewEffects", "apply_effects", "background_pixels", "draw_effects", "enabled_effects",
+           "jpeg_roundtrip", "linear_to_srgb", "painting_halfplanes", "srgb_to_linear"]
+
+PAINTING_EDGE_MARGIN = 0.01
+"""Pixels (Kornia): a black masked pixel whose centre lies at least about this far inside the
+painting's outline is an occluder, not background. It exceeds the rasteriser's snapping of
+vertices (llvmpipe: 1/256 pixel), so a painting-edge pixel the renderer left empty is not
+mistaken for a black occluder."""
+
+
+def srgb_to_linear(srgb: torch.Tensor) -> torch.Tensor:
+    """Decode sRGB values in [0, 1] to linear light (the exact piecewise sRGB curve), any shape."""
+    return torch.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(linear: torch.Tensor, out: torch.Tensor | None = None) -> torch.Tensor:
+    """Encode linear light (>= 0; 1 is white) to sRGB values (the exact curve), any shape.
+
+    ``out``: a tensor of ``linear``'s shape and dtype to write the result to (``linear`` itself
+    encodes in place, sparing the memory of a copy); by default a new tensor.
+    """
+    low = linear <= 0.0031308
+    low_values = linear * 12.92
+    out = torch.clamp(linear, min=0, out=out).pow_(1 / 2.4).mul_(1.055).sub_(0.055)
+    return torch.where(low, low_values, out, out=out)
+
+
+_DECODED = srgb_to_linear(torch.arange(256, dtype=torch.float64) / 255).float().numpy()
+"""Linear light of each 8-bit sRGB value, ``(256,)`` float32."""
+
+
+@dataclass(frozen=True)
+class ViewEffects:
+    """The drawn effects of one sample's ``V`` views of ``H x W`` pixels; ``None``: effect off.
+
+    Attributes:
+        background: ``(V, 3)`` uint8 sRGB colour of each view's background.
+        gain: ``(V,)`` float64 factor on linear intensity (``2 ** stops``).
+        gamma: ``(V,)`` float64 exponent on linear intensity (with ``gain``).
+        read_noise: ``(V,)`` float64 read-noise standard deviation, linear.
+        shot_noise: ``(V,)`` float64 shot-noise scale (variance per unit of linear intensity).
+        noise: ``(V, H, W, 3)`` float32 standard normal field (with the noise levels).
+        jpeg_quality: ``(V,)`` int64 JPEG quality.
+    """
+
+    background: np.ndarray | None = None
+    gain: np.ndarray | None = None
+    gamma: np.ndarray | None = None
+    read_noise: np.ndarray | None = None
+    shot_noise: np.ndarray | None = None
+    noise: np.ndarray | None = None
+    jpeg_quality: np.ndarray | None = None
+
+
+def enabled_effects(config: SidarConfig) -> list[str]:
+    """Names of the config switches of the view effects that are on."""
+    switches = {"background": config.background != "black", "exposure_jitter": config.exposure_jitter,
+                "sensor_noise": config.sensor_noise, "jpeg": config.jpeg}
+    return [name for name, on in switches.items() if on]
+
+
+def draw_effects(config: SidarConfig, n_views: int, image_size: tuple[int, int],
+                 rng: np.random.Generator | None) -> ViewEffects | None:
+    """Draw the view effects ``config`` switches on (order in the module docstring).
+
+    Args:
+        n_views, image_size: ``V`` and ``(H, W)`` of the sample.
+        rng: the sample's generator, after the scene sampler drew from it; may be ``None`` when
+            every effect is off.
+
+    Returns:
+        the effects, or ``None`` when every effect is off (nothing is drawn then).
+
+    Raises:
+        ValueError: an effect is on and ``rng`` is ``None``.
+    """
+    enabled = enabled_effects(config)
+    if not enabled:
+        return None
+    if rng is None:
+        raise ValueError(f"rng: config switches on view effects {enabled}, which draw from the sample's "
+                         f"numpy Generator; pass the generator that drew the scene (got None)")
+    background = gain = gamma = read = shot = noise = quality = None
+    if config.background != "black":
+        colours = rng.uniform(*config.background_level, size=(n_views if config.background == "view" else 1, 3))
+        background = np.broadcast_to(np.round(colours * 255).astype(np.uint8), (n_views, 3)).copy()
+    if config.exposure_jitter:
+        gain = 2.0 ** rng.uniform(*config.exposure_stops, size=n_views)
+        gamma = rng.uniform(*config.gamma, size=n_views)
+    if config.sensor_noise:
+        read = rng.uniform(*config.read_noise, size=n_views)
+        shot = rng.uniform(*config.shot_noise, size=n_views)
+    if config.jpeg:
+        quality = rng.integers(config.jpeg_quality[0], config.jpeg_quality[1] + 1, size=n_views)
+    if config.sensor_noise:
+        noise = rng.standard_normal((n_views, *image_size, 3), dtype=np.float32)
+    return ViewEffects(background, gain, gamma, read, shot, noise, quality)
+
+
+def background_pixels(views: np.ndarray, masks: np.ndarray, K: np.ndarray, R: np.ndarray,
+                      t: np.ndarray) -> np.ndarray:
+    """Pixels where the renderer drew nothing (neither the painting nor an occluder).
+
+    The renderer clears to black, so such a pixel is masked and exactly ``(0, 0, 0)``; of those,
+    the ones whose centre lies inside the painting's outline (by :data:`PAINTING_EDGE_MARGIN`)
+    are black occluders in front of the painting.
+
+    Limit: an occluder pixel that renders exactly black *outside* the painting's outline (an
+    unlit side, ambient near 0) counts as background too: the renderer's outputs cannot tell
+    them apart. Such pixels are masked either way.
+
+    Args:
+        views: ``(V, H, W, 3)`` uint8 rendered views.
+        masks: ``(V, H, W)`` bool, True where the painting is not visible.
+        K, R: ``(V, 3, 3)`` and t ``(V, 3)`` float64 cameras (Kornia pixels, OpenCV frame).
+
+    Returns:
+        ``(V, H, W)`` bool.
+    """
+    empty = masks & ((views[..., 0] | views[..., 1] | views[..., 2]) == 0)
+    for v in range(len(views)):
+        rows, cols = np.nonzero(empty[v])
+        inside = np.ones(len(rows), bool)
+        for a in painting_halfplanes(K[v], R[v], t[v], views.shape[1:3]):
+            # The half-plane holds at the four points PAINTING_EDGE_MARGIN away along u and v.
+            inside &= a[0] * cols + a[1] * rows + a[2] > PAINTING_EDGE_MARGIN * max(abs(a[0]), abs(a[1]))
+        empty[v, rows[inside], cols[inside]] = False
+    return empty
+
+
+def painting_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """The pixels whose rays meet the painting in front of the camera, as half-planes: ``(5, 3)``
+    float64 rows ``a`` with ``a . (u, v, 1) >= 0`` (Kornia pixels) for each of the painting's four
+    edges and the camera's front.
+
+    A plane point ``(x, y, 0)`` is at pixel ``M (x, y, 1) / depth``, ``M = K [r_1, r_2, t]``, so
+    ``q = M^-1 (u, v, 1) = (x, y, 1) / depth`` (positive third coordinate in front of the
+    camera), and the painting is ``|q_1| <= w/2 q_3``, ``|q_2| <= h/2 q_3``.
+    """
+    width, height = geometry.plane_size(image_size)
+    in_plane = np.array([[-1.0, 0, width / 2], [1, 0, width / 2], [0, -1, height / 2], [0, 1, height / 2], [0, 0, 1]])
+    return in_plane @ np.linalg.inv(K @ np.column_stack([R[:, 0], R[:, 1], t]))
+
+
+def jpeg_roundtrip(view: np.ndarray, quality: int) -> np.ndarray:
+    """``view`` ``(H, W, 3)`` uint8 compressed as JPEG at ``quality`` (1-100, 4:2:0 chroma) and
+    decoded, in memory, ``(H, W, 3)`` uint8."""
+    buffer = io.BytesIO()
+    Image.fromarray(view).save(buffer, format="JPEG", quality=int(quality), subsampling="4:2:0")
+    return np.asarray(Image.open(buffer).convert("RGB"))
+
+
+def apply_effects(views: np.ndarray, masks: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray,
+                  effects: ViewEffects | None) -> np.ndarray:
+    """The views with ``effects`` applied (the pipeline of the module docstring).
+
+    Args:
+        views: ``(V, H, W, 3)`` uint8 sRGB rendered views (not modified).
+        masks: ``(V, H, W)`` bool, True where the painting is not visible.
+        K, R: ``(V, 3, 3)``, t ``(V, 3)`` float64: the views' cameras (for the background).
+        effects: from :func:`draw_effects`; ``None`` returns ``views`` itself.
+
+    Returns:
+        ``(V, H, W, 3)`` uint8 sRGB.
+    """
+    if effects is None:
+        return views
+    out = views.copy()
+    if effects.background is not None:
+        for view, where, colour in zip(out, background_pixels(views, masks, K, R, t), effects.background):
+            view[where] = colour
+    if effects.noise is not None:
+        out = _sensor(out, effects)
+    elif effects.gain is not None:
+        # Without noise a view's change depends on the 8-bit value alone: tabulate it per view.
+        tables = _sensor(np.broadcast_to(np.arange(256, dtype=np.uint8), (len(out), 1, 1, 256)), effects)
+        out = np.stack([table[0, 0][view] for table, view in zip(tables, out)])
+    if effects.jpeg_quality is not None:
+        out = np.stack([jpeg_roundtrip(view, q) for view, q in zip(out, effects.jpeg_quality)])
+    return out
+
+
+def _sensor(values: np.ndarray, effects: ViewEffects) -> np.ndarray:
+    """Steps 2-6 of the module docstring on ``(V, ...)`` uint8 sRGB values (4 dimensions; the noise
+    field, if any, of their shape), per view; uint8 of the same shape. Works in place on one
+    float32 copy: fresh arrays of a sample's size cost more than the arithmetic."""
+    per_view = (-1, 1, 1, 1)
+    x = torch.from_numpy(_DECODED[values])
+    if effects.gain is not None:
+        x *= torch.from_numpy(effects.gain).float().view(per_view)
+    if effects.noise is not None:
+        read, shot = (torch.from_numpy(a).float().view(per_view) for a in (effects.read_noise, effects.shot_noise))
+        x += x.clamp(min=0).mul_(shot).add_(read**2).sqrt_().mul_(torch.from_numpy(effects.noise))
+    x.clamp_(0, 1)
+    if effects.gamma is not None:
+        x.pow_(torch.from_numpy(effects.gamma).float().view(per_view))
+    return linear_to_srgb(x, out=x).mul_(255).round_().to(torch.uint8).numpy()

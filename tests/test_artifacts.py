@@ -1,0 +1,223 @@
+"""View effects beyond the paper (issue 5, item 7): background, exposure/gamma, sensor noise, JPEG.
+
+Each effect is shown by rendering a sample with it and without it (same seed): it changes the
+views as claimed, and nothing else of the sample.
+"""
+
+import io
+
+import numpy as np
+import pytest
+import torch
+from PIL import Image
+
+from sidar_torch import SidarAugment, SidarDataset, geometry
+from sidar_torch.artifacts import (ViewEffects, apply_effects, background_pixels, draw_effects, linear_to_srgb,
+                                   srgb_to_linear)
+from sidar_torch.dataset import render_sample
+from sidar_torch.render import shared_renderer
+from sidar_torch.scene import Camera, Material, Occluder, sample_sequence
+
+from conftest import SMALL, sample_digest, small_config
+from test_realism import render
+
+H, W = SMALL
+ALL_ON = dict(background="view", background_level=(0.2, 1.0), exposure_jitter=True, sensor_noise=True,
+              jpeg=True)
+SCENE_KEYS = ("masks", "label", "homographies", "K", "R", "t", "homography_error")
+
+
+def flat_painting(top, bottom=None):
+    """A ``(1, 3, H, W)`` painting of grey level ``top`` (0-255) above ``bottom`` (default ``top``)."""
+    levels = torch.full((1, 3, H, W), top / 255)
+    levels[..., H // 2:, :] = (top if bottom is None else bottom) / 255
+    return levels
+
+
+def pair(index=0, source=None, preset="misaligned", scene=None, **effects):
+    """Sample ``index`` of one seed, of ``preset`` with the ``scene`` overrides, without and with ``effects``."""
+    off = SidarDataset(source, small_config(preset, **(scene or {})), seed=3).sample(index)
+    on = SidarDataset(source, small_config(preset, **(scene or {}), **effects), seed=3).sample(index)
+    return off, on
+
+
+def linear(images):
+    """``(..., 3, H, W)`` float views in [0, 1] to linear light, float64."""
+    return srgb_to_linear(images.double())
+
+
+def test_srgb_curves_are_exact_inverses_on_the_8_bit_grid():
+    levels = torch.arange(256, dtype=torch.float32) / 255
+    assert torch.equal((linear_to_srgb(srgb_to_linear(levels)) * 255).round(), levels * 255)
+    assert abs(float(srgb_to_linear(torch.tensor(0.5))) - 0.21404) < 1e-5  # the sRGB standard's values
+    assert abs(float(linear_to_srgb(torch.tensor(0.18))) - 0.46135) < 1e-5
+
+
+def test_effects_are_off_by_default_and_leave_the_views_bit_identical():
+    config = small_config()
+    assert draw_effects(config, 3, SMALL, None) is None
+    dataset = SidarDataset(None, config, seed=1)
+    rng = dataset.generator(0)
+    sequence = sample_sequence(config, rng)
+    painting = dataset.source.painting(0, SMALL)
+    raw = shared_renderer(SMALL, config.shadow_map_size).render(sequence, painting).views
+    state = rng.bit_generator.state
+    sample = render_sample(sequence, painting, config, 0, rng=rng)
+    assert rng.bit_generator.state == state  # effects off draw nothing
+    assert torch.equal(sample["images"], torch.from_numpy(raw).permute(0, 3, 1, 2).float() / 255)
+    assert torch.equal(sample["images"], dataset.sample(0)["images"])
+
+
+def test_switching_every_effect_on_changes_the_views_only():
+    off, on = pair(scene={"n_occluders": (2, 3)}, **ALL_ON)
+    for key in SCENE_KEYS:
+        assert sample_digest(off)[key] == sample_digest(on)[key], key
+    assert (on["images"] - off["images"]).abs().mean(dim=(1, 2, 3)).min() > 0.01  # every view changed
+    again = SidarDataset(None, small_config(**ALL_ON, n_occluders=(2, 3)), seed=3).sample(0)
+    assert sample_digest(again) == sample_digest(on)  # deterministic
+
+
+def test_sensor_noise_std_is_the_configured_read_noise_in_linear_light():
+    off, on = pair(source=flat_painting(60, 200), preset="ambient", scene={"aligned": True},
+                   sensor_noise=True, read_noise=(0.02, 0.02), shot_noise=(0.0, 0.0))
+    for half in (slice(0, H // 2), slice(H // 2, H)):  # flat under ambient light: only the noise varies
+        assert off["images"][..., half, :].std(dim=(2, 3)).max() == 0
+    noise = linear(on["images"]) - linear(off["images"])
+    assert abs(float(noise.mean())) < 0.002
+    assert float(noise.std()) == pytest.approx(0.02, rel=0.05)
+    assert torch.equal(on["masks"], off["masks"]) and torch.equal(on["label"], off["label"])
+
+
+def test_shot_noise_variance_grows_with_the_linear_intensity():
+    k = 0.004
+    off, on = pair(source=flat_painting(60, 200), preset="ambient", scene={"aligned": True},
+                   sensor_noise=True, read_noise=(0.0, 0.0), shot_noise=(k, k))
+    noise, clean = linear(on["images"]) - linear(off["images"]), linear(off["images"])
+    for half in (slice(0, H // 2), slice(H // 2, H)):
+        x = float(clean[..., half, :].mean())
+        assert float(noise[..., half, :].var()) == pytest.approx(k * x, rel=0.1)  # Poisson: variance k x
+
+
+def test_exposure_jitter_scales_the_linear_intensity_and_gamma_raises_it_to_a_power():
+    brighter = {"exposure_jitter": True, "exposure_stops": (1.0, 1.0), "gamma": (1.0, 1.0)}
+    off, on = pair(**brighter)
+    x, y = linear(off["images"]), linear(on["images"])
+    room = x < 0.45  # twice these stays below white
+    assert int(room.sum()) > 1000
+    # Rounding to 8 bits moves a value by at most 0.0045 in linear light (half a level where the
+    # sRGB curve is steepest), and x's own rounding is doubled with it.
+    assert float((y[room] - 2 * x[room]).abs().max()) < 0.012
+    assert bool((y[x > 0.55] > 0.999).all())  # clipped at white, as a sensor saturates
+    off, on = pair(exposure_jitter=True, exposure_stops=(0.0, 0.0), gamma=(2.0, 2.0))
+    x, y = linear(off["images"]), linear(on["images"])
+    assert float((y - x**2).abs().max()) < 0.015
+    off, on = pair(exposure_jitter=True, exposure_stops=(-1.0, 1.0))
+    gains = (linear(on["images"]).sum(dim=(1, 2, 3)) / linear(off["images"]).sum(dim=(1, 2, 3)))
+    assert len({round(float(g), 3) for g in gains}) == 3  # a different exposure per view
+
+
+def test_jpeg_output_is_a_pillow_round_trip_of_the_view():
+    off, on = pair(jpeg=True, jpeg_quality=(40, 40))
+    assert not torch.equal(on["images"], off["images"])
+    for view, compressed in zip(off["images"], on["images"]):
+        buffer = io.BytesIO()
+        Image.fromarray((view.permute(1, 2, 0) * 255).round().byte().numpy()).save(buffer, "JPEG", quality=40)
+        expected = torch.from_numpy(np.array(Image.open(buffer))).permute(2, 0, 1).float() / 255
+        assert torch.equal(compressed, expected)
+    _, finer = pair(jpeg=True, jpeg_quality=(95, 95))
+    assert (finer["images"] - off["images"]).abs().mean() < (on["images"] - off["images"]).abs().mean()
+
+
+def painting_pixels(sample, view):
+    """``(H, W)`` bool: pixels of ``view`` whose centre the homography to view 0 (the painting's
+    own pixel grid) sends into the painting grown by half a painting pixel, and into the painting
+    shrunk by one (independent of ``sidar_torch.artifacts``, which uses the cameras)."""
+    v, u = np.mgrid[0:H, 0:W].astype(float)
+    points = np.stack([u, v, np.ones_like(u)]).reshape(3, -1)
+    mapped = sample["homographies"][view, 0].double().numpy() @ points
+    centre = mapped[:, (H // 2) * W + W // 2]  # every camera looks at the painting's centre
+    front = mapped[2] * centre[2] > 0
+    x, y = mapped[:2] / mapped[2]
+    near = front & (x >= -1) & (x <= W) & (y >= -1) & (y <= H)
+    deep = front & (x >= 0.5) & (x <= W - 1.5) & (y >= 0.5) & (y <= H - 1.5)
+    return near.reshape(H, W), deep.reshape(H, W)
+
+
+@pytest.mark.parametrize("mode", ["view", "sequence"])
+def test_background_pixels_take_the_colour_and_nothing_else_changes(mode):
+    off, on = pair(index=2, scene={"n_occluders": (3, 3), "fov_deg": (95.0, 100.0)}, background=mode,
+                   background_level=(0.2, 1.0))
+    colours = []
+    for view in range(1, 3):
+        before, after = (s["images"][view].permute(1, 2, 0) for s in (off, on))
+        masked = off["masks"][view, 0].bool()
+        near, deep = painting_pixels(off, view)
+        changed = (after != before).any(dim=2)
+        assert 0 < int(changed.sum()) and not bool(changed[~masked].any())  # the visible painting is untouched
+        assert not bool(changed[torch.from_numpy(deep)].any())  # occluders in front of the painting too
+        assert bool((before[changed] == 0).all())  # only pixels the renderer left black
+        empty = masked & (before == 0).all(dim=2) & torch.from_numpy(~near)
+        assert bool(changed[empty].all())  # every empty pixel outside the painting
+        assert bool((~(before == 0).all(dim=2) & masked).any())  # lit occluders, kept
+        colour = after[changed].unique(dim=0)
+        assert len(colour) == 1 and float(colour.min()) >= 0.2 - 1 / 510
+        colours.append(colour)
+    assert torch.equal(colours[0], colours[1]) == (mode == "sequence")
+    for key in SCENE_KEYS:
+        assert sample_digest(off)[key] == sample_digest(on)[key], key
+
+
+def test_black_occluders_over_the_painting_are_not_background():
+    camera = Camera(geometry.intrinsics_from_fov(100, SMALL), *geometry.look_at(np.array([0.3, 0.2, 0.9])))
+    edge = np.array([geometry.plane_size(SMALL)[0] / 2, 0.0, 0.1])  # a cube across the painting's right edge
+
+    def cube(rgb):
+        return Occluder("cube", edge, np.eye(3), np.full(3, 0.15), Material(np.array([*rgb, 1.0]), 0.0, 1.0, 0.0))
+
+    painting = ~render([], ambient=1.0, camera=camera)[1]  # where the renderer drew the painting
+    white, white_mask = render([cube((1, 1, 1))], ambient=1.0, camera=camera)
+    on_cube = white_mask & (white > 0).any(axis=2)
+    black, mask = render([cube((0, 0, 0))], ambient=1.0, camera=camera)
+    assert (painting & on_cube).sum() > 100 and (~painting & on_cube).sum() > 100 and (~painting & ~on_cube).any()
+    assert not black[on_cube].any()  # the cube renders exactly black, like the background
+    found = background_pixels(black[None].astype(np.uint8), mask[None], camera.K[None], camera.R[None], camera.t[None])[0]
+    assert not found[painting].any()  # the black cube in front of the painting, edge pixels included
+    assert found[~painting & ~on_cube].all()
+    assert found[~painting & on_cube].all()  # the documented limit: black occluder outside the painting
+
+
+def test_apply_effects_with_identity_settings_changes_no_pixel():
+    sample = SidarDataset(None, small_config(), seed=0).sample(0)
+    views = (sample["images"].permute(0, 2, 3, 1) * 255).round().byte().numpy()
+    masks = sample["masks"][:, 0].bool().numpy()
+    one = np.ones(3)
+    identity = ViewEffects(gain=one, gamma=one, read_noise=0 * one, shot_noise=0 * one,
+                           noise=np.ones((3, H, W, 3), np.float32))
+    K, R, t = (sample[k].double().numpy() for k in ("K", "R", "t"))
+    assert np.array_equal(apply_effects(views, masks, K, R, t, identity), views)
+    assert apply_effects(views, masks, K, R, t, None) is views
+
+
+def test_augment_applies_the_effects_after_the_same_scenes():
+    images = torch.rand(2, 3, 40, 50)
+    off = SidarAugment(small_config(n_views=2), seed=4)(images)
+    on = SidarAugment(small_config(n_views=2, jpeg=True, sensor_noise=True), seed=4)(images)
+    assert torch.equal(on["masks"], off["masks"]) and torch.equal(on["homographies"], off["homographies"])
+    assert not torch.equal(on["images"], off["images"])
+
+
+def test_render_sample_without_a_generator_refuses_effects():
+    config = small_config(jpeg=True)
+    dataset = SidarDataset(None, config, seed=0)
+    with pytest.raises(ValueError, match="rng.*jpeg"):
+        render_sample(dataset.scene(0), dataset.source.painting(0, SMALL), config, 0)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("background", "white"), ("background", None), ("background_level", (0.5, 1.5)), ("exposure_jitter", "yes"),
+    ("exposure_stops", (1.0, -1.0)), ("gamma", (0.0, 1.0)), ("sensor_noise", 1), ("read_noise", (-0.1, 0.1)),
+    ("shot_noise", (0.0, 2.0)), ("jpeg", "on"), ("jpeg_quality", (0, 50)), ("jpeg_quality", (50.5, 60)),
+])
+def test_bad_effect_values_raise_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=field):
+        small_config(**{field: value})
