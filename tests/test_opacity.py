@@ -5,12 +5,14 @@ import numpy as np
 import pyrender
 import pytest
 import torch
+from PIL import Image
 
-from sidar_torch import SidarDataset, geometry, load_config
+from sidar_torch import ExportedDataset, SidarDataset, export_dataset, geometry, load_config
 from sidar_torch.render import shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
 
 from conftest import SMALL, sample_digest, small_config
+from test_export import TINY, assert_same_sample
 from test_render import cube
 
 H, W = SMALL
@@ -103,6 +105,26 @@ def test_switching_opacities_on_changes_no_other_key_and_is_deterministic():
         assert torch.equal(opacities[masks == 0], torch.zeros_like(opacities[masks == 0]))  # visible painting
         soft += int(((opacities > 0) & (opacities < 1)).sum())
     assert soft > 50  # transparent occluders were seen
+
+
+def test_exported_opacities_read_back_byte_identical_in_both_layouts(tmp_path):
+    config = load_config("misaligned", **TINY, occluder_materials=("transparent",), n_occluders=(2, 3),
+                         opacity_output=True)
+    ds = SidarDataset(config=config, seed=3)
+    export_dataset(ds, tmp_path / "folders", count=2, progress=False)
+    export_dataset(ds, tmp_path / "shards", count=2, shards=2, progress=False)
+    for layout in ("folders", "shards"):
+        read = ExportedDataset(tmp_path / layout)
+        for k, index in enumerate(read.indices):
+            assert_same_sample(read[k], ds.sample(index))
+    png = np.array(Image.open(tmp_path / "folders" / "000001" / "1-o.png"))
+    opacities = ds.sample(1)["opacities"][1, 0]
+    assert png.dtype == np.uint8 and torch.equal(torch.from_numpy(png).float() / 255, opacities)
+    assert ((opacities > 0) & (opacities < 1)).any()
+    plain = SidarDataset(config=config.replace(opacity_output=False), seed=3)
+    export_dataset(plain, tmp_path / "plain", count=1, progress=False)
+    assert not list((tmp_path / "plain" / "000000").glob("*-o.png")) and "opacities" not in ExportedDataset(
+        tmp_path / "plain")[0]
 
 
 def test_a_bad_switch_value_raises_naming_the_field():
