@@ -7,7 +7,7 @@ import pytest
 import torch
 from PIL import Image
 
-from sidar_torch import ExportedDataset, SidarDataset, export_dataset, geometry, load_config
+from sidar_torch import ExportedDataset, SidarAugment, SidarDataset, export_dataset, geometry, load_config
 from sidar_torch.render import shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
 
@@ -125,6 +125,15 @@ def test_exported_opacities_read_back_byte_identical_in_both_layouts(tmp_path):
     export_dataset(plain, tmp_path / "plain", count=1, progress=False)
     assert not list((tmp_path / "plain" / "000000").glob("*-o.png")) and "opacities" not in ExportedDataset(
         tmp_path / "plain")[0]
+
+
+def test_augment_batches_opacities_only_when_asked():
+    images = torch.rand(2, 3, 40, 50, generator=torch.Generator().manual_seed(0))
+    kwargs = dict(image_size=SMALL, n_views=2, n_occluders=(1, 2), seed=0)
+    soft = SidarAugment("misaligned", opacity_output=True, **kwargs)(images)
+    plain = SidarAugment("misaligned", **kwargs)(images)
+    assert "opacities" not in plain and soft["opacities"].shape == (2, 2, 1, *SMALL)
+    assert all(torch.equal(soft[key], plain[key]) for key in plain)
 
 
 def test_a_bad_switch_value_raises_naming_the_field():
