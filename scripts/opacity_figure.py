@@ -33,8 +33,7 @@ def main() -> None:
             break
     else:
         raise SystemExit(f"no sample among the first 1000 has {args.min_soft} partially hidden pixels")
-    grey = lambda x: x.expand(-1, 3, -1, -1)  # noqa: E731  (V, 1, H, W) -> (V, 3, H, W)
-    columns = [sample["images"], grey(sample["masks"]), grey(sample["opacities"])]
+    columns = [sample["images"], sample["masks"].expand(-1, 3, -1, -1), sample["opacities"].expand(-1, 3, -1, -1)]
     grid = torch.cat([torch.cat(list(column), dim=1) for column in columns], dim=2)  # (3, V H, 3 W)
     pixels = grid.mul(255).round().byte().permute(1, 2, 0).numpy()
     Image.fromarray(pixels).save(args.out)
