@@ -29,7 +29,8 @@ __all__ = ["SidarAugment"]
 
 Generator = torch.Generator | np.random.Generator
 
-_TENSOR_KEYS = ("images", "masks", "label", "homographies", "K", "R", "t")
+_TENSOR_KEYS = ("images", "masks", "opacities", "label", "homographies", "K", "R", "t")
+"""Keys batched by stacking (``opacities`` only when the config asks for them)."""
 
 
 class SidarAugment(nn.Module):
@@ -76,6 +77,8 @@ class SidarAugment(nn.Module):
 
     - ``images`` ``(B, V, 3, H, W)`` float32 in [0, 1]; view 0 is the reference camera.
     - ``masks`` ``(B, V, 1, H, W)`` float32 in {0, 1}: 1 where the painting is not visible.
+    - ``opacities`` ``(B, V, 1, H, W)`` float32 in [0, 1], only with ``opacity_output=True``: the
+      fraction of the painting hidden at each pixel (see ``SidarDataset``).
     - ``label`` ``(B, 3, H, W)`` float32: the painting in view 0's frame, unlit, unoccluded.
     - ``homographies`` ``(B, V, V, 3, 3)`` float32: ``[b, i, j]`` maps view-i pixels to view-j
       pixels (Kornia convention, det = 1).
@@ -133,7 +136,7 @@ class SidarAugment(nn.Module):
             render_sample(sample_sequence(self.config, rng), paintings.painting(b, size), self.config, b, rng=rng)
             for b, rng in enumerate(self._scene_rngs(len(cpu), generator))
         ]
-        batch = {key: torch.stack([s[key] for s in samples]) for key in _TENSOR_KEYS}
+        batch = {key: torch.stack([s[key] for s in samples]) for key in _TENSOR_KEYS if key in samples[0]}
         batch["homography_error"] = torch.tensor([s["homography_error"] for s in samples], dtype=torch.float32)
         batch["index"] = torch.arange(len(samples), dtype=torch.int64)
         return {key: value.to(images.device) for key, value in batch.items()}

@@ -51,11 +51,12 @@ from .timing import timed
 
 __all__ = ["BenchSettings", "STEPS", "format_report", "run_bench", "timed_sample"]
 
-STEPS = ("scene", "painting", "upload", "graph", "shadow", "colour", "mask", "label", "readback",
+STEPS = ("scene", "painting", "upload", "graph", "shadow", "colour", "mask", "opacity", "label", "readback",
          "effects", "homographies", "tensors")
 """Steps of a sample, in order: scene sampling, painting (source image fitted to the size),
 texture and mesh uploads, pyrender scene graphs, shadow-map passes, lit colour passes, mask
-passes, label pass, glReadPixels, view effects (when on), homographies, tensor conversion."""
+passes, opacity passes (with ``opacity_output``), label pass, glReadPixels, view effects (when
+on), homographies, tensor conversion."""
 
 DEFAULT_PRESET = "misaligned"
 """The preset ``SidarDataset`` uses when given none; the targets refer to it."""

@@ -203,7 +203,7 @@ def _parser() -> argparse.ArgumentParser:
         "export", help="write a frozen dataset: the paper's files per sequence, or tar shards (resumable)",
         description="Render sequences START .. START+COUNT-1 and write them to OUT in the SIDAR paper's "
                     "layout: a folder per sequence with <i>.png (views), <i>-m.png (masks, 255 = painting "
-                    "not visible), gt.png (label), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
+                    "not visible), <i>-o.png (opacities, with opacity_output), gt.png (label), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
                     "variable H) and cameras.json (K, R, t, image size, homography error); export.json and "
                     "config.yaml at the top. Each sequence appears at once (written to a temporary folder, "
                     "then renamed); rerunning the same command resumes where an interrupted run stopped. "

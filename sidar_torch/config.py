@@ -93,6 +93,10 @@ class SidarConfig:
         mask_min_opacity: occluders whose material opacity (alpha) is below this are left out of
             the masks: the painting seen through them counts as visible. 0 (the paper's choice)
             masks every occluder, however transparent.
+        opacity_output: also hand out ``opacities``, a soft mask per view: the fraction of the
+            painting hidden at each pixel (1 off the painting and behind opaque occluders, 0 where
+            it is seen unobstructed, ``1 - prod(1 - a_k)`` through transparent occluders of
+            opacity ``a_k``), whatever ``mask_min_opacity`` is. Costs one unlit draw per view.
         shadows: whether lights cast shadows.
         plane_roughness, plane_metallic: ranges of the painting's material.
         plane_specular: range of the painting's specular level (dielectric reflectance at normal
@@ -164,6 +168,7 @@ class SidarConfig:
     occluder_size: Range = (0.1 / 7, 1.1 / 7)
     occluders_visible: bool = True
     mask_min_opacity: float = 0.0
+    opacity_output: bool = False
     shadows: bool = True
 
     plane_roughness: Range = (0.4, 1.0)

@@ -57,8 +57,9 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     Args:
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer's settings (image size, shadow-map size) and the view effects
-            (:mod:`sidar_torch.artifacts`: background, exposure, noise, JPEG; off by default).
+        config: gives the renderer's settings (image size, shadow-map size and filter,
+            ``opacity_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
+            exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
             :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
@@ -67,12 +68,13 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             when ``config`` switches an effect on (``ValueError`` otherwise).
 
     Returns:
-        The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
-        ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
+        The sample dict of CPU tensors (``images``, ``masks``, ``opacities`` if
+        ``config.opacity_output``, ``label``, ``homographies``, ``K``, ``R``, ``t`` float32),
+        ``homography_error`` (float) and ``index`` (int).
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     renderer = shared_renderer(config.image_size, config.shadow_map_size, config.shadow_filter)
-    rendered = renderer.render(sequence, painting, timings)
+    rendered = renderer.render(sequence, painting, timings, opacities=config.opacity_output)
     K, R, t = sequence.cameras()
     views = rendered.views
     if effects is not None:
@@ -84,6 +86,8 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         return {
             "images": torch.from_numpy(views).permute(0, 3, 1, 2).float().div_(255),
             "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
+            **({} if rendered.opacities is None else
+               {"opacities": torch.from_numpy(rendered.opacities).unsqueeze(1).float().div_(255)}),
             "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
             "homographies": homographies.float(),
             "homography_error": homography_error,
@@ -125,6 +129,13 @@ class SidarDataset(IterableDataset):
 
     - ``images`` ``(V, 3, H, W)`` float32 in [0, 1]: the views; view 0 is the reference camera.
     - ``masks`` ``(V, 1, H, W)`` float32 in {0, 1}: 1 where the painting is not visible.
+    - ``opacities`` ``(V, 1, H, W)`` float32 in [0, 1], only with ``config.opacity_output``: the
+      fraction of the painting hidden at each pixel, a soft ``masks``: 1 off the painting and
+      behind opaque occluders, 0 where the painting is seen unobstructed, and
+      ``1 - prod_k (1 - a_k)`` where transparent occluders ``k`` cover it, ``a_k`` the opacity
+      the view blends them with (material alpha raised by Fresnel towards grazing views; their
+      highlights, which also hide the painting in ``images``, are left out). Every visible
+      occluder counts, whatever ``mask_min_opacity`` is; values are multiples of 1/255.
     - ``label`` ``(3, H, W)`` float32 in [0, 1]: the painting in view 0's frame, unlit, unoccluded.
     - ``homographies`` ``(V, V, 3, 3)`` float32: ``H[i, j]`` maps view-i pixels to view-j pixels
       (Kornia convention, det = 1).

@@ -13,6 +13,8 @@ Folder layout (``shards=None``)::
       000000/            one folder per sequence, named by its dataset index (at least 6 digits)
         0.png .. <V-1>.png   the views, 8-bit RGB; view 0 is the reference camera
         0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
+        0-o.png ..           only with ``opacity_output``: the opacities, 8-bit grey, 255 times
+                             the fraction of the painting hidden (exact: they are multiples of 1/255)
         gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
         H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: a MATLAB file
                              with one variable ``H``, 3 x 3 float64 (det = 1)
@@ -25,6 +27,7 @@ to it bit for bit). ``H[i, i]`` is the identity and not written.
 Shard layout (``shards=N``): ``shard-00000.tar``, ``shard-00001.tar``, ...; shard ``k`` holds the
 exported sequences with indices in ``[k N, (k + 1) N)``, in index order. Entries follow WebDataset's
 naming, ``<key>.<name>`` with ``key`` the 6-digit index: ``000007.0.png``, ``000007.0-m.png``,
+(``000007.0-o.png`` with ``opacity_output``),
 ``000007.gt.png``, ``000007.homographies.npy`` (all ``(V, V, 3, 3)`` float64) and
 ``000007.cameras.json``, so ``webdataset.WebDataset("out/shard-{00000..00009}.tar")`` reads them too.
 
@@ -115,6 +118,8 @@ class _Record:
         index: the dataset index.
         views: ``(V, H, W, 3)`` uint8; masks: ``(V, H, W)`` uint8, 255 where the painting is not
             visible; label: ``(H, W, 3)`` uint8.
+        opacities: ``(V, H, W)`` uint8, 255 times the fraction of the painting hidden, or None
+            (not rendered).
         homographies: ``(V, V, 3, 3)`` float64; K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         homography_error: pixels (see :class:`SidarDataset`).
     """
@@ -128,6 +133,7 @@ class _Record:
     R: np.ndarray
     t: np.ndarray
     homography_error: float
+    opacities: np.ndarray | None = None
 
 
 # --------------------------------------------------------------------------- export
@@ -156,7 +162,7 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         TypeError: ``dataset`` is not a :class:`SidarDataset`.
         ValueError: a bad ``count``, ``start``, ``shards`` or ``workers``; ``out_dir`` holds an
             export whose seed, source, config, layout or version differ; a sample's images are not
-            8-bit values (``k / 255``) or its masks not in {0, 1}.
+            8-bit values (``k / 255``) or its masks not in {0, 1}; likewise its opacities.
         RuntimeError: another export holds the lock on ``out_dir``.
     """
     begin = time.perf_counter()
@@ -239,6 +245,8 @@ def _write_manifest(out: Path, dataset: SidarDataset, shard_size: int | None) ->
                         "pixel at (0, 0)); det = 1; float64",
         "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
     }
+    if dataset.config.opacity_output:
+        manifest["opacities"] = "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"
     path = out / MANIFEST
     if path.exists():
         old = _read_manifest(out)
@@ -319,9 +327,10 @@ def _record(dataset: SidarDataset, index: int) -> _Record:
     masks = sample["masks"][:, 0]
     if not bool(((masks == 0) | (masks == 1)).all()):
         raise ValueError(f"sample {index}: masks: expected values in {{0, 1}}")
+    opacities = _to_uint8(sample["opacities"][:, 0], "opacities", index) if "opacities" in sample else None
     return _Record(index, _to_uint8(sample["images"].permute(0, 2, 3, 1), "images", index),
                    masks.to(torch.uint8).mul_(255).numpy(), _to_uint8(sample["label"].permute(1, 2, 0), "label", index),
-                   homographies.numpy(), K, R, t, float(sample["homography_error"]))
+                   homographies.numpy(), K, R, t, float(sample["homography_error"]), opacities)
 
 
 def _to_uint8(values: torch.Tensor, name: str, index: int) -> np.ndarray:
@@ -368,11 +377,13 @@ def _cameras_json(record: _Record) -> bytes:
 
 
 def _pixel_files(record: _Record) -> dict[str, bytes]:
-    """The files both layouts share, by name: views, masks, label, cameras."""
+    """The files both layouts share, by name: views, masks, opacities (if rendered), label, cameras."""
     files = {}
     for v in range(len(record.views)):
         files[f"{v}.png"] = _png(record.views[v])
         files[f"{v}-m.png"] = _png(record.masks[v])
+        if record.opacities is not None:
+            files[f"{v}-o.png"] = _png(record.opacities[v])
     files["gt.png"] = _png(record.label)
     files["cameras.json"] = _cameras_json(record)
     return files
@@ -502,7 +513,8 @@ class ExportedDataset(Dataset):
     A map-style dataset: item ``k`` is the ``k``-th exported sequence in index order (``indices[k]``
     is its dataset index), as the dict :meth:`SidarDataset.sample` returns, with the same keys,
     shapes and dtypes and, for the same seed, config and source, the same values bit for bit:
-    ``images`` ``(V, 3, H, W)``, ``masks`` ``(V, 1, H, W)``, ``label`` ``(3, H, W)``,
+    ``images`` ``(V, 3, H, W)``, ``masks`` ``(V, 1, H, W)``, ``opacities`` ``(V, 1, H, W)`` (only
+    if the set was rendered with ``opacity_output``), ``label`` ``(3, H, W)``,
     ``homographies`` ``(V, V, 3, 3)``, ``K``, ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` float32,
     ``homography_error`` float, ``index`` int. Reads both layouts; works in DataLoader workers.
 
@@ -563,9 +575,14 @@ class ExportedDataset(Dataset):
         views = np.stack([_read_png(read(f"{v}.png")) for v in range(n_views)])
         masks = np.stack([_read_png(read(f"{v}-m.png")) for v in range(n_views)])
         label = _read_png(read("gt.png"))
+        opacities = {}
+        if self.config.get("opacity_output", False):
+            hidden = np.stack([_read_png(read(f"{v}-o.png")) for v in range(n_views)])
+            opacities["opacities"] = torch.from_numpy(hidden).unsqueeze(1).float().div_(255)
         return {
             "images": torch.from_numpy(views).permute(0, 3, 1, 2).float().div_(255),
             "masks": torch.from_numpy(masks >= 128).unsqueeze(1).float(),
+            **opacities,
             "label": torch.from_numpy(label).permute(2, 0, 1).float().div_(255),
             "homographies": torch.from_numpy(homographies).float(),
             "homography_error": float(cameras["homography_error"]),

@@ -33,6 +33,8 @@
      or brighter at its silhouette, and specular light (coat and base, unshadowed) raises the
      opacity too, so a highlight on clear glass shows at full strength instead of being blended
      away. There is no refraction: what lies behind a transparent object is seen undisplaced.
+     The unlit shader (``flat.frag``) outputs the same Fresnel opacity, highlights aside, for
+     the renderer's opacity draw.
 
 6. **Loops cost even when they run zero times.** llvmpipe runs a fragment shader on 8-pixel
    vectors and executes both sides of every branch under a lane mask, uniform conditions
@@ -160,13 +162,21 @@ vec3 compute_brdf("""
 
 _FRESNEL_ALPHA = """vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"""
 
-_EXACT_SRGB_ENCODE = """
+_FRESNEL_OPACITY = """
+float fresnel_opacity(float alpha, vec3 n)
+{
+    // A blended surface's opacity rises from alpha towards 1 with the Schlick-Fresnel reflectance of the view.
+    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
+    float fresnel = 0.04 + 0.96 * pow(1.0 - nv, 5.0);
+    return mix(alpha, 1.0, fresnel);
+}
+"""
+
+_EXACT_SRGB_ENCODE = _FRESNEL_OPACITY + """
 float surface_alpha(float alpha, vec3 n)
 {
     // Opacity of a blended surface: Schlick-Fresnel towards grazing views, plus its specular light.
-    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
-    float fresnel = 0.04 + 0.96 * pow(1.0 - nv, 5.0);
-    return clamp(mix(alpha, 1.0, fresnel) + max(specular_light.r, max(specular_light.g, specular_light.b)),
+    return clamp(fresnel_opacity(alpha, n) + max(specular_light.r, max(specular_light.g, specular_light.b)),
                  0.0, 1.0);
 }
 
@@ -201,6 +211,12 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
 """, _SURFACE_BRDF),
         ("vec3 dialectric_spec = vec3(min_roughness);", "vec3 dialectric_spec = vec3(0.08 * material.emissive_factor.x);"),
         ("    color.xyz += emissive * material.emissive_factor;\n", ""),
+    ],
+    # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
+    "flat.frag": [
+        ("\nvoid main()\n", _FRESNEL_OPACITY + "\nvoid main()\n"),
+        ("frag_color = clamp(base_color, 0.0, 1.0);",
+         "frag_color = vec4(clamp(base_color.rgb, 0.0, 1.0), fresnel_opacity(base_color.a, normalize(frag_normal)));"),
     ],
 }
 """Per shader file, ``(old, new)`` text replacements, applied after pyrender has resolved the

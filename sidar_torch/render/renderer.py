@@ -11,13 +11,17 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
   (black) with depth testing, so occluder parts behind the painting never count; background
   and occluders are 1. Occluders less opaque than ``sequence.mask_min_opacity`` are left out
-  of this draw, so the painting seen through them counts as visible.
+  of this draw, so the painting seen through them counts as visible;
+* the **opacity** (only when asked): an unlit draw of the painting (white, opaque) and every
+  camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
+  as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
+  through (see :meth:`SceneRenderer._render_opacity`).
 
 and once per sequence the **label**: the painting through view 0's camera, unlit and without
 occluders (the texture as the reference camera samples it).
 
 ``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
-(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``label``, ``readback``; see
+(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``opacity``, ``label``, ``readback``; see
 :meth:`_GLRenderer.draw` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
@@ -71,11 +75,14 @@ class RenderedSequence:
         views: ``(V, H, W, 3)`` uint8 sRGB.
         masks: ``(V, H, W)`` bool, True where the painting is not visible.
         label: ``(H, W, 3)`` uint8 sRGB, the painting as view 0's camera sees it, unlit.
+        opacities: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
+            painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
     """
 
     views: np.ndarray
     masks: np.ndarray
     label: np.ndarray
+    opacities: np.ndarray | None = None
 
 
 def gl_camera(camera: Camera, znear: float, zfar: float) -> tuple[pyrender.IntrinsicsCamera, np.ndarray]:
@@ -157,7 +164,8 @@ class _GLRenderer(pyrender.Renderer):
 
     * programs come from :class:`ProgramCache` (stable key, patched shaders);
     * :meth:`_update_context` uploads what is new and frees only textures no longer used (the
-      previous painting); pooled meshes and shadow maps stay uploaded until :meth:`delete`;
+      previous painting, once a draw uses another); pooled meshes and shadow maps stay uploaded
+      until :meth:`delete`;
     * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
       to the 4 nearest);
     * shadow maps may be any power-of-two size;
@@ -195,11 +203,12 @@ class _GLRenderer(pyrender.Renderer):
                 primitive._add_to_context()
         self._meshes |= scene.meshes
         textures = {t for m in scene.meshes for p in m.primitives for t in p.material.textures}
-        for texture in textures - self._mesh_textures:
-            texture._add_to_context()
-        for texture in self._mesh_textures - textures:
-            texture.delete()
-        self._mesh_textures = textures
+        if textures:  # a draw without textures (the opacity draw) keeps the painting's uploaded
+            for texture in textures - self._mesh_textures:
+                texture._add_to_context()
+            for texture in self._mesh_textures - textures:
+                texture.delete()
+            self._mesh_textures = textures
         for light in scene.lights:
             if light.shadow_texture not in self._shadow_textures:
                 light.shadow_texture._add_to_context()
@@ -245,7 +254,8 @@ class _GLRenderer(pyrender.Renderer):
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
             timings: if given, seconds are added to ``"upload"`` (new textures and meshes),
                 ``"shadow"`` (shadow-map passes), ``step`` (the forward pass) and ``"readback"``.
-            step: the name the forward pass is timed under (``"colour"``, ``"mask"``, ``"label"``).
+            step: the name the forward pass is timed under (``"colour"``, ``"mask"``, ``"opacity"``,
+                ``"label"``).
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -319,7 +329,7 @@ class SceneRenderer:
         return len(self._lights)
 
     def render(self, sequence: SceneSequence, painting: np.ndarray,
-               timings: dict[str, float] | None = None) -> RenderedSequence:
+               timings: dict[str, float] | None = None, opacities: bool = False) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
@@ -327,8 +337,10 @@ class SceneRenderer:
             painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel).
             timings: if given, seconds spent are added to its keys ``"upload"`` (painting
                 texture and meshes), ``"graph"`` (building pyrender scenes), ``"shadow"``,
-                ``"colour"``, ``"mask"`` and ``"label"`` (draw passes) and ``"readback"``; the
-                pixels are the same either way.
+                ``"colour"``, ``"mask"``, ``"opacity"`` and ``"label"`` (draw passes) and
+                ``"readback"``; the pixels are the same either way.
+            opacities: also render each view's opacity (``RenderedSequence.opacities``); the
+                other outputs are the same either way.
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
@@ -339,13 +351,14 @@ class SceneRenderer:
         self._platform.make_current()
         with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
             texture = self._painting_texture(painting)
-        views, masks = [], []
+        views, masks, hidden = [], [], []
         for view in sequence.views:
-            image, mask = self._render_view(view, sequence, texture, timings)
+            image, mask, opacity = self._render_view(view, sequence, texture, timings, opacities)
             views.append(image)
             masks.append(mask)
+            hidden.append(opacity)
         label = self._render_label(sequence.views[0].camera, texture, timings)
-        return RenderedSequence(np.stack(views), np.stack(masks), label)
+        return RenderedSequence(np.stack(views), np.stack(masks), label, np.stack(hidden) if opacities else None)
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
@@ -379,7 +392,7 @@ class SceneRenderer:
         return scene, plane
 
     def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture,
-                     timings: dict[str, float] | None = None):
+                     timings: dict[str, float] | None = None, opacity: bool = False):
         with timed(timings, "graph"):
             scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
             occluders, opaque_enough = set(), set()
@@ -405,7 +418,43 @@ class SceneRenderer:
         seg_map = {plane: 255, **{node: 0 for node in masked}}
         seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                             timings=timings, step="mask")
-        return image[..., :3], seg[..., 0] < 128
+        mask = seg[..., 0] < 128
+        return image[..., :3], mask, self._render_opacity(scene, plane, visible, mask, timings) if opacity else None
+
+    def _render_opacity(self, scene: pyrender.Scene, plane: pyrender.Node, visible: set[pyrender.Node],
+                        mask: np.ndarray, timings: dict[str, float] | None = None) -> np.ndarray:
+        """The view's opacity: ``(H, W)`` uint8, 255 times the fraction of the painting hidden.
+
+        That is 255 outside the painting (background) and behind opaque occluders, 0 where the
+        painting is seen unobstructed, and ``255 (1 - prod_k (1 - a_k))`` where transparent
+        occluders ``k`` cover it, ``a_k`` being the opacity the colour draw blends them with: the
+        material's alpha raised towards 1 by the Schlick-Fresnel reflectance of the view (4 % at
+        normal incidence, all at grazing angles; ``programs`` quirk 5). The colour draw also makes
+        a transparent occluder more opaque under its specular highlights; that light-dependent part
+        is left out here (it would need a lit draw), so under a highlight the value is lower.
+
+        An unlit draw of the ``scene`` the colour draw used (its materials are replaced; every view
+        sets its own): the painting white and opaque, the ``visible`` occluders black with their
+        alpha and blend mode, so each transparent layer multiplies what shows of the painting by
+        ``1 - a_k`` whatever the order, and an opaque one zeroes it. pyrender sorts and
+        depth-tests the occluders as in the colour draw (a transparent surface hides transparent
+        surfaces behind it drawn later, as it does there), and occluder parts behind the painting
+        fail the depth test. The framebuffer holds 8 bits, rounded after each blended layer: within
+        1/255 of the exact value per transparent layer.
+
+        With no visible occluder the draw would give the painting's coverage, which the ``mask``
+        (``(H, W)`` bool, True off the painting) already is, so it is skipped.
+        """
+        if not visible:
+            return mask.astype(np.uint8) * 255
+        with timed(timings, "graph"):
+            plane.mesh.primitives[0].material = _gl_material(Material(np.ones(4), 0.0, 1.0))
+            for node in visible:
+                primitive = node.mesh.primitives[0]
+                black = np.array([0.0, 0.0, 0.0, primitive.material.baseColorFactor[3]])
+                primitive.material = _gl_material(Material(black, 0.0, 1.0))
+        shown = self._gl.draw(scene, RenderFlags.FLAT, seen={plane} | visible, timings=timings, step="opacity")
+        return 255 - shown[..., 0]
 
     def _casting_emitters(self, view: ViewScene, occluders_visible: bool = True) -> tuple[list[tuple[int, int]], int]:
         """Every emitter as ``(light, emitter)`` indices, those that may shadow something the camera
