@@ -24,12 +24,16 @@ Lights are spot lights (``scene`` explains how point and area lights map to them
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
 occluder parts behind it are farther from the light than the plane, so they cannot darken it
 either. This removes shadow acne on the painting altogether.
+
+What each view draws (which occluders, which emitters get shadows) is planned in ``plan``;
+work that cannot change a pixel is skipped there and here, each skip with its reason.
 """
 
 from __future__ import annotations
 
 import os
 import weakref
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,11 +43,12 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS
-from ..geometry import ball_may_be_seen, clip_polygon, look_at, plane_corners, shadow_may_reach, visible_halfplanes
+from ..geometry import look_at, plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
+from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
@@ -281,11 +286,18 @@ class SceneRenderer:
     Args:
         image_size: ``(H, W)`` of every view, in pixels.
         shadow_map_size: side of each shadow map, texels (power of two).
+
+    Attributes:
+        skip_idle_shadows, cull_occluders: switches of the skips that cannot change a pixel (see
+            ``plan``), both on; the tests turn each off to compare.
+        skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view).
     """
 
     def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True):
         self.image_size = tuple(image_size)
         self.skip_idle_shadows = skip_idle_shadows
+        self.cull_occluders = True
+        self.skipped: Counter[str] = Counter()
         h, w = self.image_size
         self._platform = open_context(w, h)
         # Destroying the context frees every GL object in it; it needs no current context, so a
@@ -331,9 +343,11 @@ class SceneRenderer:
         self._platform.make_current()
         with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
             texture = self._painting_texture(painting)
+        with timed(timings, "graph"):
+            plans = plan_views(sequence, self._gl.shadow_map_size, self.skip_idle_shadows, self.cull_occluders)
         views, masks = [], []
-        for view in sequence.views:
-            image, mask = self._render_view(view, sequence, texture, timings)
+        for view, plan in zip(sequence.views, plans):
+            image, mask = self._render_view(view, plan, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
         label = self._render_label(sequence.views[0].camera, texture, timings)
@@ -370,58 +384,36 @@ class SceneRenderer:
         _add(scene, pose, camera=gl_cam)
         return scene, plane
 
-    def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture,
-                     timings: dict[str, float] | None = None):
+    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
+                     timings: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The view ``(H, W, 3)`` uint8 and its mask ``(H, W)`` bool, drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
-            occluders, opaque_enough = set(), set()
+            # Every occluder is added, culled or not: the scene's bounds set the depth range of the
+            # shadow cameras (pyrender's ``scene.scale``). A culled one is just never drawn.
+            nodes = []
             counts: dict[tuple[str, int], int] = {}
             for occ in view.occluders:
                 key = (occ.shape, occ.variant)
                 mesh = self._meshes.take(*key, counts.setdefault(key, 0))
                 counts[key] += 1
                 mesh.primitives[0].material = _gl_material(occ.material)
-                node = _add(scene, occ.object_to_world(), mesh=mesh)
-                occluders.add(node)
-                if occ.material.base_color[3] >= sequence.mask_min_opacity:
-                    opaque_enough.add(node)
-            order, n_shadowed = self._casting_emitters(view, sequence.occluders_visible)
-            shadowed = self._add_lights(scene, view.lights, order, n_shadowed if sequence.shadows else 0)
-        visible = occluders if sequence.occluders_visible else set()
+                nodes.append(_add(scene, occ.object_to_world(), mesh=mesh))
+            self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
+            shadowed = self._add_lights(scene, view.lights, plan.order, plan.n_shadowed)
+            casters = {nodes[i] for i in plan.casters}
+        drawn = {nodes[i] for i in plan.drawn}
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders, shadowed=shadowed,
+        image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, shadowed=shadowed,
                               timings=timings, step="colour")
-        masked = visible & opaque_enough
+        masked = {nodes[i] for i in plan.drawn
+                  if view.occluders[i].material.base_color[3] >= sequence.mask_min_opacity}
         seg_map = {plane: 255, **{node: 0 for node in masked}}
         seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                             timings=timings, step="mask")
         return image[..., :3], seg[..., 0] < 128
-
-    def _casting_emitters(self, view: ViewScene, occluders_visible: bool = True) -> tuple[list[tuple[int, int]], int]:
-        """Every emitter as ``(light, emitter)`` indices, those that may shadow something the camera
-        sees first, and how many those are (all when :attr:`skip_idle_shadows` is false).
-
-        Safe to skip an emitter's shadow pass and lookup (its lookup would return "lit" at every
-        pixel) when no visible occluder is in view (occluders shadow themselves and each other) and no
-        occluder's shadow from it can fall on the part of the painting the camera sees (see
-        :func:`sidar_torch.geometry.shadow_may_reach`). Both tests are conservative.
-        """
-        cam = view.camera
-        emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-        balls = [(occ.position, float(np.linalg.norm(occ.scale))) for occ in view.occluders]
-        if not balls:
-            return emitters, 0
-        if occluders_visible and any(ball_may_be_seen(cam.K, cam.R, cam.t, self.image_size, c, r) for c, r in balls):
-            return emitters, len(emitters)
-        region = clip_polygon(plane_corners(self.image_size)[:, :2],
-                              visible_halfplanes(cam.K, cam.R, cam.t, self.image_size))
-        casting = {(a, b) for a, b in emitters
-                   if any(shadow_may_reach(view.lights[a].emitters[b], c, r, region) for c, r in balls)}
-        # The same order either way, so skipping changes no rounding of the shader's sum.
-        order = sorted(emitters, key=lambda ab: ab not in casting)
-        return order, len(casting) if self.skip_idle_shadows else len(order)
 
     def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...], order: list[tuple[int, int]],
                     n_shadowed: int) -> set[pyrender.Node]:
