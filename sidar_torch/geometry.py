@@ -23,6 +23,7 @@ import torch
 __all__ = [
     "ball_may_be_seen",
     "clip_polygon",
+    "painting_mask",
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
@@ -449,3 +450,33 @@ def shadow_may_fall_on_ball(emitters: np.ndarray, centres: np.ndarray, radii: np
         half_b = np.arcsin(np.clip(target_radii / db, 0.0, 1.0))
     return inside | (between <= half_a[..., None] + half_b[:, None, :] + np.reshape(margins, (-1, 1, 1)))
 
+
+def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """``(H, W)`` bool: True at pixels whose centre does not see the painting (background).
+
+    The camera ray through pixel centre ``(u, v)`` (Kornia pixels, integer centres) meets the
+    plane at homogeneous plane point ``p = M^-1 K^-1 (u, v, 1)``, ``M = [r_1, r_2, t]`` (so
+    ``(x, y) = p[:2] / p[2]``), in front of the camera when ``p[2] > 0``; it sees the painting when
+    moreover ``|x| <= w / 2`` and ``|y| <= h / 2``. Along a row ``p`` is linear in ``u``, so each
+    condition holds on a half-line of ``u`` and the seen columns are an interval: the work is
+    per row, and exact up to float64 rounding (the same plane geometry as the homographies).
+    Nothing is near-clipped: the renderer's near plane lies in front of every painting point in
+    view (``render.renderer._clip_range``).
+
+    Args:
+        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
+        image_size: ``(H, W)`` in pixels, of the image and of the painting (same aspect).
+    """
+    h, w = image_size
+    half_w, half_h = plane_size(image_size)[0] / 2, plane_size(image_size)[1] / 2
+    to_plane = np.linalg.inv(np.asarray(K, dtype=np.float64) @ np.column_stack([R[:, 0], R[:, 1], t]))
+    # Conditions c . p >= 0: in front, then the painting's four edges.
+    conditions = np.array([[0, 0, 1.0], [1, 0, half_w], [-1, 0, half_w], [0, 1, half_h], [0, -1, half_h]])
+    step = conditions @ to_plane[:, 0]  # (5,): change per column
+    start = (conditions @ to_plane[:, 1:]) @ np.stack([np.arange(h, dtype=np.float64), np.ones(h)])  # (5, H): at u = 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = -start / step[:, None]
+    lo = np.where(step[:, None] > 0, bound, np.where((step[:, None] == 0) & (start < 0), np.inf, -np.inf)).max(axis=0)
+    hi = np.where(step[:, None] < 0, bound, np.where((step[:, None] == 0) & (start < 0), -np.inf, np.inf)).min(axis=0)
+    columns = np.arange(w, dtype=np.float64)
+    return ~((columns >= lo[:, None]) & (columns <= hi[:, None]))

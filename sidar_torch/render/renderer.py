@@ -11,7 +11,9 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
   (black) with depth testing, so occluder parts behind the painting never count; background
   and occluders are 1. Occluders less opaque than ``sequence.mask_min_opacity`` are left out
-  of this draw, so the painting seen through them counts as visible.
+  of this draw, so the painting seen through them counts as visible. With no such occluder in
+  view the mask is the painting's outline, computed without a draw
+  (:func:`~sidar_torch.geometry.painting_mask`).
 
 and once per sequence the **label**: the painting through view 0's camera, unlit and without
 occluders (the texture as the reference camera samples it).
@@ -43,7 +45,7 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS
-from ..geometry import look_at, plane_corners
+from ..geometry import look_at, painting_mask, plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
@@ -288,15 +290,18 @@ class SceneRenderer:
         shadow_map_size: side of each shadow map, texels (power of two).
 
     Attributes:
-        skip_idle_shadows, cull_occluders: switches of the skips that cannot change a pixel (see
-            ``plan``), both on; the tests turn each off to compare.
-        skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view).
+        skip_idle_shadows, cull_occluders, masks_from_outline: switches of the skips that cannot
+            change a pixel (see ``plan`` and :meth:`_render_view`), all on; the tests turn each
+            off to compare.
+        skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
+            ``"masks_from_outline"`` (mask draws).
     """
 
     def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True):
         self.image_size = tuple(image_size)
         self.skip_idle_shadows = skip_idle_shadows
         self.cull_occluders = True
+        self.masks_from_outline = True
         self.skipped: Counter[str] = Counter()
         h, w = self.image_size
         self._platform = open_context(w, h)
@@ -410,6 +415,12 @@ class SceneRenderer:
                               timings=timings, step="colour")
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= sequence.mask_min_opacity}
+        if not masked and self.masks_from_outline:
+            # Only the painting would be drawn: its pixels are those whose centre sees it, which is
+            # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
+            self.skipped["masks_from_outline"] += 1
+            with timed(timings, "mask"):
+                return image[..., :3], painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
         seg_map = {plane: 255, **{node: 0 for node in masked}}
         seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                             timings=timings, step="mask")
