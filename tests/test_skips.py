@@ -2,7 +2,8 @@
 
 The skips (``sidar_torch.render.plan`` and ``SceneRenderer._render_view``): shadow passes and
 lookups of emitters that shade nothing the camera sees, occluders no camera and no shadow can
-see, and the mask draw of a view with no occluder in sight.
+see, the mask draw of a view with no occluder in sight, and shadow maps drawn again for the same
+lights and casters.
 """
 
 import numpy as np
@@ -21,7 +22,7 @@ NARROW_VIEWS = dict(n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1
 """Narrow views of a wide scene: many occluders and their shadows lie outside what a camera sees."""
 
 
-SWITCHES = ("skip_idle_shadows", "cull_occluders", "masks_from_outline")
+SWITCHES = ("skip_idle_shadows", "cull_occluders", "masks_from_outline", "reuse_shadow_maps")
 
 
 @pytest.fixture
@@ -176,6 +177,27 @@ def test_views_without_occluders_in_sight_take_the_outline_mask(renderer):
         for camera, a, b in zip([v.camera for v in seq.views], on.masks, off.masks):
             assert (edge_distance(camera, SMALL)[a != b] < EDGE_TOLERANCE).all()
     assert renderer.skipped["masks_from_outline"] >= 4
+
+
+def test_shadow_maps_shared_by_the_views_are_drawn_once(renderer):
+    cfg = small_config("misaligned", n_views=4, scene_per_view=False, n_occluders=(1, 3), n_lights=(2, 3),
+                       light_types=("spot", "point", "area"))
+    painting = textured_painting(SMALL)
+    seqs = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(5)]
+    first = [renderer.render(seq, painting) for seq in seqs]  # maps reused within each sequence
+    reused = renderer.skipped["shadow_maps_reused"]
+    again = renderer.render(seqs[0], painting)  # after other sequences: their maps must not leak in
+    renderer.reuse_shadow_maps = False
+    fresh = [renderer.render(seq, painting) for seq in seqs]
+    assert renderer.skipped["shadow_maps_reused"] > reused  # the repeated sequence reused its maps
+    for a, b in zip(first, fresh):
+        assert_same_pixels(a, b)
+    assert_same_pixels(again, fresh[0])
+    # Each emitter's map was drawn in the first view that shadows it, and reused by the later ones.
+    plans = [plan_views(seq, 1024) for seq in seqs]
+    assert all(len({p.casters for p in ps}) == 1 for ps in plans)
+    shadowed = [[set(p.order[:p.n_shadowed]) for p in ps] for ps in plans]
+    assert reused == sum(sum(map(len, views)) - len(set().union(*views)) for views in shadowed) > 0
 
 
 def test_margins_grow_the_shadow_tests():

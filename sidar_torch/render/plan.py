@@ -20,6 +20,12 @@ Everything else cannot change a pixel and is left out (each test below is conser
 
 "Reads" includes the lookup's filter footprint (:data:`SHADOW_READ_TEXELS`), turned into an angle
 around the emitter by :func:`shadow_margin`.
+
+When every view shares the lights and occluders (``scene_per_view`` false) every view gets the
+union of the views' casters, so an emitter's shadow map is the same in every view that shadows
+it, and is drawn once (``SceneRenderer`` keys each map on what it depends on and keeps it with
+the emitter's pooled light). Another view's casters in a view's shadow maps change none of its
+pixels, by the second rule above. Each view keeps its own shadowed emitters and order.
 """
 
 from __future__ import annotations
@@ -94,6 +100,8 @@ def plan_views(sequence: SceneSequence, map_size: int, skip_idle_shadows: bool =
             occluder is a caster.
         cull_occluders: false: every occluder is a caster, and drawn when occluders are visible.
     """
+    first = sequence.views[0]
+    shared = all(v.lights == first.lights and v.occluders == first.occluders for v in sequence.views)
     facts = [_ViewFacts(view, sequence, map_size) for view in sequence.views]
     casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
     plans = []
@@ -111,6 +119,9 @@ def plan_views(sequence: SceneSequence, map_size: int, skip_idle_shadows: bool =
         if not cull_occluders:
             drawn = casters if sequence.occluders_visible else frozenset()
         plans.append(ViewPlan(order, len(cast), frozenset(drawn), frozenset(casters)))
+    if shared and cull_occluders:
+        casters = frozenset().union(*(p.casters for p in plans))
+        plans = [ViewPlan(p.order, p.n_shadowed, p.drawn, casters) for p in plans]
     return plans
 
 

@@ -239,7 +239,7 @@ class _GLRenderer(pyrender.Renderer):
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              shadowed: set = frozenset(), seg_node_map: dict | None = None,
-             timings: dict[str, float] | None = None, step: str = "colour") -> np.ndarray:
+             timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
         """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -252,6 +252,8 @@ class _GLRenderer(pyrender.Renderer):
             timings: if given, seconds are added to ``"upload"`` (new textures and meshes),
                 ``"shadow"`` (shadow-map passes), ``step`` (the forward pass) and ``"readback"``.
             step: the name the forward pass is timed under (``"colour"``, ``"mask"``, ``"label"``).
+            stale: the nodes of ``shadowed`` whose shadow maps are drawn (default: all); the
+                others' maps must already hold what this scene would draw into them.
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -265,7 +267,7 @@ class _GLRenderer(pyrender.Renderer):
             with timed(timings, "shadow", GL.glFinish):
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters
-                for light_node in scene.light_nodes & shadowed:
+                for light_node in scene.light_nodes & (shadowed if stale is None else stale):
                     self._shadow_mapping_pass(scene, light_node, flags)
         self._n_shadowed = len(shadowed)
         with timed(timings, step, GL.glFinish):
@@ -290,11 +292,11 @@ class SceneRenderer:
         shadow_map_size: side of each shadow map, texels (power of two).
 
     Attributes:
-        skip_idle_shadows, cull_occluders, masks_from_outline: switches of the skips that cannot
-            change a pixel (see ``plan`` and :meth:`_render_view`), all on; the tests turn each
-            off to compare.
+        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: switches of the
+            skips that cannot change a pixel (see ``plan`` and :meth:`_render_view`), all on;
+            the tests turn each off to compare.
         skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
-            ``"masks_from_outline"`` (mask draws).
+            ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes).
     """
 
     def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True):
@@ -302,6 +304,7 @@ class SceneRenderer:
         self.skip_idle_shadows = skip_idle_shadows
         self.cull_occluders = True
         self.masks_from_outline = True
+        self.reuse_shadow_maps = True
         self.skipped: Counter[str] = Counter()
         h, w = self.image_size
         self._platform = open_context(w, h)
@@ -313,6 +316,7 @@ class SceneRenderer:
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
         self._lights: list[pyrender.SpotLight] = []
+        self._map_keys: dict[int, tuple] = {}  # pooled light index -> what its shadow map holds
         self._painting: np.ndarray | None = None
         self._texture: pyrender.Texture | None = None
 
@@ -407,12 +411,17 @@ class SceneRenderer:
             self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
             shadowed = self._add_lights(scene, view.lights, plan.order, plan.n_shadowed)
             casters = {nodes[i] for i in plan.casters}
+            map_keys = self._shadow_map_keys(scene, shadowed, casters)
+            stale = {node for node, (k, key) in map_keys.items()
+                     if self._map_keys.get(k) != key or not self.reuse_shadow_maps}
+            self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
         drawn = {nodes[i] for i in plan.drawn}
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
         image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, shadowed=shadowed,
-                              timings=timings, step="colour")
+                              timings=timings, step="colour", stale=stale)
+        self._map_keys.update(map_keys.values())
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= sequence.mask_min_opacity}
         if not masked and self.masks_from_outline:
@@ -426,6 +435,30 @@ class SceneRenderer:
                             timings=timings, step="mask")
         return image[..., :3], seg[..., 0] < 128
 
+    def _shadow_map_keys(self, scene: pyrender.Scene, shadowed: set[pyrender.Node],
+                         casters: set[pyrender.Node]) -> dict[pyrender.Node, tuple[int, tuple]]:
+        """For each node of ``shadowed``, its pooled light's index and the key of the shadow map
+        this scene draws for it.
+
+        A map is a function of the light's view and projection matrices (as the shadow pass
+        computes them), its size, and each caster's mesh, pose and material (the depth pass is
+        order-free: each texel keeps the nearest depth). A pooled light keeps its map from one
+        draw to the next, so a map whose key is the one it was last drawn with already holds
+        these texels and is not drawn again: with lights and occluders shared by every view
+        (``plan``) only a sequence's first view draws maps, whatever the frustum rule, as long as
+        it does not depend on the camera.
+        """
+        # The mesh objects themselves, not their ids: a key keeps its meshes alive, so no new mesh
+        # can take the address of one it names.
+        caster_key = frozenset((n.mesh, tuple(n.mesh.primitives), scene.get_pose(n).tobytes(),
+                                n.mesh.primitives[0].material.baseColorFactor.tobytes()) for n in casters)
+        keys = {}
+        for node in shadowed:
+            V, P = self._gl._get_light_cam_matrices(scene, node, RenderFlags.SHADOWS_SPOT)
+            key = (V.tobytes(), P.tobytes(), self._gl.shadow_map_size, caster_key)
+            keys[node] = (self._lights.index(node.light), key)
+        return keys
+
     def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...], order: list[tuple[int, int]],
                     n_shadowed: int) -> set[pyrender.Node]:
         """Add the emitters ``order`` (``(light, emitter)`` indices) as spot lights, in that order;
@@ -433,11 +466,14 @@ class SceneRenderer:
 
         The order is fixed for a given view whatever ``n_shadowed`` is: the shader sums lights in
         insertion order, and it looks shadows up only for the first ``n_shadowed`` spot lights.
+        Each emitter gets the pooled light (and shadow map) of its rank in ``(light, emitter)``
+        order, whatever its place in ``order``: views sharing the lights keep each emitter's map.
         """
+        rank = {e: k for k, e in enumerate(sorted(order))}
         shadowed = set()
         for k, (a, b) in enumerate(order):
             light = lights[a]
-            gl_light = self._light(k)
+            gl_light = self._light(rank[a, b])
             gl_light.color = light.color
             gl_light.intensity = light.intensity
             gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
