@@ -49,7 +49,9 @@ other 0.5 covers float32 rounding. A texel an occluder covers has its centre ins
 projection, so a lookup farther than this from every occluder's projection is unchanged by it."""
 
 SHADOW_FRUSTUM_PAD = math.pi / 32
-"""pyrender's spot-light shadow camera has a square frustum of half-angle ``outer_cone + pi / 32``."""
+"""pyrender's spot-light shadow camera has a square frustum of half-angle ``outer_cone + pi / 32``.
+It holds the light's cone, so a point whose lookup falls outside the map (and reads its clamped
+edge) gets no light from it anyway; a frustum narrower than the cone would void that."""
 
 
 def shadow_margin(outer_cone: float, map_size: int) -> float:

@@ -445,8 +445,8 @@ class SceneRenderer:
         order-free: each texel keeps the nearest depth). A pooled light keeps its map from one
         draw to the next, so a map whose key is the one it was last drawn with already holds
         these texels and is not drawn again: with lights and occluders shared by every view
-        (``plan``) only a sequence's first view draws maps, whatever the frustum rule, as long as
-        it does not depend on the camera.
+        (``plan``) each map is drawn by the first view that shadows its emitter, whatever the
+        frustum rule, as long as it does not depend on the camera.
         """
         # The mesh objects themselves, not their ids: a key keeps its meshes alive, so no new mesh
         # can take the address of one it names.
