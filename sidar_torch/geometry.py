@@ -23,9 +23,11 @@ import torch
 __all__ = [
     "ball_may_be_seen",
     "clip_polygon",
+    "painting_mask",
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
+    "shadow_may_fall_on_ball",
     "shadow_may_reach",
     "shared_points",
     "visible_plane_points",
@@ -361,26 +363,120 @@ def painting_pixel_area(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size:
     return polygon_area(project(K, R, t, np.column_stack([region, np.zeros(len(region))])))
 
 
-def shadow_may_reach(emitter: np.ndarray, centre: np.ndarray, radius: float, region: np.ndarray) -> bool:
-    """Whether a ball can shadow any part of a region of the painting's plane, lit from a point.
+_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
+"""The corners ``(8, 3)`` of the cube of half-side 1 around the origin."""
 
-    Conservative: ``False`` only when the shadow certainly misses. The ball ``|X - centre| <= radius``
-    lies in the cube of half-side ``radius`` around ``centre``; seen from ``emitter`` (above the
-    cube), its shadow on ``z = 0`` lies in the convex hull of the cube's 8 corners projected from
-    the emitter, and so in their bounding box, which is tested against the region.
+
+def shadow_may_reach(emitters: np.ndarray, centres: np.ndarray, radii: np.ndarray, region: np.ndarray,
+                     margins: np.ndarray | float = 0.0) -> np.ndarray:
+    """Whether each ball can shadow any part of a region of the painting's plane, lit from each point.
+
+    Conservative: ``False`` only when the shadow certainly misses. A ball ``|X - c| <= r`` lies in
+    the cube of half-side ``r`` around ``c``; seen from an emitter above the cube, its shadow on
+    ``z = 0`` lies in the convex hull of the cube's 8 corners projected from the emitter, and so in
+    their bounding box, which is tested against the region (separating axes: the box's two and the
+    region's edge normals). A ball reaching the emitter's height has an unbounded shadow.
+
+    ``margins`` widen each emitter's shadows by an angle: every plane point whose direction from
+    the emitter is within the margin of a ball's is tested too. The ball is grown to radius
+    ``r + D margin`` (``D`` its centre's distance from the emitter), whose cone of directions holds
+    the widened one (``asin(x + m) >= asin(x) + m``).
 
     Args:
-        emitter: ``(3,)`` light position (world, painting units), ``z > 0``.
-        centre, radius: the ball (world, painting units).
+        emitters: ``(E, 3)`` light positions (world, painting units), ``z > 0``.
+        centres, radii: ``(B, 3)`` and ``(B,)`` balls (world, painting units).
         region: ``(N, 2)`` convex polygon on the plane ``z = 0`` (e.g. what a camera sees).
+        margins: ``(E,)`` or one angle, radians.
+
+    Returns:
+        ``(E, B)`` bool.
     """
+    emitters, centres = np.asarray(emitters, np.float64), np.asarray(centres, np.float64).reshape(-1, 3)
     if len(region) < 3:
-        return False
-    if centre[2] + radius >= emitter[2]:
-        return True  # the ball reaches the light's height: its shadow is unbounded
-    corners = centre + radius * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
-    scale = emitter[2] / (emitter[2] - corners[:, 2])
-    shadow = emitter[:2] + scale[:, None] * (corners[:, :2] - emitter[:2])
-    (x0, y0), (x1, y1) = shadow.min(axis=0), shadow.max(axis=0)
-    box = np.array([[1.0, 0, -x0], [-1.0, 0, x1], [0, 1.0, -y0], [0, -1.0, y1]])
-    return len(clip_polygon(region, box)) >= 3
+        return np.zeros((len(emitters), len(centres)), dtype=bool)
+    distance = np.linalg.norm(centres[None] - emitters[:, None], axis=2)
+    grown = np.asarray(radii, np.float64)[None] + distance * np.reshape(margins, (-1, 1))  # (E, B)
+    unbounded = centres[None, :, 2] + grown >= emitters[:, None, 2]
+    corners = centres[None, :, None] + grown[..., None, None] * _CUBE  # (E, B, 8, 3)
+    light = emitters[:, None, None]
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # unbounded shadows: results unused
+        scale = light[..., 2] / (light[..., 2] - corners[..., 2])
+        shadow = light[..., :2] + scale[..., None] * (corners[..., :2] - light[..., :2])
+        return unbounded | _boxes_meet_polygon(shadow.min(axis=2), shadow.max(axis=2), region)
+
+
+def _boxes_meet_polygon(lo: np.ndarray, hi: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Whether axis-aligned boxes ``[lo, hi]`` (``(..., 2)`` each) meet a convex polygon ``(N, 2)``
+    (touching counts), by separating axes: the two axes, then each edge's outward normal. A
+    polygon too thin for its orientation to be sure meets every box."""
+    apart = (hi < polygon.min(axis=0)).any(axis=-1) | (lo > polygon.max(axis=0)).any(axis=-1)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    twice_area = float(edges[:, 0] @ (np.roll(polygon, -1, axis=0)[:, 1] + polygon[:, 1]))  # > 0: clockwise
+    if abs(twice_area) <= 1e-9 * float(np.ptp(polygon, axis=0).max()) ** 2:
+        return np.ones(lo.shape[:-1], dtype=bool)
+    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1) * -np.sign(twice_area)
+    support = np.einsum("na,na->n", normals, polygon)  # the polygon lies where normal . p <= support
+    nearest = np.where(normals > 0, lo[..., None, :], hi[..., None, :])  # (..., N, 2): box corner least along each normal
+    apart |= (np.einsum("...na,na->...n", nearest, normals) > support).any(axis=-1)
+    return ~apart
+
+
+def shadow_may_fall_on_ball(emitters: np.ndarray, centres: np.ndarray, radii: np.ndarray, targets: np.ndarray,
+                            target_radii: np.ndarray, margins: np.ndarray | float = 0.0) -> np.ndarray:
+    """Whether each ball can shadow any point of each target ball (or itself), lit from each point.
+
+    Conservative: ``False`` only when no direction from the emitter within its margin (radians)
+    of one that meets the ball meets the target, i.e. their cones of directions seen from the
+    emitter, widened by the margin, are apart. A ball holding the emitter spans every direction.
+
+    Args:
+        emitters: ``(E, 3)`` light positions (world, painting units).
+        centres, radii: ``(B, 3)``, ``(B,)`` shadowing balls; targets, target_radii: ``(T, 3)``,
+            ``(T,)`` shadowed ones.
+        margins: ``(E,)`` or one angle, radians.
+
+    Returns:
+        ``(E, B, T)`` bool.
+    """
+    emitters = np.asarray(emitters, np.float64)
+    a = np.asarray(centres, np.float64).reshape(-1, 3)[None] - emitters[:, None]  # (E, B, 3)
+    b = np.asarray(targets, np.float64).reshape(-1, 3)[None] - emitters[:, None]  # (E, T, 3)
+    da, db = np.linalg.norm(a, axis=2), np.linalg.norm(b, axis=2)
+    inside = (da <= radii)[..., None] | (db <= target_radii)[:, None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):  # an emitter at a centre: inside, result unused
+        cos = np.einsum("eba,eta->ebt", a, b) / (da[..., None] * db[:, None, :])
+        between = np.arccos(np.clip(cos, -1.0, 1.0))
+        half_a = np.arcsin(np.clip(radii / da, 0.0, 1.0))
+        half_b = np.arcsin(np.clip(target_radii / db, 0.0, 1.0))
+    return inside | (between <= half_a[..., None] + half_b[:, None, :] + np.reshape(margins, (-1, 1, 1)))
+
+
+def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """``(H, W)`` bool: True at pixels whose centre does not see the painting (background).
+
+    The camera ray through pixel centre ``(u, v)`` (Kornia pixels, integer centres) meets the
+    plane at homogeneous plane point ``p = M^-1 K^-1 (u, v, 1)``, ``M = [r_1, r_2, t]`` (so
+    ``(x, y) = p[:2] / p[2]``), in front of the camera when ``p[2] > 0``; it sees the painting when
+    moreover ``|x| <= w / 2`` and ``|y| <= h / 2``. Along a row ``p`` is linear in ``u``, so each
+    condition holds on a half-line of ``u`` and the seen columns are an interval: the work is
+    per row, and exact up to float64 rounding (the same plane geometry as the homographies).
+    Nothing is near-clipped: the renderer's near plane lies in front of every painting point in
+    view (``render.renderer._clip_range``).
+
+    Args:
+        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
+        image_size: ``(H, W)`` in pixels, of the image and of the painting (same aspect).
+    """
+    h, w = image_size
+    half_w, half_h = plane_size(image_size)[0] / 2, plane_size(image_size)[1] / 2
+    to_plane = np.linalg.inv(np.asarray(K, dtype=np.float64) @ np.column_stack([R[:, 0], R[:, 1], t]))
+    # Conditions c . p >= 0: in front, then the painting's four edges.
+    conditions = np.array([[0, 0, 1.0], [1, 0, half_w], [-1, 0, half_w], [0, 1, half_h], [0, -1, half_h]])
+    step = conditions @ to_plane[:, 0]  # (5,): change per column
+    start = (conditions @ to_plane[:, 1:]) @ np.stack([np.arange(h, dtype=np.float64), np.ones(h)])  # (5, H): at u = 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = -start / step[:, None]
+    lo = np.where(step[:, None] > 0, bound, np.where((step[:, None] == 0) & (start < 0), np.inf, -np.inf)).max(axis=0)
+    hi = np.where(step[:, None] < 0, bound, np.where((step[:, None] == 0) & (start < 0), -np.inf, np.inf)).min(axis=0)
+    columns = np.arange(w, dtype=np.float64)
+    return ~((columns >= lo[:, None]) & (columns <= hi[:, None]))

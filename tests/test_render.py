@@ -162,25 +162,6 @@ def test_a_camera_a_thousandth_above_a_wide_painting_still_sees_it():
     assert float(s["masks"][1:].mean()) < 0.5
 
 
-def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel():
-    # Narrow views of a wide scene: many occluders' shadows fall outside what a camera sees.
-    cfg = small_config("shadows_only", n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1, 3))
-    renderer = SceneRenderer(SMALL)
-    painting = textured_painting(SMALL)
-    skipped = 0
-    for seed in range(6):
-        seq = sample_sequence(cfg, np.random.default_rng(seed))
-        for view in seq.views:
-            order, n_shadowed = renderer._casting_emitters(view, seq.occluders_visible)
-            skipped += len(order) - n_shadowed if view.occluders else 0
-        renderer.skip_idle_shadows = True
-        fast = renderer.render(seq, painting)
-        renderer.skip_idle_shadows = False
-        full = renderer.render(seq, painting)
-        assert np.array_equal(fast.views, full.views) and np.array_equal(fast.masks, full.masks)
-    assert skipped >= 10  # the skip did happen
-
-
 def test_compiling_out_the_unused_point_and_directional_light_loops_changes_no_pixel(monkeypatch):
     cfg = small_config("misaligned", n_views=3, n_occluders=(2, 3))
     painting = textured_painting(SMALL)

@@ -11,7 +11,9 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
   (black) with depth testing, so occluder parts behind the painting never count; background
   and occluders are 1. Occluders less opaque than ``sequence.mask_min_opacity`` are left out
-  of this draw, so the painting seen through them counts as visible;
+  of this draw, so the painting seen through them counts as visible. With no such occluder in
+  view the mask is the painting's outline, computed without a draw
+  (:func:`~sidar_torch.geometry.painting_mask`);
 * the **opacity** (only when asked): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -28,12 +30,16 @@ Lights are spot lights (``scene`` explains how point and area lights map to them
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
 occluder parts behind it are farther from the light than the plane, so they cannot darken it
 either. This removes shadow acne on the painting altogether.
+
+What each view draws (which occluders, which emitters get shadows) is planned in ``plan``;
+work that cannot change a pixel is skipped there and here, each skip with its reason.
 """
 
 from __future__ import annotations
 
 import os
 import weakref
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,11 +49,12 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..config import MAX_SHADOWED_LIGHTS, SHADOW_FILTERS
-from ..geometry import ball_may_be_seen, clip_polygon, look_at, plane_corners, shadow_may_reach, visible_halfplanes
+from ..geometry import look_at, painting_mask, plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
+from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
@@ -242,7 +249,7 @@ class _GLRenderer(pyrender.Renderer):
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              shadowed: set = frozenset(), seg_node_map: dict | None = None,
-             timings: dict[str, float] | None = None, step: str = "colour") -> np.ndarray:
+             timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
         """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -256,6 +263,8 @@ class _GLRenderer(pyrender.Renderer):
                 ``"shadow"`` (shadow-map passes), ``step`` (the forward pass) and ``"readback"``.
             step: the name the forward pass is timed under (``"colour"``, ``"mask"``, ``"opacity"``,
                 ``"label"``).
+            stale: the nodes of ``shadowed`` whose shadow maps are drawn (default: all); the
+                others' maps must already hold what this scene would draw into them.
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -269,7 +278,7 @@ class _GLRenderer(pyrender.Renderer):
             with timed(timings, "shadow", GL.glFinish):
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters
-                for light_node in scene.light_nodes & shadowed:
+                for light_node in scene.light_nodes & (shadowed if stale is None else stale):
                     self._shadow_mapping_pass(scene, light_node, flags)
         self._n_shadowed = len(shadowed)
         with timed(timings, step, GL.glFinish):
@@ -292,10 +301,15 @@ class SceneRenderer:
     Args:
         image_size: ``(H, W)`` of every view, in pixels.
         shadow_map_size: side of each shadow map, texels (power of two).
-        skip_idle_shadows: leave out the shadow pass and lookup of emitters that cannot shadow
-            what the camera sees (the pixels are the same; false only for tests).
         shadow_filter: ``"tent"`` (3 x 3 percentage-closer filter, 4 taps) or ``"bilinear"``
             (2 x 2, one tap); see ``SidarConfig.shadow_filter``.
+
+    Attributes:
+        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: switches of the
+            skips that cannot change a pixel (see ``plan`` and :meth:`_render_view`), all on;
+            the tests turn each off to compare.
+        skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
+            ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes).
     """
 
     def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True,
@@ -304,6 +318,10 @@ class SceneRenderer:
             raise ValueError(f"shadow_filter: expected one of {SHADOW_FILTERS}, got {shadow_filter!r}")
         self.image_size = tuple(image_size)
         self.skip_idle_shadows = skip_idle_shadows
+        self.cull_occluders = True
+        self.masks_from_outline = True
+        self.reuse_shadow_maps = True
+        self.skipped: Counter[str] = Counter()
         h, w = self.image_size
         self._platform = open_context(w, h)
         # Destroying the context frees every GL object in it; it needs no current context, so a
@@ -314,6 +332,7 @@ class SceneRenderer:
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
         self._lights: list[pyrender.SpotLight] = []
+        self._map_keys: dict[int, tuple] = {}  # pooled light index -> what its shadow map holds
         self._painting: np.ndarray | None = None
         self._texture: pyrender.Texture | None = None
 
@@ -351,9 +370,11 @@ class SceneRenderer:
         self._platform.make_current()
         with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
             texture = self._painting_texture(painting)
+        with timed(timings, "graph"):
+            plans = plan_views(sequence, self._gl.shadow_map_size, self.skip_idle_shadows, self.cull_occluders)
         views, masks, hidden = [], [], []
-        for view in sequence.views:
-            image, mask, opacity = self._render_view(view, sequence, texture, timings, opacities)
+        for view, plan in zip(sequence.views, plans):
+            image, mask, opacity = self._render_view(view, plan, sequence, texture, timings, opacities)
             views.append(image)
             masks.append(mask)
             hidden.append(opacity)
@@ -391,35 +412,51 @@ class SceneRenderer:
         _add(scene, pose, camera=gl_cam)
         return scene, plane
 
-    def _render_view(self, view: ViewScene, sequence: SceneSequence, texture: pyrender.Texture,
-                     timings: dict[str, float] | None = None, opacity: bool = False):
+    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
+                     timings: dict[str, float] | None = None,
+                     opacity: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The view ``(H, W, 3)`` uint8, its mask ``(H, W)`` bool and, if ``opacity``, its opacity
+        ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
-            occluders, opaque_enough = set(), set()
+            # Every occluder is added, culled or not: the scene's bounds set the depth range of the
+            # shadow cameras (pyrender's ``scene.scale``). A culled one is just never drawn.
+            nodes = []
             counts: dict[tuple[str, int], int] = {}
             for occ in view.occluders:
                 key = (occ.shape, occ.variant)
                 mesh = self._meshes.take(*key, counts.setdefault(key, 0))
                 counts[key] += 1
                 mesh.primitives[0].material = _gl_material(occ.material)
-                node = _add(scene, occ.object_to_world(), mesh=mesh)
-                occluders.add(node)
-                if occ.material.base_color[3] >= sequence.mask_min_opacity:
-                    opaque_enough.add(node)
-            order, n_shadowed = self._casting_emitters(view, sequence.occluders_visible)
-            shadowed = self._add_lights(scene, view.lights, order, n_shadowed if sequence.shadows else 0)
-        visible = occluders if sequence.occluders_visible else set()
+                nodes.append(_add(scene, occ.object_to_world(), mesh=mesh))
+            self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
+            shadowed = self._add_lights(scene, view.lights, plan.order, plan.n_shadowed)
+            casters = {nodes[i] for i in plan.casters}
+            map_keys = self._shadow_map_keys(scene, shadowed, casters)
+            stale = {node for node, (k, key) in map_keys.items()
+                     if self._map_keys.get(k) != key or not self.reuse_shadow_maps}
+            self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
+        drawn = {nodes[i] for i in plan.drawn}
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | visible, casters=occluders, shadowed=shadowed,
-                              timings=timings, step="colour")
-        masked = visible & opaque_enough
-        seg_map = {plane: 255, **{node: 0 for node in masked}}
-        seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
-                            timings=timings, step="mask")
-        mask = seg[..., 0] < 128
-        return image[..., :3], mask, self._render_opacity(scene, plane, visible, mask, timings) if opacity else None
+        image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, shadowed=shadowed,
+                              timings=timings, step="colour", stale=stale)
+        self._map_keys.update(map_keys.values())
+        masked = {nodes[i] for i in plan.drawn
+                  if view.occluders[i].material.base_color[3] >= sequence.mask_min_opacity}
+        if not masked and self.masks_from_outline:
+            # Only the painting would be drawn: its pixels are those whose centre sees it, which is
+            # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
+            self.skipped["masks_from_outline"] += 1
+            with timed(timings, "mask"):
+                mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
+        else:
+            seg_map = {plane: 255, **{node: 0 for node in masked}}
+            seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
+                                timings=timings, step="mask")
+            mask = seg[..., 0] < 128
+        return image[..., :3], mask, self._render_opacity(scene, plane, drawn, mask, timings) if opacity else None
 
     def _render_opacity(self, scene: pyrender.Scene, plane: pyrender.Node, visible: set[pyrender.Node],
                         mask: np.ndarray, timings: dict[str, float] | None = None) -> np.ndarray:
@@ -456,29 +493,29 @@ class SceneRenderer:
         shown = self._gl.draw(scene, RenderFlags.FLAT, seen={plane} | visible, timings=timings, step="opacity")
         return 255 - shown[..., 0]
 
-    def _casting_emitters(self, view: ViewScene, occluders_visible: bool = True) -> tuple[list[tuple[int, int]], int]:
-        """Every emitter as ``(light, emitter)`` indices, those that may shadow something the camera
-        sees first, and how many those are (all when :attr:`skip_idle_shadows` is false).
+    def _shadow_map_keys(self, scene: pyrender.Scene, shadowed: set[pyrender.Node],
+                         casters: set[pyrender.Node]) -> dict[pyrender.Node, tuple[int, tuple]]:
+        """For each node of ``shadowed``, its pooled light's index and the key of the shadow map
+        this scene draws for it.
 
-        Safe to skip an emitter's shadow pass and lookup (its lookup would return "lit" at every
-        pixel) when no visible occluder is in view (occluders shadow themselves and each other) and no
-        occluder's shadow from it can fall on the part of the painting the camera sees (see
-        :func:`sidar_torch.geometry.shadow_may_reach`). Both tests are conservative.
+        A map is a function of the light's view and projection matrices (as the shadow pass
+        computes them), its size, and each caster's mesh, pose and material (the depth pass is
+        order-free: each texel keeps the nearest depth). A pooled light keeps its map from one
+        draw to the next, so a map whose key is the one it was last drawn with already holds
+        these texels and is not drawn again: with lights and occluders shared by every view
+        (``plan``) each map is drawn by the first view that shadows its emitter, whatever the
+        frustum rule, as long as it does not depend on the camera.
         """
-        cam = view.camera
-        emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-        balls = [(occ.position, float(np.linalg.norm(occ.scale))) for occ in view.occluders]
-        if not balls:
-            return emitters, 0
-        if occluders_visible and any(ball_may_be_seen(cam.K, cam.R, cam.t, self.image_size, c, r) for c, r in balls):
-            return emitters, len(emitters)
-        region = clip_polygon(plane_corners(self.image_size)[:, :2],
-                              visible_halfplanes(cam.K, cam.R, cam.t, self.image_size))
-        casting = {(a, b) for a, b in emitters
-                   if any(shadow_may_reach(view.lights[a].emitters[b], c, r, region) for c, r in balls)}
-        # The same order either way, so skipping changes no rounding of the shader's sum.
-        order = sorted(emitters, key=lambda ab: ab not in casting)
-        return order, len(casting) if self.skip_idle_shadows else len(order)
+        # The mesh objects themselves, not their ids: a key keeps its meshes alive, so no new mesh
+        # can take the address of one it names.
+        caster_key = frozenset((n.mesh, tuple(n.mesh.primitives), scene.get_pose(n).tobytes(),
+                                n.mesh.primitives[0].material.baseColorFactor.tobytes()) for n in casters)
+        keys = {}
+        for node in shadowed:
+            V, P = self._gl._get_light_cam_matrices(scene, node, RenderFlags.SHADOWS_SPOT)
+            key = (V.tobytes(), P.tobytes(), self._gl.shadow_map_size, caster_key)
+            keys[node] = (self._lights.index(node.light), key)
+        return keys
 
     def _add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...], order: list[tuple[int, int]],
                     n_shadowed: int) -> set[pyrender.Node]:
@@ -487,11 +524,14 @@ class SceneRenderer:
 
         The order is fixed for a given view whatever ``n_shadowed`` is: the shader sums lights in
         insertion order, and it looks shadows up only for the first ``n_shadowed`` spot lights.
+        Each emitter gets the pooled light (and shadow map) of its rank in ``(light, emitter)``
+        order, whatever its place in ``order``: views sharing the lights keep each emitter's map.
         """
+        rank = {e: k for k, e in enumerate(sorted(order))}
         shadowed = set()
         for k, (a, b) in enumerate(order):
             light = lights[a]
-            gl_light = self._light(k)
+            gl_light = self._light(rank[a, b])
             gl_light.color = light.color
             gl_light.intensity = light.intensity
             gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it

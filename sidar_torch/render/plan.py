@@ -1,0 +1,154 @@
+"""What each view of a sequence must draw: plain geometry on the scene description, no GL.
+
+Per view, :func:`plan_views` decides
+
+* which occluders the camera may see (**drawn**: colour and mask passes),
+* which emitters get a shadow map and lookup (**shadowed**, added first, in a fixed order),
+* which occluders go into the shadow maps (**casters**).
+
+Everything else cannot change a pixel and is left out (each test below is conservative, and
+``tests/test_skips.py`` renders with and without every skip and compares bit for bit):
+
+* An emitter whose shadow lookups would read only unoccluded texels at every fragment of the
+  view returns "lit" there, so its shadow pass and lookup are skipped (it still shades).
+* An occluder outside the camera's view draws no fragment in the colour and mask passes. If
+  moreover its shadow from every shadowed emitter misses the visible painting and every drawn
+  occluder, its texels in the shadow maps are read by no lookup of the view, so it is not drawn
+  at all. Occluders shadow each other, so drawn occluders count as shadow receivers; a blended
+  (transparent) occluder is drawn and receives like any other; occluders neither drawn nor
+  receiving need no shadow.
+
+"Reads" includes the lookup's filter footprint (:data:`SHADOW_READ_TEXELS`), turned into an angle
+around the emitter by :func:`shadow_margin`.
+
+When every view shares the lights and occluders (``scene_per_view`` false) every view gets the
+union of the views' casters, so an emitter's shadow map is the same in every view that shadows
+it, and is drawn once (``SceneRenderer`` keys each map on what it depends on and keeps it with
+the emitter's pooled light). Another view's casters in a view's shadow maps change none of its
+pixels, by the second rule above. Each view keeps its own shadowed emitters and order.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import ball_may_be_seen, clip_polygon, plane_corners, shadow_may_fall_on_ball, shadow_may_reach, \
+    visible_halfplanes
+from ..scene import SceneSequence, ViewScene
+
+__all__ = ["SHADOW_READ_TEXELS", "ViewPlan", "plan_views", "shadow_margin"]
+
+SHADOW_READ_TEXELS = 2.0
+"""How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
+a texel's depth: ``programs._SPOT_SHADOW_LOOKUP`` takes 4 hardware-filtered taps half a texel off
+the point, each reading the 2 x 2 texels around it, so texel centres within 1.5 texels; the
+other 0.5 covers float32 rounding. A texel an occluder covers has its centre inside the occluder's
+projection, so a lookup farther than this from every occluder's projection is unchanged by it."""
+
+SHADOW_FRUSTUM_PAD = math.pi / 32
+"""pyrender's spot-light shadow camera has a square frustum of half-angle ``outer_cone + pi / 32``.
+It holds the light's cone, so a point whose lookup falls outside the map (and reads its clamped
+edge) gets no light from it anyway; a frustum narrower than the cone would void that."""
+
+
+def shadow_margin(outer_cone: float, map_size: int) -> float:
+    """Angle (rad) that bounds :data:`SHADOW_READ_TEXELS` of a spot light's shadow map.
+
+    The map spans ``2 tan(a)`` of the light's tangent plane over ``map_size`` texels (``a`` the
+    frustum's half-angle), and an angle is at most the tangent-plane distance it spans; the
+    read reaches ``SHADOW_READ_TEXELS`` texels along each axis, so ``sqrt(2)`` times that across.
+    A frustum fitted more tightly has smaller texels, so the margin still holds.
+
+    Args:
+        outer_cone: the light's outer cone half-angle, radians.
+        map_size: shadow-map side, texels.
+    """
+    half = outer_cone + SHADOW_FRUSTUM_PAD
+    if half >= math.pi / 2:
+        return math.inf
+    return math.sqrt(2) * SHADOW_READ_TEXELS * 2 * math.tan(half) / map_size
+
+
+@dataclass(frozen=True)
+class ViewPlan:
+    """What one view draws.
+
+    Attributes:
+        order: every emitter as ``(light, emitter)`` indices of ``view.lights``, in the order they
+            are added to the scene: the shadowed ones first.
+        n_shadowed: how many of ``order`` get a shadow map and lookup.
+        drawn: indices of ``view.occluders`` drawn in the colour pass (and, if opaque enough,
+            the mask).
+        casters: indices of ``view.occluders`` drawn into the shadow maps.
+    """
+
+    order: tuple[tuple[int, int], ...]
+    n_shadowed: int
+    drawn: frozenset[int]
+    casters: frozenset[int]
+
+
+def plan_views(sequence: SceneSequence, map_size: int, skip_idle_shadows: bool = True,
+               cull_occluders: bool = True) -> list[ViewPlan]:
+    """The plan of every view of ``sequence`` (see the module docstring).
+
+    Args:
+        sequence: the scenes.
+        map_size: shadow-map side, texels.
+        skip_idle_shadows: false: every emitter of a view with occluders is shadowed, and every
+            occluder is a caster.
+        cull_occluders: false: every occluder is a caster, and drawn when occluders are visible.
+    """
+    first = sequence.views[0]
+    shared = all(v.lights == first.lights and v.occluders == first.occluders for v in sequence.views)
+    facts = [_ViewFacts(view, sequence, map_size) for view in sequence.views]
+    casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
+    plans = []
+    for view, f, cast in zip(sequence.views, facts, casting):
+        # The same order whatever is skipped: the shader sums lights in this order.
+        order = tuple(sorted(f.emitters, key=lambda e: e not in cast))
+        if not (sequence.shadows and view.occluders):
+            cast = set()
+        elif not skip_idle_shadows:
+            cast = set(f.emitters)
+        casters = f.drawn.union(*(f.hits[e] for e in cast))
+        drawn = f.drawn
+        if not (cull_occluders and skip_idle_shadows):
+            casters = frozenset(range(len(view.occluders)))
+        if not cull_occluders:
+            drawn = casters if sequence.occluders_visible else frozenset()
+        plans.append(ViewPlan(order, len(cast), frozenset(drawn), frozenset(casters)))
+    if shared and cull_occluders:
+        casters = frozenset().union(*(p.casters for p in plans))
+        plans = [ViewPlan(p.order, p.n_shadowed, p.drawn, casters) for p in plans]
+    return plans
+
+
+class _ViewFacts:
+    """One view's drawn occluders, and for each emitter the other occluders whose shadow from it
+    may be read by a lookup of the view (``hits``): on the painting the camera sees, or on a drawn
+    occluder. Drawn occluders shadow themselves, so with any of them every emitter casts."""
+
+    def __init__(self, view: ViewScene, sequence: SceneSequence, map_size: int):
+        cam, size = view.camera, sequence.image_size
+        self.emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
+        centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
+        radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+        self.drawn = frozenset(i for i, (c, r) in enumerate(zip(centres, radii))
+                               if sequence.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, size, c, r))
+        self.hits: dict[tuple[int, int], frozenset[int]] = {e: frozenset() for e in self.emitters}
+        hidden = np.array([i for i in range(len(radii)) if i not in self.drawn], dtype=int)
+        if not (self.emitters and len(hidden)):
+            return
+        emitters = np.array([view.lights[a].emitters[b] for a, b in self.emitters])
+        margins = np.array([shadow_margin(view.lights[a].outer_cone, map_size) for a, _ in self.emitters])
+        region = clip_polygon(plane_corners(size)[:, :2], visible_halfplanes(cam.K, cam.R, cam.t, size))
+        drawn = sorted(self.drawn)
+        hit = shadow_may_reach(emitters, centres[hidden], radii[hidden], region, margins) \
+            | shadow_may_fall_on_ball(emitters, centres[hidden], radii[hidden], centres[drawn], radii[drawn],
+                                      margins).any(axis=2)
+        for e, row in zip(self.emitters, hit):
+            self.hits[e] = frozenset(int(i) for i in hidden[row])

@@ -1,0 +1,216 @@
+"""Work the renderer skips because it cannot change a pixel: each skip rendered on and off.
+
+The skips (``sidar_torch.render.plan`` and ``SceneRenderer._render_view``): shadow passes and
+lookups of emitters that shade nothing the camera sees, occluders no camera and no shadow can
+see, the mask draw of a view with no occluder in sight, and shadow maps drawn again for the same
+lights and casters.
+"""
+
+import numpy as np
+import pytest
+
+from sidar_torch import geometry
+from sidar_torch.render import shared_renderer
+from sidar_torch.render.plan import plan_views
+from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
+
+from conftest import SMALL, small_config, textured_painting
+
+WHITE = Material(np.ones(4), 0.0, 1.0)
+
+NARROW_VIEWS = dict(n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1, 3))
+"""Narrow views of a wide scene: many occluders and their shadows lie outside what a camera sees."""
+
+
+SWITCHES = ("skip_idle_shadows", "cull_occluders", "masks_from_outline", "reuse_shadow_maps")
+
+
+@pytest.fixture
+def renderer():
+    """This process's renderer at ``SMALL`` (shaders already compiled), all skips on, counts at 0."""
+    renderer = shared_renderer(SMALL, 1024)
+    renderer.skipped.clear()
+    yield renderer
+    for switch in SWITCHES:
+        setattr(renderer, switch, True)
+
+
+def render_both(renderer, seq, painting, switch):
+    """``seq`` rendered with ``renderer.<switch>`` on, then off (and back on)."""
+    setattr(renderer, switch, True)
+    on = renderer.render(seq, painting)
+    setattr(renderer, switch, False)
+    off = renderer.render(seq, painting)
+    setattr(renderer, switch, True)
+    return on, off
+
+
+def assert_same_pixels(a, b):
+    for name in ("views", "masks", "label"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert np.array_equal(x, y), f"{name}: {int((x != y).sum())} values differ"
+
+
+@pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
+def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(renderer, preset):
+    cfg = small_config(preset, **NARROW_VIEWS)
+    painting = textured_painting(SMALL)
+    skipped = 0
+    for seed in range(6):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        skipped += sum(len(p.order) - p.n_shadowed for p, v in zip(plan_views(seq, 1024), seq.views) if v.occluders)
+        assert_same_pixels(*render_both(renderer, seq, painting, "skip_idle_shadows"))
+    assert skipped >= 10  # the skip did happen
+
+
+@pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
+def test_culling_hidden_occluders_changes_no_pixel(renderer, preset):
+    # Transparent and opaque occluders, visible or only casting shadows, in narrow and wide views.
+    renderer.masks_from_outline = False  # compare the mask draws: culling leaves them without occluders
+    painting = textured_painting(SMALL)
+    for cfg in (small_config(preset, **NARROW_VIEWS), small_config(preset, n_views=4, n_occluders=(2, 3))):
+        for seed in range(6):
+            seq = sample_sequence(cfg, np.random.default_rng(seed))
+            assert_same_pixels(*render_both(renderer, seq, painting, "cull_occluders"))
+    assert renderer.skipped["occluders_culled"] >= 10  # counted once per view, in the "on" renders
+
+
+def overhead_spot(x=0.0):
+    position = np.array([x, 0.0, 2.0])
+    return Light("spot", position[None], np.ones(3), 8.0, 0.9, 1.0)
+
+
+def cube(position, half=0.1):
+    return Occluder("cube", np.asarray(position, float), np.eye(3), np.full(3, half),
+                    Material(np.array([0.8, 0.2, 0.2, 1.0]), 0.0, 1.0))
+
+
+def test_an_occluder_out_of_view_whose_shadow_misses_is_culled(renderer):
+    # Camera over the painting's centre with a narrow view; one cube in view, one far to the side
+    # (outside the view, its shadow from the overhead light lands beside it, far from the view),
+    # one out of view whose shadow falls on the view's centre.
+    size = SMALL
+    camera = Camera(geometry.intrinsics_from_fov(30, size), *geometry.look_at(np.array([0.0, 0.0, 1.0])))
+    occluders = (cube([0.05, 0.0, 0.4]), cube([1.2, 0.0, 0.3]), cube([0.0, 0.0, 1.5], half=0.05))
+    view = ViewScene(camera, (overhead_spot(),), occluders, WHITE, 0.2)
+    seq = SceneSequence(size, (view,), True, True)
+    (plan,) = plan_views(seq, 1024)
+    assert plan.drawn == {0}  # the high cube is above the camera, out of its view
+    assert plan.casters == {0, 2}  # the side cube is culled, the high one shadows the view
+    on, off = render_both(renderer, seq, textured_painting(size), "cull_occluders")
+    assert renderer.skipped["occluders_culled"] == 1
+    assert_same_pixels(on, off)
+    # The high cube, kept as a caster, does shadow the view: without it the view is brighter.
+    without_high = SceneSequence(size, (ViewScene(camera, view.lights, occluders[:2], WHITE, 0.2),), True, True)
+    lit = renderer.render(without_high, textured_painting(size))
+    assert lit.views.astype(int).sum() > on.views.astype(int).sum()
+
+
+def edge_distance(camera, size):
+    """``(H, W)``: each pixel centre's distance (px) to the nearest line through a painting edge's image."""
+    h, w = size
+    half_w, half_h = (s / 2 for s in geometry.plane_size(size))
+    to_image = camera.K @ np.column_stack([camera.R[:, 0], camera.R[:, 1], camera.t])
+    edges = np.array([[1, 0, half_w], [-1, 0, half_w], [0, 1, half_h], [0, -1, half_h]])  # a . (x, y, 1) = 0
+    lines = edges @ np.linalg.inv(to_image)  # rows: image lines l . (u, v, 1) = 0
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    values = lines[:, 0, None, None] * u + lines[:, 1, None, None] * v + lines[:, 2, None, None]
+    return (np.abs(values) / np.linalg.norm(lines[:, :2], axis=1)[:, None, None]).min(axis=0)
+
+
+EDGE_TOLERANCE = 1 / 256
+"""Distance (px) from an edge within which a pixel centre may fall on either side of it in the GL
+draw: llvmpipe snaps window coordinates to 1/256 px (8 sub-pixel bits), which moves an edge by
+up to 1/512 px near its vertices, and applies the top-left rule on ties; vertices the camera
+clips (near-plane crossings) carry float32 rounding. Measured: 0.0008 px at worst over the
+cameras below."""
+
+
+def random_cameras(rng, size, n):
+    """Cameras at any tilt up to grazing (a few degrees above the plane), looking at random
+    points of the painting, with fields of view from narrow to very wide."""
+    w, h = geometry.plane_size(size)
+    cameras = []
+    for k in range(n):
+        height = rng.uniform(0.05, 1.5)
+        tilt = rng.uniform(0, np.radians(88 if k % 2 else 60))
+        angle = rng.uniform(0, 2 * np.pi)
+        target = np.array([rng.uniform(-w / 2, w / 2), rng.uniform(-h / 2, h / 2), 0.0])
+        position = target + height * np.array([np.tan(tilt) * np.cos(angle), np.tan(tilt) * np.sin(angle), 1.0])
+        K = geometry.intrinsics_from_fov(rng.uniform(20, 150), size)
+        cameras.append(Camera(K, *geometry.look_at(position, target)))
+    return cameras
+
+
+@pytest.mark.parametrize("size", [SMALL, (77, 33)])
+def test_mask_from_the_painting_outline_matches_the_rendered_mask(size):
+    rng = np.random.default_rng(5)
+    renderer = shared_renderer(size, 1024)
+    renderer.masks_from_outline = False
+    painting = textured_painting(size)
+    cameras = random_cameras(rng, size, 64)
+    views = tuple(ViewScene(c, (), (), WHITE, 1.0) for c in cameras)
+    rendered = renderer.render(SceneSequence(size, views, True, True), painting).masks
+    renderer.masks_from_outline = True
+    differ, worst, edge_pixels = 0, 0.0, 0
+    for camera, mask in zip(cameras, rendered):
+        outline = geometry.painting_mask(camera.K, camera.R, camera.t, size)
+        distance = edge_distance(camera, size)
+        wrong = outline != mask
+        differ += int(wrong.sum())
+        worst = max(worst, float(distance[wrong].max(initial=0.0)))
+        edge_pixels += int((distance < EDGE_TOLERANCE).sum())
+    print(f"{differ} pixels differ, farthest {worst:.2g} px from an edge; {edge_pixels} pixels within {EDGE_TOLERANCE}")
+    assert worst < EDGE_TOLERANCE
+    # The comparison covers edges: most views show both painting and background.
+    assert sum(0 < m.mean() < 1 for m in rendered) >= 32
+    assert edge_pixels < 0.001 * rendered.size  # the exception is tiny
+
+
+def test_views_without_occluders_in_sight_take_the_outline_mask(renderer):
+    cfg = small_config("misaligned", **NARROW_VIEWS)
+    painting = textured_painting(SMALL)
+    for seed in range(4):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        on, off = render_both(renderer, seq, painting, "masks_from_outline")
+        assert np.array_equal(on.views, off.views)
+        for camera, a, b in zip([v.camera for v in seq.views], on.masks, off.masks):
+            assert (edge_distance(camera, SMALL)[a != b] < EDGE_TOLERANCE).all()
+    assert renderer.skipped["masks_from_outline"] >= 4
+
+
+def test_shadow_maps_shared_by_the_views_are_drawn_once(renderer):
+    cfg = small_config("misaligned", n_views=4, scene_per_view=False, n_occluders=(1, 3), n_lights=(2, 3),
+                       light_types=("spot", "point", "area"))
+    painting = textured_painting(SMALL)
+    seqs = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(5)]
+    first = [renderer.render(seq, painting) for seq in seqs]  # maps reused within each sequence
+    reused = renderer.skipped["shadow_maps_reused"]
+    again = renderer.render(seqs[0], painting)  # after other sequences: their maps must not leak in
+    renderer.reuse_shadow_maps = False
+    fresh = [renderer.render(seq, painting) for seq in seqs]
+    assert renderer.skipped["shadow_maps_reused"] > reused  # the repeated sequence reused its maps
+    for a, b in zip(first, fresh):
+        assert_same_pixels(a, b)
+    assert_same_pixels(again, fresh[0])
+    # Each emitter's map was drawn in the first view that shadows it, and reused by the later ones.
+    plans = [plan_views(seq, 1024) for seq in seqs]
+    assert all(len({p.casters for p in ps}) == 1 for ps in plans)
+    shadowed = [[set(p.order[:p.n_shadowed]) for p in ps] for ps in plans]
+    assert reused == sum(sum(map(len, views)) - len(set().union(*views)) for views in shadowed) > 0
+
+
+def test_margins_grow_the_shadow_tests():
+    emitter = np.array([[0.0, 0.0, 2.0]])
+    region = np.array([[0.3, -0.1], [0.5, -0.1], [0.5, 0.1], [0.3, 0.1]])
+    centres, radii = np.array([[0.0, 0.0, 1.0], [0.3, 0.0, 1.0]]), np.array([0.1, 0.1])  # shadows about 0.2 wide
+    assert geometry.shadow_may_reach(emitter, centres, radii, region).tolist() == [[False, True]]
+    assert geometry.shadow_may_reach(emitter, centres, radii, region[::-1]).tolist() == [[False, True]]
+    assert geometry.shadow_may_reach(emitter, centres, radii, region, margins=0.06).tolist() == [[True, True]]
+    apart = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii)
+    assert apart.tolist() == [[[True, False]]]  # a ball shadows itself
+    near = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii, margins=0.15)
+    assert near.tolist() == [[[True, True]]]
+    holding = geometry.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
+                                               radii[1:])
+    assert holding.tolist() == [[[True]]]
