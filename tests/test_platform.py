@@ -1,4 +1,16 @@
-"""Platforms: the renderer's own framebuffer gives the pixels OSMesa's buffer gave."""
+"""Platforms: EGL renders the pixels OSMesa renders; the renderer's own framebuffer gives the pixels
+OSMesa's buffer gave; renderers on one EGL display outlive each other; a missing EGL driver or a
+wrong device number says what is wrong.
+
+EGL runs in subprocesses: PyOpenGL fixes its platform at its first import, and this process
+renders on OSMesa (``conftest`` imports ``sidar_torch`` first).
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,8 +22,99 @@ from sidar_torch.scene import sample_sequence
 
 from conftest import SMALL, small_config, textured_painting
 
+TESTS = Path(__file__).resolve().parent
+
 SEQUENCES = [("misaligned", 0), ("paper_misaligned", 1)]
 """(preset, seed) pairs: lit views with shadows, masks, glossy and transparent occluders."""
+
+RENDER_SEQUENCES = f"""
+import json, sys
+import numpy as np
+sys.path.insert(0, {str(TESTS)!r})
+import sidar_torch
+from OpenGL import GL, platform
+from sidar_torch.render import SceneRenderer
+from sidar_torch.scene import sample_sequence
+from conftest import SMALL, small_config, textured_painting
+renderer = SceneRenderer(SMALL)
+arrays = {{}}
+for k, (preset, seed) in enumerate({SEQUENCES!r}):
+    out = renderer.render(sample_sequence(small_config(preset), np.random.default_rng(seed)), textured_painting(SMALL, seed))
+    arrays.update({{f"views{{k}}": out.views, f"masks{{k}}": out.masks, f"label{{k}}": out.label}})
+np.savez(sys.argv[1], **arrays)
+print(json.dumps([type(platform.PLATFORM).__name__, GL.glGetString(GL.GL_RENDERER).decode()]))
+"""
+"""Renders :data:`SEQUENCES` into the ``.npz`` file ``argv[1]``; prints the PyOpenGL platform and GL renderer."""
+
+
+def run_on(platform, code, *args, **env):
+    """Run ``code`` in a fresh interpreter on ``PYOPENGL_PLATFORM=platform``; the finished process.
+
+    The child forks nothing, so it may use Mesa's on-disk shader cache (faster start-up).
+    """
+    env = {**os.environ, "PYOPENGL_PLATFORM": platform, "MESA_SHADER_CACHE_DISABLE": "false", **env}
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
+                          timeout=300, env=env)
+
+
+def skip_unless_egl_opens(result):
+    """Skip when the child could not open any EGL context; fail on any other error."""
+    if "cannot open an offscreen OpenGL context on platform 'egl'" in result.stderr:
+        pytest.skip(f"EGL unavailable here: {result.stderr.strip().splitlines()[-1]}")
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_egl_renders_the_same_views_masks_and_label_as_osmesa(tmp_path):
+    results = {p: run_on(p, RENDER_SEQUENCES, tmp_path / f"{p}.npz") for p in ("osmesa", "egl")}
+    skip_unless_egl_opens(results["egl"])
+    assert results["osmesa"].returncode == 0, results["osmesa"].stderr[-2000:]
+    (osmesa_platform, osmesa_gl), (egl_platform, egl_gl) = (json.loads(results[p].stdout) for p in ("osmesa", "egl"))
+    assert (osmesa_platform, egl_platform) == ("OSMesaPlatform", "EGLPlatform")
+    assert egl_gl == osmesa_gl, f"EGL device 0 is {egl_gl}, OSMesa is {osmesa_gl}: not the same rasteriser"
+    osmesa, egl = (np.load(tmp_path / f"{p}.npz") for p in ("osmesa", "egl"))
+    for k, (_, seed) in enumerate(SEQUENCES):
+        assert np.array_equal(egl[f"label{k}"], textured_painting(SMALL, seed))
+        for name in ("views", "masks", "label"):
+            assert np.array_equal(egl[f"{name}{k}"], osmesa[f"{name}{k}"]), f"{name} of sequence {k} differ"
+        assert osmesa[f"masks{k}"].any() and not osmesa[f"masks{k}"].all()  # occluders and painting both seen
+
+
+def test_closing_one_egl_renderer_leaves_another_working():
+    # EGL has one display per device and process: pyrender's eglTerminate on closing one renderer
+    # destroyed the contexts of all the others.
+    code = f"""
+import sys
+import numpy as np
+sys.path.insert(0, {str(TESTS)!r})
+import sidar_torch
+from sidar_torch.render import SceneRenderer
+from sidar_torch.scene import sample_sequence
+from conftest import SMALL, small_config, textured_painting
+seq = sample_sequence(small_config("ambient", n_views=1), np.random.default_rng(0))
+painting = textured_painting(SMALL)
+first, second = SceneRenderer(SMALL), SceneRenderer(SMALL)
+expected = first.render(seq, painting)
+first.close()
+again = second.render(seq, painting)
+assert np.array_equal(again.views, expected.views)
+third = SceneRenderer(SMALL)
+assert np.array_equal(third.render(seq, painting).views, expected.views)
+"""
+    skip_unless_egl_opens(run_on("egl", code))
+
+
+@pytest.mark.parametrize("env, expected", [
+    # glvnd's libEGL finds no vendor library: as if libegl-mesa0 were missing.
+    ({"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/egl_vendor.json"},
+     "RuntimeError: cannot open an offscreen OpenGL context on platform 'egl'"),
+    ({"EGL_DEVICE_ID": "99"}, "ValueError: EGL_DEVICE_ID='99': expected a device number from 0 to"),
+])
+def test_egl_that_cannot_open_says_what_is_wrong(env, expected):
+    result = run_on("egl", "from sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n", **env)
+    assert result.returncode != 0
+    assert expected in result.stderr, result.stderr[-1000:]
+    if "RuntimeError" in expected:
+        assert "apt-get install libegl1 libgl1-mesa-dri libopengl0" in result.stderr
 
 
 class OSMesaOwnBuffer:

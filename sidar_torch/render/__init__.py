@@ -2,7 +2,8 @@
 
 Importing this package fixes two environment variables before anything imports OpenGL:
 
-* ``PYOPENGL_PLATFORM`` (default ``osmesa``): PyOpenGL reads it once, at its first import.
+* ``PYOPENGL_PLATFORM`` (default ``osmesa``, or ``egl``; see ``context``): PyOpenGL reads it once,
+  at its first import.
 * ``LP_NUM_THREADS`` (default ``0``): llvmpipe then rasterises in the calling thread. A process
   that created a context with llvmpipe's worker threads deadlocks any child it forks at the
   child's first GL call; with no worker threads, forking DataLoader workers is safe even after
