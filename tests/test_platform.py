@@ -1,6 +1,6 @@
 """Platforms: EGL renders the pixels OSMesa renders; the renderer's own framebuffer gives the pixels
-OSMesa's buffer gave; renderers on one EGL display outlive each other; a missing EGL driver or a
-wrong device number says what is wrong.
+OSMesa's buffer gave; renderers on one EGL display outlive each other; a missing library or driver
+or a wrong device number says what is wrong and what to install.
 
 EGL runs in subprocesses: PyOpenGL fixes its platform at its first import, and this process
 renders on OSMesa (``conftest`` imports ``sidar_torch`` first).
@@ -103,18 +103,36 @@ assert np.array_equal(third.render(seq, painting).views, expected.views)
     skip_unless_egl_opens(run_on("egl", code))
 
 
-@pytest.mark.parametrize("env, expected", [
-    # glvnd's libEGL finds no vendor library: as if libegl-mesa0 were missing.
-    ({"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/egl_vendor.json"},
-     "RuntimeError: cannot open an offscreen OpenGL context on platform 'egl'"),
-    ({"EGL_DEVICE_ID": "99"}, "ValueError: EGL_DEVICE_ID='99': expected a device number from 0 to"),
+REFUSE_TO_LOAD = """
+import ctypes
+load = ctypes.CDLL.__init__
+def refuse(self, name, *args, **kwargs):  # as if the library's files were not installed
+    if name and any(f"lib{{library}}.so" in str(name) for library in {libraries!r}):
+        raise OSError(f"{{name}}: cannot open shared object file: No such file or directory")
+    return load(self, name, *args, **kwargs)
+ctypes.CDLL.__init__ = refuse
+"""
+"""Makes every later ``ctypes`` load of the named libraries (``libX.so*``) fail, as when missing."""
+
+OSMESA_HINT = "it needs OSMesa (Debian/Ubuntu: apt-get install libosmesa6)"
+EGL_HINT = "it needs EGL (Debian/Ubuntu: apt-get install libegl1 libgl1-mesa-dri libopengl0)"
+
+
+@pytest.mark.parametrize("platform, missing, env, expected", [
+    ("osmesa", ["OSMesa"], {}, f"RuntimeError: cannot open an offscreen OpenGL context on platform 'osmesa' "
+                                f"(PyOpenGL cannot load libOSMesa); {OSMESA_HINT}"),
+    ("egl", ["EGL"], {}, f"(PyOpenGL cannot load libEGL); {EGL_HINT}"),
+    ("egl", ["OpenGL", "GL"], {}, f"(PyOpenGL cannot load libOpenGL or libGL); {EGL_HINT}"),
+    # glvnd's libEGL loads but finds no vendor library: as if libegl-mesa0 were missing.
+    ("egl", [], {"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/egl_vendor.json"},
+     f"(OSError('EGL lists no device')); {EGL_HINT}"),
+    ("egl", [], {"EGL_DEVICE_ID": "99"}, "ValueError: EGL_DEVICE_ID='99': expected a device number from 0 to"),
 ])
-def test_egl_that_cannot_open_says_what_is_wrong(env, expected):
-    result = run_on("egl", "from sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n", **env)
+def test_a_missing_library_or_driver_says_what_to_install(platform, missing, env, expected):
+    code = REFUSE_TO_LOAD.format(libraries=missing) + "from sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n"
+    result = run_on(platform, code, **env)
     assert result.returncode != 0
     assert expected in result.stderr, result.stderr[-1000:]
-    if "RuntimeError" in expected:
-        assert "apt-get install libegl1 libgl1-mesa-dri libopengl0" in result.stderr
 
 
 class OSMesaOwnBuffer:

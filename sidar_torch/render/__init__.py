@@ -17,6 +17,10 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
 
-from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402  (after the environment is set)
+from .context import check_platform_libraries  # noqa: E402  (after the environment is set)
+
+check_platform_libraries()  # before pyrender's import, which fails obscurely without them
+
+from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]

@@ -15,7 +15,7 @@ from __future__ import annotations
 import ctypes
 import os
 
-__all__ = ["GL_PLATFORM", "open_context"]
+__all__ = ["GL_PLATFORM", "check_platform_libraries", "open_context"]
 
 GL_PLATFORM = os.environ["PYOPENGL_PLATFORM"]
 """The PyOpenGL platform in use, fixed when ``sidar_torch.render`` was first imported."""
@@ -37,6 +37,35 @@ def _check_pyopengl_platform() -> None:
             f"could select {GL_PLATFORM!r}: import sidar_torch before OpenGL/pyrender, or set "
             f"PYOPENGL_PLATFORM={GL_PLATFORM} in the environment"
         )
+
+
+def check_platform_libraries() -> None:
+    """Raise :func:`open_context`'s error (naming the package to install) if PyOpenGL cannot load
+    the platform's shared libraries; called before anything imports pyrender, whose import
+    otherwise fails first with an ``AttributeError`` or ``ImportError`` from inside PyOpenGL.
+
+    Raises:
+        RuntimeError: a library is missing, or PyOpenGL was imported with another platform.
+    """
+    from OpenGL import platform
+
+    _check_pyopengl_platform()
+    loaded = platform.PLATFORM
+    missing = []
+    if GL_PLATFORM == "osmesa" and loaded.GL is None:
+        missing.append("libOSMesa")
+    if GL_PLATFORM == "egl":
+        if loaded.EGL is None:
+            missing.append("libEGL")
+        if loaded.GL in (None, loaded.GLES2, loaded.GLES1):  # PyOpenGL's fallback when neither loads
+            missing.append("libOpenGL or libGL")
+    if missing:
+        raise _cannot_open(f"PyOpenGL cannot load {' and '.join(missing)}")
+
+
+def _cannot_open(reason: str) -> RuntimeError:
+    return RuntimeError(f"cannot open an offscreen OpenGL context on platform {GL_PLATFORM!r} ({reason}); "
+                        f"it needs {_INSTALL_HINT.get(GL_PLATFORM, 'osmesa or egl')}")
 
 
 def _disable_disk_cache_unless_worker() -> None:
@@ -112,7 +141,6 @@ def open_context(width: int, height: int):
             message names the package that provides it.
         ValueError: ``EGL_DEVICE_ID`` names no EGL device.
     """
-    _check_pyopengl_platform()
     _disable_disk_cache_unless_worker()
     try:
         if GL_PLATFORM == "osmesa":
@@ -126,8 +154,5 @@ def open_context(width: int, height: int):
         platform.init_context()
         platform.make_current()
     except (ImportError, AttributeError, OSError, AssertionError) as error:
-        raise RuntimeError(
-            f"cannot open an offscreen OpenGL context on platform {GL_PLATFORM!r} ({error!r}); "
-            f"it needs {_INSTALL_HINT.get(GL_PLATFORM, 'osmesa or egl')}"
-        ) from error
+        raise _cannot_open(repr(error)) from error
     return platform
