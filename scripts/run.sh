@@ -7,10 +7,16 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! dpkg-query -W -f='${Status}' libosmesa6 2>/dev/null | grep -q "ok installed"; then
+# OSMesa (the default platform); EGL with Mesa's drivers and GL dispatch (PYOPENGL_PLATFORM=egl).
+gl_packages="libosmesa6 libegl1 libgl1-mesa-dri libopengl0"
+missing=""
+for package in $gl_packages; do
+  dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "ok installed" || missing="$missing $package"
+done
+if [ -n "$missing" ]; then
   sudo=""; [ "$(id -u)" -ne 0 ] && sudo="sudo"
   $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libosmesa6 >/dev/null
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq $missing >/dev/null
 fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 # torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).

@@ -2,7 +2,8 @@
 
 Importing this package fixes two environment variables before anything imports OpenGL:
 
-* ``PYOPENGL_PLATFORM`` (default ``osmesa``): PyOpenGL reads it once, at its first import.
+* ``PYOPENGL_PLATFORM`` (default ``osmesa``, or ``egl``; see ``context``): PyOpenGL reads it once,
+  at its first import.
 * ``LP_NUM_THREADS`` (default ``0``): llvmpipe then rasterises in the calling thread. A process
   that created a context with llvmpipe's worker threads deadlocks any child it forks at the
   child's first GL call; with no worker threads, forking DataLoader workers is safe even after
@@ -16,6 +17,10 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
 
-from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402  (after the environment is set)
+from .context import check_platform_libraries  # noqa: E402  (after the environment is set)
+
+check_platform_libraries()  # before pyrender's import, which fails obscurely without them
+
+from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]

@@ -53,6 +53,7 @@ from ..geometry import look_at, painting_mask, plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
+from .framebuffer import FLIP_Y, Framebuffer
 from .meshes import MeshPool, plane_mesh
 from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
@@ -176,6 +177,8 @@ class _GLRenderer(pyrender.Renderer):
     * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
       to the 4 nearest);
     * shadow maps may be any power-of-two size;
+    * forward passes draw upside down into its own single-sampled :class:`Framebuffer` (EGL
+      contexts have no default framebuffer; ``framebuffer`` explains the orientation);
     * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
       whatever context is current, which may be another renderer's): the objects die with
       their context, which :class:`SceneRenderer` destroys.
@@ -184,6 +187,7 @@ class _GLRenderer(pyrender.Renderer):
     def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
+        self._target = Framebuffer(width, height)
         self.shadow_map_size = shadow_map_size
         self._unused_shadow_map = self.new_shadow_map()
         self._unused_shadow_map._add_to_context()
@@ -243,6 +247,16 @@ class _GLRenderer(pyrender.Renderer):
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
 
+    def _configure_forward_pass_viewport(self, flags) -> None:
+        """pyrender's forward-pass state (it binds framebuffer 0 for drawing), then our framebuffer."""
+        super()._configure_forward_pass_viewport(flags)
+        self._target.begin_drawing()
+
+    def _get_camera_matrices(self, scene: pyrender.Scene) -> tuple[np.ndarray, np.ndarray]:
+        """pyrender's view and projection matrices, the projection flipped to draw upside down."""
+        V, P = super()._get_camera_matrices(scene)
+        return V, FLIP_Y @ P
+
     def _configure_shadow_mapping_viewport(self, light, flags) -> None:
         super()._configure_shadow_mapping_viewport(light, flags)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
@@ -250,7 +264,7 @@ class _GLRenderer(pyrender.Renderer):
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
-        """Draw ``scene`` into the context's buffer and read it back as ``(H, W, 4)`` uint8.
+        """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
@@ -286,13 +300,7 @@ class _GLRenderer(pyrender.Renderer):
                 node.mesh.is_visible = node in seen
             self._forward_pass(scene, flags, seg_node_map=seg_node_map)
         with timed(timings, "readback"):
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)  # shadow passes leave their framebuffer bound
-            GL.glReadBuffer(GL.GL_FRONT)
-            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-            pixels = GL.glReadPixels(0, 0, self.viewport_width, self.viewport_height, GL.GL_RGBA,
-                                     GL.GL_UNSIGNED_BYTE)
-            image = np.frombuffer(pixels, dtype=np.uint8).reshape(self.viewport_height, self.viewport_width, 4)
-            return np.ascontiguousarray(image[::-1])  # OpenGL's first row is the bottom one
+            return self._target.end_drawing()
 
 
 class SceneRenderer:

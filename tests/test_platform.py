@@ -1,0 +1,171 @@
+"""Platforms: EGL renders the pixels OSMesa renders; the renderer's own framebuffer gives the pixels
+OSMesa's buffer gave; renderers on one EGL display outlive each other; a missing library or driver
+or a wrong device number says what is wrong and what to install.
+
+EGL runs in subprocesses: PyOpenGL fixes its platform at its first import, and this process
+renders on OSMesa (``conftest`` imports ``sidar_torch`` first).
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from OpenGL import GL
+
+from sidar_torch.render import SceneRenderer, renderer
+from sidar_torch.render.context import GL_PLATFORM
+from sidar_torch.scene import sample_sequence
+
+from conftest import SMALL, small_config, textured_painting
+
+TESTS = Path(__file__).resolve().parent
+
+SEQUENCES = [("misaligned", 0), ("paper_misaligned", 1)]
+"""(preset, seed) pairs: lit views with shadows, masks, glossy and transparent occluders."""
+
+RENDER_SEQUENCES = f"""
+import json, sys
+import numpy as np
+sys.path.insert(0, {str(TESTS)!r})
+import sidar_torch
+from OpenGL import GL, platform
+from sidar_torch.render import SceneRenderer
+from sidar_torch.scene import sample_sequence
+from conftest import SMALL, small_config, textured_painting
+renderer = SceneRenderer(SMALL)
+arrays = {{}}
+for k, (preset, seed) in enumerate({SEQUENCES!r}):
+    out = renderer.render(sample_sequence(small_config(preset), np.random.default_rng(seed)), textured_painting(SMALL, seed))
+    arrays.update({{f"views{{k}}": out.views, f"masks{{k}}": out.masks, f"label{{k}}": out.label}})
+np.savez(sys.argv[1], **arrays)
+print(json.dumps([type(platform.PLATFORM).__name__, GL.glGetString(GL.GL_RENDERER).decode()]))
+"""
+"""Renders :data:`SEQUENCES` into the ``.npz`` file ``argv[1]``; prints the PyOpenGL platform and GL renderer."""
+
+
+def run_on(platform, code, *args, **env):
+    """Run ``code`` in a fresh interpreter on ``PYOPENGL_PLATFORM=platform``; the finished process.
+
+    The child forks nothing, so it may use Mesa's on-disk shader cache (faster start-up).
+    """
+    env = {**os.environ, "PYOPENGL_PLATFORM": platform, "MESA_SHADER_CACHE_DISABLE": "false", **env}
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True, text=True,
+                          timeout=300, env=env)
+
+
+def skip_unless_egl_opens(result):
+    """Skip when the child could not open any EGL context; fail on any other error."""
+    if "cannot open an offscreen OpenGL context on platform 'egl'" in result.stderr:
+        pytest.skip(f"EGL unavailable here: {result.stderr.strip().splitlines()[-1]}")
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_egl_renders_the_same_views_masks_and_label_as_osmesa(tmp_path):
+    results = {p: run_on(p, RENDER_SEQUENCES, tmp_path / f"{p}.npz") for p in ("osmesa", "egl")}
+    skip_unless_egl_opens(results["egl"])
+    assert results["osmesa"].returncode == 0, results["osmesa"].stderr[-2000:]
+    (osmesa_platform, osmesa_gl), (egl_platform, egl_gl) = (json.loads(results[p].stdout) for p in ("osmesa", "egl"))
+    assert (osmesa_platform, egl_platform) == ("OSMesaPlatform", "EGLPlatform")
+    assert egl_gl == osmesa_gl, f"EGL device 0 is {egl_gl}, OSMesa is {osmesa_gl}: not the same rasteriser"
+    osmesa, egl = (np.load(tmp_path / f"{p}.npz") for p in ("osmesa", "egl"))
+    for k, (_, seed) in enumerate(SEQUENCES):
+        assert np.array_equal(egl[f"label{k}"], textured_painting(SMALL, seed))
+        for name in ("views", "masks", "label"):
+            assert np.array_equal(egl[f"{name}{k}"], osmesa[f"{name}{k}"]), f"{name} of sequence {k} differ"
+        assert osmesa[f"masks{k}"].any() and not osmesa[f"masks{k}"].all()  # occluders and painting both seen
+
+
+def test_closing_one_egl_renderer_leaves_another_working():
+    # EGL has one display per device and process: pyrender's eglTerminate on closing one renderer
+    # destroyed the contexts of all the others.
+    code = f"""
+import sys
+import numpy as np
+sys.path.insert(0, {str(TESTS)!r})
+import sidar_torch
+from sidar_torch.render import SceneRenderer
+from sidar_torch.scene import sample_sequence
+from conftest import SMALL, small_config, textured_painting
+seq = sample_sequence(small_config("ambient", n_views=1), np.random.default_rng(0))
+painting = textured_painting(SMALL)
+first, second = SceneRenderer(SMALL), SceneRenderer(SMALL)
+expected = first.render(seq, painting)
+first.close()
+again = second.render(seq, painting)
+assert np.array_equal(again.views, expected.views)
+third = SceneRenderer(SMALL)
+assert np.array_equal(third.render(seq, painting).views, expected.views)
+"""
+    skip_unless_egl_opens(run_on("egl", code))
+
+
+REFUSE_TO_LOAD = """
+import ctypes
+load = ctypes.CDLL.__init__
+def refuse(self, name, *args, **kwargs):  # as if the library's files were not installed
+    if name and any(f"lib{{library}}.so" in str(name) for library in {libraries!r}):
+        raise OSError(f"{{name}}: cannot open shared object file: No such file or directory")
+    return load(self, name, *args, **kwargs)
+ctypes.CDLL.__init__ = refuse
+"""
+"""Makes every later ``ctypes`` load of the named libraries (``libX.so*``) fail, as when missing."""
+
+OSMESA_HINT = "it needs OSMesa (Debian/Ubuntu: apt-get install libosmesa6)"
+EGL_HINT = "it needs EGL (Debian/Ubuntu: apt-get install libegl1 libgl1-mesa-dri libopengl0)"
+
+
+@pytest.mark.parametrize("platform, missing, env, expected", [
+    ("osmesa", ["OSMesa"], {}, f"RuntimeError: cannot open an offscreen OpenGL context on platform 'osmesa' "
+                                f"(PyOpenGL cannot load libOSMesa); {OSMESA_HINT}"),
+    ("egl", ["EGL"], {}, f"(PyOpenGL cannot load libEGL); {EGL_HINT}"),
+    ("egl", ["OpenGL", "GL"], {}, f"(PyOpenGL cannot load libOpenGL or libGL); {EGL_HINT}"),
+    # glvnd's libEGL loads but finds no vendor library: as if libegl-mesa0 were missing.
+    ("egl", [], {"__EGL_VENDOR_LIBRARY_FILENAMES": "/nonexistent/egl_vendor.json"},
+     f"(OSError('EGL lists no device')); {EGL_HINT}"),
+    ("egl", [], {"EGL_DEVICE_ID": "99"}, "ValueError: EGL_DEVICE_ID='99': expected a device number from 0 to"),
+])
+def test_a_missing_library_or_driver_says_what_to_install(platform, missing, env, expected):
+    code = REFUSE_TO_LOAD.format(libraries=missing) + "from sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n"
+    result = run_on(platform, code, **env)
+    assert result.returncode != 0
+    assert expected in result.stderr, result.stderr[-1000:]
+
+
+class OSMesaOwnBuffer:
+    """Stand-in for ``framebuffer.Framebuffer`` that draws as pyrender does by default: upright,
+    into OSMesa's own buffer (framebuffer 0), read from its front buffer bottom row first."""
+
+    def __init__(self, height, width):
+        self.height, self.width = height, width
+
+    def begin_drawing(self):
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, 0)
+
+    def end_drawing(self):
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, 0)
+        GL.glReadBuffer(GL.GL_FRONT)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+        return np.frombuffer(pixels, np.uint8).reshape(self.height, self.width, 4)[::-1].copy()
+
+
+@pytest.mark.skipif(GL_PLATFORM != "osmesa", reason="framebuffer 0 exists on OSMesa only")
+def test_own_framebuffer_gives_the_pixels_of_osmesas_buffer(monkeypatch):
+    # The renderer draws upside down into its framebuffer, as Mesa draws into OSMesa's buffer;
+    # drawn upright, lit pixels round differently.
+    sequences = [(sample_sequence(small_config(p), np.random.default_rng(s)), textured_painting(SMALL, s))
+                 for p, s in SEQUENCES]
+    ours = SceneRenderer(SMALL)
+    theirs = SceneRenderer(SMALL)
+    theirs._gl._target = OSMesaOwnBuffer(*SMALL)
+    for seq, painting in sequences:
+        expected = ours.render(seq, painting)
+        with monkeypatch.context() as patch:
+            patch.setattr(renderer, "FLIP_Y", np.eye(4))
+            got = theirs.render(seq, painting)
+        for name in ("views", "masks", "label"):
+            assert np.array_equal(getattr(got, name), getattr(expected, name)), name
