@@ -25,8 +25,11 @@ import yaml
 __all__ = [
     "LIGHT_TYPES",
     "OCCLUDER_MATERIALS",
+    "MESH_DETAILS",
     "OCCLUDER_SHAPES",
     "ON_BAD_IMAGE",
+    "SHADOW_FRUSTA",
+    "TEXTURE_FILTERS",
     "SidarConfig",
     "available_presets",
     "load_config",
@@ -42,6 +45,9 @@ LIGHT_TYPES = ("spot", "point", "area")
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
+SHADOW_FRUSTA = ("cone", "fitted")
+MESH_DETAILS = ("fixed", "auto")
+TEXTURE_FILTERS = ("trilinear", "bilinear")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -101,6 +107,16 @@ class SidarConfig:
 
     Rendering
         shadow_map_size: side of each shadow map in texels (power of two).
+        shadow_frustum: what a spot light's shadow map covers: ``"cone"`` (pyrender's frustum, 2 x
+            outer cone + pi / 16 wide) or ``"fitted"`` (only what the cameras see of the painting and
+            occluders, within the cone: the same map size gives finer shadows).
+        mesh_detail: ``"fixed"``: every curved occluder (sphere, cylinder, cone, torus, capsule) uses
+            one mesh (icosphere 3, 48 sections); ``"auto"``: per view, the coarsest of 4 pooled levels
+            whose silhouette and shadow stay within ``mesh_error_px`` of the true surface.
+        mesh_error_px: the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always
+            the finest level).
+        texture_filter: the painting texture's filter, ``"trilinear"`` (mipmapped) or ``"bilinear"``
+            (full-size texture only; aliases where a view shrinks the painting).
 
     Input
         on_bad_image: what a painting source does with an unreadable image: ``"raise"`` (an
@@ -150,6 +166,10 @@ class SidarConfig:
     scene_per_view: bool = True
 
     shadow_map_size: int = 1024
+    shadow_frustum: str = "cone"
+    mesh_detail: str = "fixed"
+    mesh_error_px: float = 0.25
+    texture_filter: str = "trilinear"
 
     on_bad_image: str = "raise"
 
@@ -233,6 +253,10 @@ def _validate(c: SidarConfig) -> None:
     need(0 <= c.mask_min_opacity <= 1, "mask_min_opacity", "a value in [0, 1]")
     size = c.shadow_map_size
     need(size >= 16 and size & (size - 1) == 0, "shadow_map_size", "a power of two >= 16")
+    need(c.shadow_frustum in SHADOW_FRUSTA, "shadow_frustum", f"one of {SHADOW_FRUSTA}")
+    need(c.mesh_detail in MESH_DETAILS, "mesh_detail", f"one of {MESH_DETAILS}")
+    need(c.mesh_error_px >= 0, "mesh_error_px", ">= 0 (pixels)")
+    need(c.texture_filter in TEXTURE_FILTERS, "texture_filter", f"one of {TEXTURE_FILTERS}")
     need(len(c.light_types) > 0 and set(c.light_types) <= set(LIGHT_TYPES),
          "light_types", f"a non-empty subset of {LIGHT_TYPES}")
     need(len(c.occluder_shapes) > 0 and set(c.occluder_shapes) <= set(OCCLUDER_SHAPES),

@@ -16,7 +16,7 @@ from torch.utils.data import IterableDataset, get_worker_info
 
 from . import geometry
 from .config import SidarConfig, load_config
-from .render import shared_renderer
+from .render import renderer_options, shared_renderer
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
 from .timing import timed
@@ -65,7 +65,7 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         The sample dict of CPU tensors (``images``, ``masks``, ``label``, ``homographies``, ``K``,
         ``R``, ``t`` float32), ``homography_error`` (float) and ``index`` (int).
     """
-    renderer = shared_renderer(config.image_size, config.shadow_map_size)
+    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
     rendered = renderer.render(sequence, painting, timings)
     with timed(timings, "homographies"):
         K, R, t = sequence.cameras()

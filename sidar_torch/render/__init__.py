@@ -16,6 +16,6 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
 
-from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402  (after the environment is set)
+from .renderer import RenderedSequence, SceneRenderer, renderer_options, shared_renderer  # noqa: E402  (after the environment is set)
 
-__all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
+__all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
