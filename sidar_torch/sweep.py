@@ -14,7 +14,10 @@ the error it leaves:
   process (one untimed warm-up sequence per setting first), of the renderer's whole call
   (views, masks and label; for ``s > 1`` the larger draw and the downsampling) divided by the
   number of views. Torch runs one thread, llvmpipe rasterises in the calling thread (as in
-  ``bench``), so figures are per core;
+  ``bench``), so figures are per core. The time is this process's CPU time
+  (``time.process_time``), not wall time: other jobs sharing the cores would otherwise dominate
+  the differences between settings (in a quick sweep at load 7, wall times of settings doing
+  nearly the same work differed up to 3x);
 * **image PSNR** (dB) of the views against a high-quality reference render of the same scenes at
   the same output size: largest shadow maps with fitted frusta, supersampled, the finest occluder
   meshes, trilinear filtering (:attr:`SweepSettings.reference`).
@@ -242,10 +245,10 @@ def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tu
         for index in [_WARMUP_INDEX, *range(scenes)]:
             sequence = dataset.scene(index)
             painting = dataset.source.painting(index % len(dataset.source), (h, w))
-            start = time.perf_counter()
+            start = time.process_time()
             images, _ = render_views(renderer, sequence, painting, factor)
             if index != _WARMUP_INDEX:
-                seconds.append(time.perf_counter() - start)
+                seconds.append(time.process_time() - start)
                 views.append(images)
         return seconds, views
     finally:
