@@ -339,7 +339,7 @@ class SceneRenderer:
     """
 
     def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True,
-                 shadow_frustum: str = "cone", mesh_error_px: float | None = None,
+                 shadow_frustum: str = "fitted", mesh_error_px: float | None = None,
                  texture_filter: str = "trilinear"):
         if shadow_frustum not in SHADOW_FRUSTA:
             raise ValueError(f"shadow_frustum: expected one of {SHADOW_FRUSTA}, got {shadow_frustum!r}")
