@@ -22,6 +22,10 @@ import torch
 
 __all__ = [
     "ball_may_be_seen",
+    "ball_pixel_radius",
+    "ball_shadow_corners",
+    "ball_shadow_pixel_radius",
+    "cube_corners",
     "clip_polygon",
     "painting_mask",
     "painting_pixel_area",
@@ -36,6 +40,7 @@ __all__ = [
     "fit_points",
     "homographies_from_points",
     "intrinsics_from_fov",
+    "light_frustum",
     "look_at",
     "normalize_det",
     "plane_corners",
@@ -480,3 +485,108 @@ def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple
     hi = np.where(step[:, None] < 0, bound, np.where((step[:, None] == 0) & (start < 0), -np.inf, np.inf)).min(axis=0)
     columns = np.arange(w, dtype=np.float64)
     return ~((columns >= lo[:, None]) & (columns <= hi[:, None]))
+
+
+def cube_corners(centre: np.ndarray, radius: float) -> np.ndarray:
+    """``(8, 3)`` corners of the axis-aligned cube of half-side ``radius`` around ``centre``: the
+    cube holds the ball ``|X - centre| <= radius``, so their convex hull bounds the ball."""
+    return np.asarray(centre, dtype=np.float64) + radius * _CUBE
+
+
+def ball_shadow_corners(emitter: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
+    """The ball's bounding-cube corners projected from a point light onto the plane ``z = 0``,
+    ``(8, 2)`` plane points whose convex hull holds the ball's shadow; ``None`` when the ball
+    reaches the light's height (its shadow is then unbounded).
+
+    Args:
+        emitter: ``(3,)`` light position, ``z > 0``; centre, radius: the ball (world, painting units).
+    """
+    if centre[2] + radius >= emitter[2]:
+        return None
+    corners = cube_corners(centre, radius)
+    scale = emitter[2] / (emitter[2] - corners[:, 2])
+    return emitter[:2] + scale[:, None] * (corners[:, :2] - emitter[:2])
+
+
+def _pixel_spread(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> float:
+    """Half the longer side of the image bounding box of world points ``(N, 3)``, pixels; ``inf``
+    when a point is not in front of the camera."""
+    if ((points @ R.T + t)[:, 2] <= 0).any():
+        return math.inf
+    pixels = project(K, R, t, points)
+    return float((pixels.max(axis=0) - pixels.min(axis=0)).max()) / 2
+
+
+def ball_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, centre: np.ndarray, radius: float) -> float:
+    """The radius, in pixels, a ball ``|X - centre| <= radius`` shows at in a camera's image.
+
+    Measured as half the longer side of the image bounding box of its bounding cube's corners (at
+    most ``sqrt(3)`` times the ball's own projected radius, never less); ``inf`` when the cube
+    reaches behind the camera. The image's bounds are ignored (a ball partly out of view counts whole).
+
+    Args:
+        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera (module conventions).
+    """
+    return _pixel_spread(K, R, t, cube_corners(centre, radius))
+
+
+def ball_shadow_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, emitter: np.ndarray,
+                             centre: np.ndarray, radius: float) -> float:
+    """Like :func:`ball_pixel_radius` for the ball's shadow on the painting's plane, cast from a
+    point light at ``emitter (3,)``: the projected radius of its :func:`ball_shadow_corners`
+    (``inf`` when the shadow is unbounded)."""
+    shadow = ball_shadow_corners(emitter, centre, radius)
+    if shadow is None:
+        return math.inf
+    return _pixel_spread(K, R, t, np.column_stack([shadow, np.zeros(len(shadow))]))
+
+
+def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray, casters: np.ndarray,
+                  margin: float = 0.0) -> np.ndarray | None:
+    """The tightest perspective shadow-map frustum of a spot light aimed at the origin.
+
+    The frustum is expressed in the light's own frame, :func:`look_at` ``(emitter)`` (OpenCV axes:
+    x right, y down, z along the light's axis): ``[x0, x1, y0, y1, near, far]``, the window's
+    bounds as tangents (``x / z``, ``y / z``) and the depth range along the axis. It holds
+
+    * every receiver point (the points whose shadowing must be right; give the corners of a
+      region or of a ball's :func:`cube_corners`), so every caster between the light and a
+      receiver lies inside it too (on the segment from the light to that receiver);
+    * laterally at most the light's cone ``|x|, |y| <= tan(outer_cone)``: outside it the light
+      adds nothing, so no shadow there can change a pixel;
+    * in depth, from the nearest caster or receiver (``near``) to the farthest receiver
+      (``far``), so no caster is cut by the near plane; ``near`` is kept at least ``far / 1000``
+      (a caster closer to the light than that would be inside the lamp).
+
+    The window is widened by ``margin`` times its size on each side (for the texels a filtered
+    shadow lookup reads around a point), and ``far`` by ``margin`` times the depth range.
+
+    Args:
+        emitter: ``(3,)`` light position (world, painting units), not at the origin.
+        outer_cone: the light's outer half-angle, rad, below pi / 2.
+        receivers: ``(N, 3)`` world points.
+        casters: ``(M, 4)`` balls ``(centre x, y, z, radius)`` that may cast shadows.
+        margin: relative widening (>= 0).
+
+    Returns:
+        ``(6,)`` float64, or ``None`` when a receiver is not in front of the light (no frustum
+        of this kind holds them) or the receivers span no area inside the cone.
+    """
+    R, t = look_at(emitter)
+    cam = receivers @ R.T + t
+    if len(cam) == 0 or (cam[:, 2] <= 0).any():
+        return None
+    tangents = cam[:, :2] / cam[:, 2:]
+    limit = math.tan(outer_cone)
+    low = np.clip(tangents.min(axis=0), -limit, limit)
+    high = np.clip(tangents.max(axis=0), -limit, limit)
+    if (high <= low).any():
+        return None
+    pad = margin * (high - low)
+    far = float(cam[:, 2].max())
+    depths = [float(cam[:, 2].min())]
+    if len(casters):
+        depths.append(float(((casters[:, :3] @ R.T + t)[:, 2] - casters[:, 3]).min()))
+    near = max(min(depths), far / 1000)
+    far += margin * (far - near)
+    return np.array([low[0] - pad[0], high[0] + pad[0], low[1] - pad[1], high[1] + pad[1], near, far])

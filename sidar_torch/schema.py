@@ -19,7 +19,9 @@ __all__ = ["field_meanings", "schema_markdown", "schema_rows"]
 
 _CHOICES = {"light_types": config.LIGHT_TYPES, "occluder_shapes": config.OCCLUDER_SHAPES,
             "occluder_materials": config.OCCLUDER_MATERIALS, "on_bad_image": config.ON_BAD_IMAGE,
-            "background": config.BACKGROUNDS}
+            "background": config.BACKGROUNDS,
+            "shadow_frustum": config.SHADOW_FRUSTA, "mesh_detail": config.MESH_DETAILS,
+            "texture_filter": config.TEXTURE_FILTERS}
 
 
 def field_meanings() -> dict[str, str]:

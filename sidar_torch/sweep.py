@@ -3,16 +3,24 @@
 Sweeps the renderer's quality knobs and reports, for every setting, the time per view against
 the error it leaves:
 
-* **knobs**: output resolution, shadow-map size (``SidarConfig.shadow_map_size``) and
+* **knobs**: output resolution, shadow-map size (``SidarConfig.shadow_map_size``) and frustum
+  (``shadow_frustum``: the light's cone or fitted to what the cameras see) crossed with
   supersampling ``s`` (views drawn at ``s`` times the resolution, then area-averaged ``s x s``
-  in linear light, see :func:`render_views`);
+  in linear light, see :func:`render_views`); then, one at a time from a base setting (fitted
+  frusta, no supersampling), occluder mesh detail (``mesh_detail`` "auto" at each
+  ``mesh_error_px``) and the painting's texture filter (``texture_filter``). Every other setting
+  uses fixed meshes and trilinear filtering;
 * **time per view**: median over the same ``scenes`` sequences of the default preset, in this
   process (one untimed warm-up sequence per setting first), of the renderer's whole call
   (views, masks and label; for ``s > 1`` the larger draw and the downsampling) divided by the
   number of views. Torch runs one thread, llvmpipe rasterises in the calling thread (as in
-  ``bench``), so figures are per core;
+  ``bench``), so figures are per core. The time is this process's CPU time
+  (``time.process_time``), not wall time: other jobs sharing the cores would otherwise dominate
+  the differences between settings (in a quick sweep at load 7, wall times of settings doing
+  nearly the same work differed up to 3x);
 * **image PSNR** (dB) of the views against a high-quality reference render of the same scenes at
-  the same output size: largest shadow maps, supersampled (:attr:`SweepSettings.reference`).
+  the same output size: largest shadow maps with fitted frusta, supersampled, the finest occluder
+  meshes, trilinear filtering (:attr:`SweepSettings.reference`).
   One PSNR per setting, from the mean squared error over every pixel of every view of every
   scene (occluders and background included);
 * **warp residual** (median / max Lucas-Kanade displacement, pixels; see
@@ -53,16 +61,50 @@ from .accuracy import psnr, speckle_paintings, warp_residuals
 from .accuracy_report import label_row
 from .artifacts import linear_to_srgb, srgb_to_linear
 from .bench import DEFAULT_PRESET, check_sizes
-from .config import load_config
+from .config import SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from .dataset import SidarDataset, sequence_homographies
 from .render import SceneRenderer
 from .scene import SceneSequence
 
-__all__ = ["SweepSettings", "format_report", "pareto_front", "plot_front", "render_views", "run_sweep",
+__all__ = ["Setting", "SweepSettings", "format_report", "pareto_front", "plot_front", "render_views", "run_sweep",
            "supersampled_sequence", "write_outputs"]
 
 _WARMUP_INDEX = 1_000_000
 """Index of each setting's untimed warm-up sequence, apart from the measured ``0 .. scenes - 1``."""
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One point of the sweep: the renderer's quality knobs.
+
+    Attributes:
+        shadow_map_size: texels (power of two).
+        supersampling: factor ``s`` (1: none).
+        shadow_frustum: ``"cone"`` or ``"fitted"`` (``SidarConfig.shadow_frustum``).
+        mesh_error_px: ``None``: fixed occluder meshes; else ``mesh_detail`` "auto" with this
+            ``mesh_error_px`` (0: the finest level).
+        texture_filter: ``"trilinear"`` or ``"bilinear"`` (``SidarConfig.texture_filter``).
+    """
+
+    shadow_map_size: int
+    supersampling: int
+    shadow_frustum: str = "cone"
+    mesh_error_px: float | None = None
+    texture_filter: str = "trilinear"
+
+    @property
+    def mesh_detail(self) -> str:
+        """``"fixed"``, ``"finest"`` or ``"<= x px"``."""
+        if self.mesh_error_px is None:
+            return "fixed"
+        return "finest" if self.mesh_error_px == 0 else f"<= {self.mesh_error_px:g} px"
+
+    def label(self) -> str:
+        """Short label for the plot: ``map/sx`` and the frustum, mesh and filter when not the default."""
+        parts = [f"{self.shadow_map_size}/{self.supersampling}x", "fit" if self.shadow_frustum == "fitted" else ""]
+        parts += ["" if self.mesh_error_px is None else f"mesh {self.mesh_detail}",
+                  "" if self.texture_filter == "trilinear" else self.texture_filter]
+        return " ".join(p for p in parts if p)
 
 
 @dataclass(frozen=True)
@@ -73,7 +115,13 @@ class SweepSettings:
         sizes: output sizes ``(H, W)``.
         shadow_map_sizes: shadow-map sides, texels (powers of two).
         supersampling: factors ``s`` (1: none).
-        reference: ``(shadow_map_size, supersampling)`` of the reference render.
+        shadow_frusta: frusta crossed with the sizes and factors.
+        mesh_errors: ``mesh_error_px`` values tried (``mesh_detail`` "auto") at the base setting.
+        texture_filters: filters tried at the base setting (``"trilinear"`` is every setting's).
+        base_shadow_map_size: shadow map of the base setting (fitted frusta, no supersampling)
+            from which mesh detail and texture filtering vary.
+        reference: ``(shadow_map_size, supersampling)`` of the reference render (fitted frusta,
+            the finest meshes, trilinear filtering).
         scenes: sequences of ``preset`` per setting (timed and compared with the reference).
         residual_samples: ambient speckle samples per resolution and factor for the warp residual.
         label_samples: samples per resolution for the label PSNR.
@@ -85,6 +133,10 @@ class SweepSettings:
     sizes: tuple[tuple[int, int], ...] = ((192, 256), (384, 512))
     shadow_map_sizes: tuple[int, ...] = (256, 512, 1024, 2048, 4096)
     supersampling: tuple[int, ...] = (1, 2)
+    shadow_frusta: tuple[str, ...] = ("cone", "fitted")
+    mesh_errors: tuple[float, ...] = (0.25, 1.0, 4.0)
+    texture_filters: tuple[str, ...] = ("trilinear", "bilinear")
+    base_shadow_map_size: int = 1024
     reference: tuple[int, int] = (4096, 2)
     scenes: int = 6
     residual_samples: int = 3
@@ -97,9 +149,15 @@ class SweepSettings:
         if not self.sizes or not self.shadow_map_sizes or not self.supersampling:
             raise ValueError("sizes, shadow_map_sizes and supersampling: expected at least one each")
         check_sizes(self.sizes)
-        if any(s < 16 or s & (s - 1) for s in (*self.shadow_map_sizes, self.reference[0])):
-            raise ValueError(f"shadow_map_sizes, reference: expected powers of two >= 16, got "
-                             f"{self.shadow_map_sizes}, {self.reference}")
+        if any(s < 16 or s & (s - 1) for s in (*self.shadow_map_sizes, self.reference[0], self.base_shadow_map_size)):
+            raise ValueError(f"shadow_map_sizes, reference, base_shadow_map_size: expected powers of two >= 16, got "
+                             f"{self.shadow_map_sizes}, {self.reference}, {self.base_shadow_map_size}")
+        if not self.shadow_frusta or not set(self.shadow_frusta) <= set(SHADOW_FRUSTA):
+            raise ValueError(f"shadow_frusta: expected a non-empty subset of {SHADOW_FRUSTA}, got {self.shadow_frusta}")
+        if not set(self.texture_filters) <= set(TEXTURE_FILTERS):
+            raise ValueError(f"texture_filters: expected a subset of {TEXTURE_FILTERS}, got {self.texture_filters}")
+        if any(not e >= 0 for e in self.mesh_errors):
+            raise ValueError(f"mesh_errors: expected pixels >= 0, got {self.mesh_errors}")
         if any(s < 1 for s in (*self.supersampling, self.reference[1])):
             raise ValueError(f"supersampling, reference: expected factors >= 1, got {self.supersampling}, "
                              f"{self.reference}")
@@ -108,15 +166,23 @@ class SweepSettings:
 
     @classmethod
     def quick(cls, **changes: Any) -> "SweepSettings":
-        """A minute or two on 2 cores: 256x192, shadow maps 256 / 1024 / 2048, 3 scenes of 3 views."""
+        """A few minutes on 2 cores: 256x192, shadow maps 256 / 1024 (reference 2048), 3 scenes of 3 views."""
         return cls(**{"sizes": ((192, 256),), "shadow_map_sizes": (256, 1024), "supersampling": (1, 2),
-                      "reference": (2048, 2), "scenes": 3, "residual_samples": 2, "label_samples": 2,
-                      "n_views": 3, **changes})
+                      "mesh_errors": (0.25, 2.0), "base_shadow_map_size": 256, "reference": (2048, 2), "scenes": 3,
+                      "residual_samples": 2, "label_samples": 2, "n_views": 3, **changes})
 
-    def settings(self) -> list[tuple[int, int]]:
-        """Every ``(shadow_map_size, supersampling)`` measured at each size, the reference included."""
-        grid = [(m, s) for s in self.supersampling for m in self.shadow_map_sizes]
-        return grid + [self.reference] * (self.reference not in grid)
+    @property
+    def reference_setting(self) -> Setting:
+        return Setting(*self.reference, "fitted", 0.0)
+
+    def settings(self) -> list[Setting]:
+        """Every setting measured at each size: the grid, the one-at-a-time variations, the reference."""
+        grid = [Setting(m, s, f) for f in self.shadow_frusta for s in self.supersampling for m in self.shadow_map_sizes]
+        base = Setting(self.base_shadow_map_size, 1, "fitted")
+        grid += [replace(base, mesh_error_px=e) for e in self.mesh_errors]
+        grid += [replace(base, texture_filter=f) for f in self.texture_filters if f != "trilinear"]
+        grid = list(dict.fromkeys(grid))
+        return grid + [self.reference_setting] * (self.reference_setting not in grid)
 
 
 def supersampled_sequence(sequence: SceneSequence, factor: int) -> SceneSequence:
@@ -161,20 +227,21 @@ def _dataset(settings: SweepSettings, size: tuple[int, int]) -> SidarDataset:
     return SidarDataset(None, load_config(settings.preset, image_size=size, **extra), seed=settings.seed)
 
 
-def _measure_setting(dataset: SidarDataset, shadow_map_size: int, factor: int,
-                     scenes: int) -> tuple[list[float], list[torch.Tensor]]:
+def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tuple[list[float], list[torch.Tensor]]:
     """Seconds per sequence and the views of scenes ``0 .. scenes - 1`` (one warm-up first)."""
     h, w = dataset.config.image_size
-    renderer = SceneRenderer((factor * h, factor * w), shadow_map_size)
+    factor = setting.supersampling
+    renderer = SceneRenderer((factor * h, factor * w), setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
+                             mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter)
     try:
         seconds, views = [], []
         for index in [_WARMUP_INDEX, *range(scenes)]:
             sequence = dataset.scene(index)
             painting = dataset.source.painting(index % len(dataset.source), (h, w))
-            start = time.perf_counter()
+            start = time.process_time()
             images, _ = render_views(renderer, sequence, painting, factor)
             if index != _WARMUP_INDEX:
-                seconds.append(time.perf_counter() - start)
+                seconds.append(time.process_time() - start)
                 views.append(images)
         return seconds, views
     finally:
@@ -224,16 +291,18 @@ def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> di
             label = f"{size[1]}x{size[0]}"
             dataset = _dataset(settings, size)
             measured = {}
-            for smap, factor in [settings.reference] + [s for s in settings.settings() if s != settings.reference]:
-                measured[smap, factor] = _measure_setting(dataset, smap, factor, settings.scenes)
-                log(f"{label}, shadow map {smap}, supersampling {factor}: done ({time.perf_counter() - start:.0f} s)")
-            reference = torch.stack([v for views in measured[settings.reference][1] for v in views])
+            ref = settings.reference_setting
+            for setting in [ref] + [s for s in settings.settings() if s != ref]:
+                measured[setting] = _measure_setting(dataset, setting, settings.scenes)
+                log(f"{label}, {setting.label()}: done ({time.perf_counter() - start:.0f} s)")
+            reference = torch.stack([v for views in measured[ref][1] for v in views])
             size_rows = []
-            for smap, factor in settings.settings():
-                seconds, views = measured[smap, factor]
+            for setting in settings.settings():
+                seconds, views = measured[setting]
                 size_rows.append({
-                    "size": label, "shadow_map_size": smap, "supersampling": factor,
-                    "reference": (smap, factor) == tuple(settings.reference),
+                    "size": label, "shadow_map_size": setting.shadow_map_size, "supersampling": setting.supersampling,
+                    "shadow_frustum": setting.shadow_frustum, "mesh_detail": setting.mesh_detail,
+                    "texture_filter": setting.texture_filter, "label": setting.label(), "reference": setting == ref,
                     "ms_per_view": 1e3 * statistics.median(seconds) / dataset.config.n_views,
                     "image_psnr_db": psnr(torch.stack([v for vs in views for v in vs]), reference)})
             for k in pareto_front(size_rows):
@@ -258,14 +327,16 @@ def _db(value: float) -> str:
 def format_report(report: dict[str, Any]) -> str:
     """The sweep as markdown: the speed-against-error table, residuals and label PSNR."""
     s = report["settings"]
-    ref = f"shadow map {s['reference'][0]}, {s['reference'][1]}x{s['reference'][1]} supersampling"
+    ref = (f"shadow map {s['reference'][0]} with fitted frusta, {s['reference'][1]}x{s['reference'][1]} supersampling, "
+           "finest meshes, trilinear filtering")
     lines = [f"Speed against error: '{s['preset']}' preset, {s['scenes']} scenes of {report['views_per_scene']} "
              f"views per setting; image PSNR against the reference render ({ref}) at the same size. "
              "* = Pareto-optimal at its size.", "",
-             "| size | shadow map | supersampling | ms per view | image PSNR (dB) | Pareto |",
-             "|---|---|---|---|---|---|"]
+             "| size | shadow map | frustum | supersampling | meshes | texture | ms per view | image PSNR (dB) | Pareto |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
-        lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['supersampling']}x | {r['ms_per_view']:.1f} "
+        lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['shadow_frustum']} | {r['supersampling']}x "
+                     f"| {r['mesh_detail']} | {r['texture_filter']} | {r['ms_per_view']:.1f} "
                      f"| {_db(r['image_psnr_db'])} | {'*' if r['pareto'] else ''} |")
     lines += ["", "Warp residual (ambient speckle scenes, 4 views; shadow maps play no part):", "",
               "| size | supersampling | patches | median px | max px |", "|---|---|---|---|---|"]
@@ -286,7 +357,7 @@ _COLOURS = [(31, 119, 180), (214, 39, 40), (44, 160, 44), (148, 103, 189), (255,
 
 def plot_front(report: dict[str, Any], path: str | os.PathLike) -> None:
     """Scatter of time per view (x, log scale) against image PSNR (y), one colour per size, each
-    point labelled ``shadow map / supersampling``; Pareto-optimal points filled and joined."""
+    point labelled with :meth:`Setting.label`; Pareto-optimal points filled and joined."""
     from PIL import Image, ImageDraw
 
     rows = [r for r in report["rows"] if math.isfinite(r["image_psnr_db"])]
@@ -329,9 +400,10 @@ def plot_front(report: dict[str, Any], path: str | os.PathLike) -> None:
             px, py = at(math.log10(r["ms_per_view"]), r["image_psnr_db"])
             draw.ellipse([px - 5, py - 5, px + 5, py + 5], outline=colour, width=2,
                          fill=colour if r["pareto"] else "white")
-            draw.text((px + 7, py - 12), f"{r['shadow_map_size']}/{r['supersampling']}x", fill=colour)
+            draw.text((px + 7, py - 12), r["label"], fill=colour)
         draw.text((width - right - 260, top + 10 + 16 * k), f"{size} (filled: Pareto-optimal)", fill=colour)
-    draw.text((width - right - 260, top + 10 + 16 * (k + 1)), "labels: shadow map / supersampling", fill="black")
+    draw.text((width - right - 260, top + 10 + 16 * (k + 1)), "labels: shadow map / supersampling,", fill="black")
+    draw.text((width - right - 260, top + 26 + 16 * (k + 1)), "fit: fitted frusta, mesh: auto detail", fill="black")
     image.save(path)
 
 

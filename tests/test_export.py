@@ -1,7 +1,6 @@
 """Export and its reader: byte-identical round trips, both layouts, resuming after a crash or a kill,
 refusing to mix settings, the command line."""
 
-import io
 import os
 import signal
 import subprocess

@@ -1,6 +1,5 @@
 """The renderer, proved by rendering: each pyrender/OSMesa quirk has a test that fails if it returns."""
 
-import dataclasses
 import gc
 import subprocess
 import sys

@@ -19,8 +19,8 @@ from sidar_torch.render import SceneRenderer
 from conftest import SMALL
 
 TINY = sweep.SweepSettings(sizes=(SMALL,), shadow_map_sizes=(32, 128, 512), supersampling=(1,),
-                           reference=(2048, 1), scenes=2, residual_samples=1, label_samples=1,
-                           preset="shadows_only", n_views=3)
+                           mesh_errors=(1.0,), base_shadow_map_size=128, reference=(2048, 1), scenes=2,
+                           residual_samples=1, label_samples=1, preset="shadows_only", n_views=3)
 
 
 @pytest.fixture(scope="module")
@@ -30,16 +30,20 @@ def report():
 
 def test_report_structure_and_outputs(report, tmp_path):
     rows = report["rows"]
-    assert [(r["shadow_map_size"], r["supersampling"]) for r in rows] == [(32, 1), (128, 1), (512, 1), (2048, 1)]
-    assert all(r["size"] == "128x96" and r["ms_per_view"] > 0 for r in rows)
-    assert [r["reference"] for r in rows] == [False, False, False, True]
+    assert [(r["shadow_map_size"], r["shadow_frustum"], r["mesh_detail"], r["texture_filter"]) for r in rows] == [
+        (32, "cone", "fixed", "trilinear"), (128, "cone", "fixed", "trilinear"), (512, "cone", "fixed", "trilinear"),
+        (32, "fitted", "fixed", "trilinear"), (128, "fitted", "fixed", "trilinear"),
+        (512, "fitted", "fixed", "trilinear"), (128, "fitted", "<= 1 px", "trilinear"),
+        (128, "fitted", "fixed", "bilinear"), (2048, "fitted", "finest", "trilinear")]
+    assert all(r["size"] == "128x96" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
+    assert [r["reference"] for r in rows] == [False] * 8 + [True]
     assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
     assert any(r["pareto"] for r in rows[:-1])
     assert [r["supersampling"] for r in report["residuals"]] == [1]
     assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
     assert report["labels"][0]["min_psnr_db"] >= 45
     paths = sweep.write_outputs(report, tmp_path / "out")
-    assert "| 128x96 | 512 | 1x |" in paths["md"].read_text()
+    assert "| 128x96 | 512 | fitted | 1x | fixed | trilinear |" in paths["md"].read_text()
     assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
     with Image.open(paths["png"]) as image:
         assert image.size == (900, 600)
@@ -47,11 +51,14 @@ def test_report_structure_and_outputs(report, tmp_path):
 
 def test_larger_shadow_maps_come_closer_to_the_reference(report):
     """The scenes have shadows (shadows_only: invisible occluders casting them), so the coarsest
-    map must be measurably worse, and no larger map worse than a smaller one."""
-    values = [r["image_psnr_db"] for r in report["rows"][:-1]]
-    assert all(math.isfinite(v) for v in values)
-    assert values == sorted(values), values
-    assert values[-1] > values[0] + 1.0, values
+    map must be measurably worse, and no larger map worse than a smaller one, with either
+    frustum; at each size the fitted frustum comes closer than the cone's."""
+    cone, fitted = ([r["image_psnr_db"] for r in report["rows"][k:k + 3]] for k in (0, 3))
+    for values in (cone, fitted):
+        assert all(math.isfinite(v) for v in values)
+        assert values == sorted(values), values
+        assert values[-1] > values[0] + 1.0, values
+    assert all(f > c for f, c in zip(fitted, cone)), (cone, fitted)
 
 
 def test_pareto_front():
@@ -94,9 +101,9 @@ def test_supersampled_views_keep_pixel_centres():
 
 def test_cli_writes_the_three_files(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sweep.SweepSettings, "quick", classmethod(
-        lambda cls: TINY.__class__(**{**TINY.__dict__, "shadow_map_sizes": (64,), "scenes": 1})))
+        lambda cls: replace(TINY, shadow_map_sizes=(64,), shadow_frusta=("cone",), mesh_errors=(), scenes=1)))
     main(["sweep", "--quick", "--out-dir", str(tmp_path)])
-    assert "| 128x96 | 64 | 1x |" in capsys.readouterr().out
+    assert "| 128x96 | 64 | cone | 1x | fixed | trilinear |" in capsys.readouterr().out
     assert {p.name for p in tmp_path.iterdir()} == {"sweep.md", "sweep.json", "sweep.png"}
 
 
@@ -105,3 +112,9 @@ def test_bad_settings_name_the_field():
         sweep.SweepSettings(shadow_map_sizes=(300,))
     with pytest.raises(ValueError, match="supersampling"):
         sweep.SweepSettings(supersampling=(0,))
+    with pytest.raises(ValueError, match="shadow_frusta"):
+        sweep.SweepSettings(shadow_frusta=("tight",))
+    with pytest.raises(ValueError, match="texture_filters"):
+        sweep.SweepSettings(texture_filters=("nearest",))
+    with pytest.raises(ValueError, match="mesh_errors"):
+        sweep.SweepSettings(mesh_errors=(-1.0,))

@@ -13,7 +13,10 @@ a renderer uploads each pooled mesh once and reuses it with a new pose and mater
 
 from __future__ import annotations
 
+import functools
+import math
 from collections import defaultdict
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -22,7 +25,7 @@ import trimesh
 
 from .. import geometry
 
-__all__ = ["MeshPool", "plane_mesh", "unit_primitive"]
+__all__ = ["FIXED_LEVEL", "MeshPool", "detail_level", "level_gap", "plane_mesh", "unit_primitive"]
 
 
 def _hull(variant: int) -> trimesh.Trimesh:
@@ -52,43 +55,123 @@ def _prism(variant: int) -> trimesh.Trimesh:
     return prism.apply_translation((0, 0, -1.0))
 
 
-_UNIT_PRIMITIVES: dict[str, Callable[[int], trimesh.Trimesh]] = {
-    "sphere": lambda _: trimesh.creation.icosphere(subdivisions=3, radius=1.0),
+def _sagitta(radius: float, segments: int) -> float:
+    """Largest gap between a circle of ``radius`` and its inscribed regular ``segments``-gon."""
+    return radius * (1.0 - math.cos(math.pi / segments))
+
+
+@functools.cache
+def _icosphere(subdivisions: int) -> trimesh.Trimesh:
+    return trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+
+
+def _icosphere_gap(subdivisions: int) -> float:
+    """1 - the least distance from the centre to a face plane: the inscribed polyhedron's largest
+    gap to the unit sphere (exact: it is convex with its vertices on the sphere)."""
+    mesh = _icosphere(subdivisions)
+    return 1.0 - float(np.abs(np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles[:, 0])).min())
+
+
+@dataclass(frozen=True)
+class _Level:
+    """One level of detail of a curved primitive: how to build it and its largest gap to the true
+    surface (unit-primitive units; the silhouette moves at most that far)."""
+
+    build: Callable[[], trimesh.Trimesh]
+    gap: Callable[[], float]
+
+
+def _curved_levels() -> dict[str, tuple[_Level, ...]]:
+    """The levels of each curved primitive, coarsest first; :data:`FIXED_LEVEL` is the one used
+    before levels existed (icosphere 3, 48 sections, capsule 32 x 16)."""
+    def sphere(k):
+        return _Level(lambda: _icosphere(k).copy(), lambda: _icosphere_gap(k))
+
+    def cylinder(n):
+        return _Level(lambda: trimesh.creation.cylinder(radius=1.0, height=2.0, sections=n), lambda: _sagitta(1.0, n))
+
+    def cone(n):
+        return _Level(lambda: trimesh.creation.cone(radius=1.0, height=2.0, sections=n).apply_translation((0, 0, -1.0)),
+                      lambda: _sagitta(1.0, n))
+
+    def torus(major, minor):
+        return _Level(lambda: trimesh.creation.torus(major_radius=0.7, minor_radius=0.3, major_sections=major,
+                                                     minor_sections=minor),
+                      lambda: _sagitta(1.0, major) + _sagitta(0.3, minor))
+
+    def capsule(latitude, around):
+        # trimesh spans each quarter meridian with latitude / 2 segments: 2 * latitude per turn.
+        return _Level(lambda: trimesh.creation.capsule(height=1.0, radius=0.5, count=(latitude, around)),
+                      lambda: _sagitta(0.5, 2 * latitude) + _sagitta(0.5, around))
+
+    return {
+        "sphere": tuple(sphere(k) for k in (1, 2, 3, 4)),
+        "cylinder": tuple(cylinder(n) for n in (12, 24, 48, 96)),
+        "cone": tuple(cone(n) for n in (12, 24, 48, 96)),
+        "torus": tuple(torus(*mn) for mn in ((12, 6), (24, 12), (48, 24), (96, 48))),
+        "capsule": tuple(capsule(*la) for la in ((8, 6), (16, 10), (32, 16), (64, 32))),
+    }
+
+
+_LEVELS = _curved_levels()
+FIXED_LEVEL = 2
+"""The level every curved primitive had before levels of detail (``SidarConfig.mesh_detail`` "fixed")."""
+
+_FLAT: dict[str, Callable[[int], trimesh.Trimesh]] = {
     "cube": lambda _: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
-    "cylinder": lambda _: trimesh.creation.cylinder(radius=1.0, height=2.0, sections=48),
-    "cone": lambda _: trimesh.creation.cone(radius=1.0, height=2.0, sections=48).apply_translation((0, 0, -1.0)),
-    "torus": lambda _: trimesh.creation.torus(major_radius=0.7, minor_radius=0.3, major_sections=48,
-                                              minor_sections=24),
-    "capsule": lambda _: trimesh.creation.capsule(height=1.0, radius=0.5, count=(32, 16)),
     "icosahedron": lambda _: trimesh.creation.icosahedron(),
     "hull": _hull,
     "prism": _prism,
 }
+"""Primitives that are exactly polyhedra: one level, no gap."""
+
 _SMOOTH = {"sphere", "torus", "capsule"}
 """Shapes shaded with smooth vertex normals; the others keep sharp edges (flat face normals)."""
 
 
-def unit_primitive(shape: str, variant: int = 0) -> trimesh.Trimesh:
+def unit_primitive(shape: str, variant: int = 0, level: int = FIXED_LEVEL) -> trimesh.Trimesh:
     """The unit primitive of ``shape`` as a trimesh (see module docstring for its size);
     ``variant`` picks a hull or prism (``0 <= variant < scene.HULL_VARIANTS`` or ``PRISM_VARIANTS``)
-    and is ignored by other shapes."""
-    return _UNIT_PRIMITIVES[shape](variant)
+    and is ignored by other shapes;
+    ``level`` picks a curved primitive's level of detail (0 the coarsest, see :func:`detail_level`)
+    and is ignored by polyhedra."""
+    if shape in _FLAT:
+        return _FLAT[shape](variant)
+    return _LEVELS[shape][level].build()
+
+
+def level_gap(shape: str, level: int) -> float:
+    """Largest distance between the mesh of ``shape`` at ``level`` and the true surface, in
+    unit-primitive units (0 for polyhedra)."""
+    return _LEVELS[shape][level].gap() if shape in _LEVELS else 0.0
+
+
+def detail_level(shape: str, pixels_per_unit: float, max_error_px: float) -> int:
+    """The coarsest level of ``shape`` whose silhouette stays within ``max_error_px`` of the true
+    surface when one unit-primitive unit spans ``pixels_per_unit`` pixels on screen (the finest
+    level when none does; 0 for polyhedra)."""
+    levels = _LEVELS.get(shape, ())
+    for level in range(len(levels)):
+        if level_gap(shape, level) * pixels_per_unit <= max_error_px:
+            return level
+    return max(len(levels) - 1, 0)
 
 
 class MeshPool:
     """pyrender meshes of each shape, created on demand and reused (one GL upload each).
 
-    ``take(shape, variant, k)`` returns the ``k``-th mesh of that shape and variant, so a view
-    with two spheres uses two distinct meshes (each carries its own material).
+    ``take(shape, variant, k, level)`` returns the ``k``-th mesh of that shape, variant and level
+    of detail, so a view with two spheres uses two distinct meshes (each carries its own
+    material), and a level chosen again in a later view is neither rebuilt nor uploaded again.
     """
 
     def __init__(self) -> None:
-        self._meshes: dict[tuple[str, int], list[pyrender.Mesh]] = defaultdict(list)
+        self._meshes: dict[tuple[str, int, int], list[pyrender.Mesh]] = defaultdict(list)
 
-    def take(self, shape: str, variant: int, k: int) -> pyrender.Mesh:
-        meshes = self._meshes[shape, variant]
+    def take(self, shape: str, variant: int, k: int, level: int = FIXED_LEVEL) -> pyrender.Mesh:
+        meshes = self._meshes[shape, variant, level]
         while len(meshes) <= k:
-            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape, variant), smooth=shape in _SMOOTH))
+            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape, variant, level), smooth=shape in _SMOOTH))
         return meshes[k]
 
 
