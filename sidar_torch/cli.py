@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import time
@@ -124,11 +123,11 @@ def _export(args: argparse.Namespace) -> None:
 def _sweep(args: argparse.Namespace) -> None:
     from . import sweep
 
+    changes = {"preset": args.config, "overrides": _parse_set(args.set),
+               **({"scenes": args.scenes} if args.scenes is not None else {})}
     try:
-        settings = sweep.SweepSettings.quick() if args.quick else sweep.SweepSettings()
-        if args.scenes is not None:
-            settings = dataclasses.replace(settings, scenes=args.scenes)
-    except ValueError as error:
+        settings = (sweep.SweepSettings.quick if args.quick else sweep.SweepSettings)(**changes)
+    except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"sweep: {error}") from error
     report = sweep.run_sweep(settings, log=lambda line: print(line, file=sys.stderr))
     print(sweep.format_report(report))
@@ -222,15 +221,21 @@ def _parser() -> argparse.ArgumentParser:
     export.set_defaults(run=_export)
     sweep = commands.add_parser(
         "sweep", help="speed against error of the quality knobs: table, JSON and a Pareto-front PNG",
-        description="For output sizes 256x192 and 512x384, shadow maps of 256 to 4096 texels and 1x / 2x "
-                    "supersampling: time per view (median over the same scenes of the default preset, this "
-                    "process) against image PSNR versus a reference render (4096 shadow maps, 2x "
-                    "supersampling); warp residual and label PSNR per size. Writes sweep.md, sweep.json and "
+        description="For output sizes 256x192 and 512x384, shadow maps of 256 to 4096 texels, cone and fitted "
+                    "shadow frusta and 1x / 2x supersampling, and from a base setting mesh detail, texture "
+                    "filter and shadow filter: time per view (median CPU time over the same scenes of the "
+                    "preset, this process) against image PSNR versus a reference render (4096 shadow maps, "
+                    "fitted frusta, 2x supersampling, finest meshes); warp residual and label PSNR per size. Writes sweep.md, sweep.json and "
                     "sweep.png (Pareto front) into --out-dir. About ten minutes on 2 cores.")
     sweep.add_argument("--quick", action="store_true",
                        help="256x192, shadow maps 256 and 1024 against a 2048 reference, 3 scenes of 3 views "
                             "(under a minute)")
     sweep.add_argument("--scenes", type=int, default=None, help="scenes per setting (default 6, quick 3)")
+    sweep.add_argument("--config", default="misaligned",
+                       help="preset name or YAML path the scenes come from (default misaligned)")
+    sweep.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a config field of the scenes (repeatable), e.g. --set n_occluders=[1,3]; "
+                            "image_size and the swept knobs come from the sweep")
     sweep.add_argument("--out-dir", default="out", help="output folder (default out)")
     sweep.set_defaults(run=_sweep)
     schema = commands.add_parser("schema", help="print every config field with its default, allowed values "

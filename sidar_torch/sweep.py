@@ -49,7 +49,7 @@ import math
 import os
 import statistics
 import time
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -61,7 +61,7 @@ from .accuracy import psnr, speckle_paintings, warp_residuals
 from .accuracy_report import label_row
 from .artifacts import linear_to_srgb, srgb_to_linear
 from .bench import DEFAULT_PRESET, check_sizes
-from .config import SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
+from .config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from .dataset import SidarDataset, sequence_homographies
 from .render import SceneRenderer
 from .scene import SceneSequence
@@ -84,6 +84,7 @@ class Setting:
         mesh_error_px: ``None``: fixed occluder meshes; else ``mesh_detail`` "auto" with this
             ``mesh_error_px`` (0: the finest level).
         texture_filter: ``"trilinear"`` or ``"bilinear"`` (``SidarConfig.texture_filter``).
+        shadow_filter: ``"tent"`` or ``"bilinear"`` (``SidarConfig.shadow_filter``).
     """
 
     shadow_map_size: int
@@ -91,6 +92,7 @@ class Setting:
     shadow_frustum: str = "cone"
     mesh_error_px: float | None = None
     texture_filter: str = "trilinear"
+    shadow_filter: str = "tent"
 
     @property
     def mesh_detail(self) -> str:
@@ -103,7 +105,8 @@ class Setting:
         """Short label for the plot: ``map/sx`` and the frustum, mesh and filter when not the default."""
         parts = [f"{self.shadow_map_size}/{self.supersampling}x", "fit" if self.shadow_frustum == "fitted" else ""]
         parts += ["" if self.mesh_error_px is None else f"mesh {self.mesh_detail}",
-                  "" if self.texture_filter == "trilinear" else self.texture_filter]
+                  "" if self.texture_filter == "trilinear" else self.texture_filter,
+                  "" if self.shadow_filter == "tent" else f"{self.shadow_filter} shadows"]
         return " ".join(p for p in parts if p)
 
 
@@ -118,6 +121,7 @@ class SweepSettings:
         shadow_frusta: frusta crossed with the sizes and factors.
         mesh_errors: ``mesh_error_px`` values tried (``mesh_detail`` "auto") at the base setting.
         texture_filters: filters tried at the base setting (``"trilinear"`` is every setting's).
+        shadow_filters: shadow filters tried at the base setting (``"tent"`` is every setting's).
         base_shadow_map_size: shadow map of the base setting (fitted frusta, no supersampling)
             from which mesh detail and texture filtering vary.
         reference: ``(shadow_map_size, supersampling)`` of the reference render (fitted frusta,
@@ -128,6 +132,8 @@ class SweepSettings:
         preset: the configuration the scenes come from.
         n_views: views per sequence (``None``: the preset's).
         seed: dataset seed.
+        overrides: config fields applied to ``preset`` (``image_size`` comes from ``sizes``, and
+            the swept knobs from the settings).
     """
 
     sizes: tuple[tuple[int, int], ...] = ((192, 256), (384, 512))
@@ -136,6 +142,7 @@ class SweepSettings:
     shadow_frusta: tuple[str, ...] = ("cone", "fitted")
     mesh_errors: tuple[float, ...] = (0.25, 1.0, 4.0)
     texture_filters: tuple[str, ...] = ("trilinear", "bilinear")
+    shadow_filters: tuple[str, ...] = ("tent", "bilinear")
     base_shadow_map_size: int = 1024
     reference: tuple[int, int] = (4096, 2)
     scenes: int = 6
@@ -144,8 +151,12 @@ class SweepSettings:
     preset: str = DEFAULT_PRESET
     n_views: int | None = None
     seed: int = 0
+    overrides: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        if "image_size" in self.overrides:
+            raise ValueError("overrides: image_size comes from sizes; leave it out")
+        load_config(self.preset, **self.overrides)  # unknown or invalid fields fail before measuring
         if not self.sizes or not self.shadow_map_sizes or not self.supersampling:
             raise ValueError("sizes, shadow_map_sizes and supersampling: expected at least one each")
         check_sizes(self.sizes)
@@ -154,6 +165,8 @@ class SweepSettings:
                              f"{self.shadow_map_sizes}, {self.reference}, {self.base_shadow_map_size}")
         if not self.shadow_frusta or not set(self.shadow_frusta) <= set(SHADOW_FRUSTA):
             raise ValueError(f"shadow_frusta: expected a non-empty subset of {SHADOW_FRUSTA}, got {self.shadow_frusta}")
+        if not set(self.shadow_filters) <= set(SHADOW_FILTERS):
+            raise ValueError(f"shadow_filters: expected a subset of {SHADOW_FILTERS}, got {self.shadow_filters}")
         if not set(self.texture_filters) <= set(TEXTURE_FILTERS):
             raise ValueError(f"texture_filters: expected a subset of {TEXTURE_FILTERS}, got {self.texture_filters}")
         if any(not e >= 0 for e in self.mesh_errors):
@@ -181,6 +194,7 @@ class SweepSettings:
         base = Setting(self.base_shadow_map_size, 1, "fitted")
         grid += [replace(base, mesh_error_px=e) for e in self.mesh_errors]
         grid += [replace(base, texture_filter=f) for f in self.texture_filters if f != "trilinear"]
+        grid += [replace(base, shadow_filter=f) for f in self.shadow_filters if f != "tent"]
         grid = list(dict.fromkeys(grid))
         return grid + [self.reference_setting] * (self.reference_setting not in grid)
 
@@ -224,7 +238,8 @@ def render_views(renderer: SceneRenderer, sequence: SceneSequence, painting: np.
 
 def _dataset(settings: SweepSettings, size: tuple[int, int]) -> SidarDataset:
     extra = {} if settings.n_views is None else {"n_views": settings.n_views}
-    return SidarDataset(None, load_config(settings.preset, image_size=size, **extra), seed=settings.seed)
+    config = load_config(settings.preset, **{**settings.overrides, **extra}, image_size=size)
+    return SidarDataset(None, config, seed=settings.seed)
 
 
 def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tuple[list[float], list[torch.Tensor]]:
@@ -232,7 +247,8 @@ def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tu
     h, w = dataset.config.image_size
     factor = setting.supersampling
     renderer = SceneRenderer((factor * h, factor * w), setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
-                             mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter)
+                             mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
+                             shadow_filter=setting.shadow_filter)
     try:
         seconds, views = [], []
         for index in [_WARMUP_INDEX, *range(scenes)]:
@@ -302,7 +318,8 @@ def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> di
                 size_rows.append({
                     "size": label, "shadow_map_size": setting.shadow_map_size, "supersampling": setting.supersampling,
                     "shadow_frustum": setting.shadow_frustum, "mesh_detail": setting.mesh_detail,
-                    "texture_filter": setting.texture_filter, "label": setting.label(), "reference": setting == ref,
+                    "texture_filter": setting.texture_filter, "shadow_filter": setting.shadow_filter,
+                    "label": setting.label(), "reference": setting == ref,
                     "ms_per_view": 1e3 * statistics.median(seconds) / dataset.config.n_views,
                     "image_psnr_db": psnr(torch.stack([v for vs in views for v in vs]), reference)})
             for k in pareto_front(size_rows):
@@ -332,10 +349,12 @@ def format_report(report: dict[str, Any]) -> str:
     lines = [f"Speed against error: '{s['preset']}' preset, {s['scenes']} scenes of {report['views_per_scene']} "
              f"views per setting; image PSNR against the reference render ({ref}) at the same size. "
              "* = Pareto-optimal at its size.", "",
-             "| size | shadow map | frustum | supersampling | meshes | texture | ms per view | image PSNR (dB) | Pareto |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| size | shadow map | frustum | shadow filter | supersampling | meshes | texture | ms per view "
+             "| image PSNR (dB) | Pareto |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
-        lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['shadow_frustum']} | {r['supersampling']}x "
+        lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['shadow_frustum']} | {r['shadow_filter']} "
+                     f"| {r['supersampling']}x "
                      f"| {r['mesh_detail']} | {r['texture_filter']} | {r['ms_per_view']:.1f} "
                      f"| {_db(r['image_psnr_db'])} | {'*' if r['pareto'] else ''} |")
     lines += ["", "Warp residual (ambient speckle scenes, 4 views; shadow maps play no part):", "",

@@ -30,20 +30,23 @@ def report():
 
 def test_report_structure_and_outputs(report, tmp_path):
     rows = report["rows"]
-    assert [(r["shadow_map_size"], r["shadow_frustum"], r["mesh_detail"], r["texture_filter"]) for r in rows] == [
-        (32, "cone", "fixed", "trilinear"), (128, "cone", "fixed", "trilinear"), (512, "cone", "fixed", "trilinear"),
-        (32, "fitted", "fixed", "trilinear"), (128, "fitted", "fixed", "trilinear"),
-        (512, "fitted", "fixed", "trilinear"), (128, "fitted", "<= 1 px", "trilinear"),
-        (128, "fitted", "fixed", "bilinear"), (2048, "fitted", "finest", "trilinear")]
+    knobs = [(r["shadow_map_size"], r["shadow_frustum"], r["mesh_detail"], r["texture_filter"], r["shadow_filter"])
+             for r in rows]
+    assert knobs == [
+        (32, "cone", "fixed", "trilinear", "tent"), (128, "cone", "fixed", "trilinear", "tent"),
+        (512, "cone", "fixed", "trilinear", "tent"), (32, "fitted", "fixed", "trilinear", "tent"),
+        (128, "fitted", "fixed", "trilinear", "tent"), (512, "fitted", "fixed", "trilinear", "tent"),
+        (128, "fitted", "<= 1 px", "trilinear", "tent"), (128, "fitted", "fixed", "bilinear", "tent"),
+        (128, "fitted", "fixed", "trilinear", "bilinear"), (2048, "fitted", "finest", "trilinear", "tent")]
     assert all(r["size"] == "128x96" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
-    assert [r["reference"] for r in rows] == [False] * 8 + [True]
+    assert [r["reference"] for r in rows] == [False] * 9 + [True]
     assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
     assert any(r["pareto"] for r in rows[:-1])
     assert [r["supersampling"] for r in report["residuals"]] == [1]
     assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
     assert report["labels"][0]["min_psnr_db"] >= 45
     paths = sweep.write_outputs(report, tmp_path / "out")
-    assert "| 128x96 | 512 | fitted | 1x | fixed | trilinear |" in paths["md"].read_text()
+    assert "| 128x96 | 512 | fitted | tent | 1x | fixed | trilinear |" in paths["md"].read_text()
     assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
     with Image.open(paths["png"]) as image:
         assert image.size == (900, 600)
@@ -101,10 +104,28 @@ def test_supersampled_views_keep_pixel_centres():
 
 def test_cli_writes_the_three_files(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sweep.SweepSettings, "quick", classmethod(
-        lambda cls: replace(TINY, shadow_map_sizes=(64,), shadow_frusta=("cone",), mesh_errors=(), scenes=1)))
-    main(["sweep", "--quick", "--out-dir", str(tmp_path)])
-    assert "| 128x96 | 64 | cone | 1x | fixed | trilinear |" in capsys.readouterr().out
+        lambda cls, **changes: replace(TINY, shadow_map_sizes=(64,), shadow_frusta=("cone",), mesh_errors=(),
+                                       shadow_filters=(), scenes=1, **changes)))
+    main(["sweep", "--quick", "--config", "shadows_only", "--set", "n_occluders=[1,1]", "--out-dir", str(tmp_path)])
+    assert "| 128x96 | 64 | cone | tent | 1x | fixed | trilinear |" in capsys.readouterr().out
     assert {p.name for p in tmp_path.iterdir()} == {"sweep.md", "sweep.json", "sweep.png"}
+    settings = json.loads((tmp_path / "sweep.json").read_text())["settings"]
+    assert settings["preset"] == "shadows_only" and settings["overrides"] == {"n_occluders": [1, 1]}
+
+
+def test_cli_overrides_reach_the_scenes_and_bad_ones_are_named():
+    settings = sweep.SweepSettings(sizes=(SMALL,), preset="shadows_only", overrides={"n_occluders": (2, 2)})
+    assert all(len(view.occluders) == 2 for view in sweep._dataset(settings, SMALL).scene(0).views)
+    with pytest.raises(SystemExit, match="n_veiws"):
+        main(["sweep", "--quick", "--set", "n_veiws=2"])
+    with pytest.raises(SystemExit, match="image_size"):
+        main(["sweep", "--quick", "--set", "image_size=[8,8]"])
+
+
+def test_shadow_filter_is_swept_at_the_base_setting(report):
+    rows = [r for r in report["rows"] if r["shadow_filter"] == "bilinear"]
+    assert len(rows) == 1 and rows[0]["shadow_map_size"] == TINY.base_shadow_map_size
+    assert math.isfinite(rows[0]["image_psnr_db"])
 
 
 def test_bad_settings_name_the_field():
@@ -116,5 +137,7 @@ def test_bad_settings_name_the_field():
         sweep.SweepSettings(shadow_frusta=("tight",))
     with pytest.raises(ValueError, match="texture_filters"):
         sweep.SweepSettings(texture_filters=("nearest",))
+    with pytest.raises(ValueError, match="shadow_filters"):
+        sweep.SweepSettings(shadow_filters=("box",))
     with pytest.raises(ValueError, match="mesh_errors"):
         sweep.SweepSettings(mesh_errors=(-1.0,))
