@@ -32,6 +32,14 @@
      opacity too, so a highlight on clear glass shows at full strength instead of being blended
      away. There is no refraction: what lies behind a transparent object is seen undisplaced.
 
+6. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
+   transmittance map per shadowed spot light instead of its depth map (model and limits in
+   ``render.transmittance``; :data:`SHADER_SOURCES` holds the shader that draws them): the lit
+   shader multiplies each shadowed light's contribution by the map's colour where the fragment
+   lies beyond the nearest transparent caster (4 texels, per-texel distance test, bilinear
+   weights; the maps are tiles of one 2-D texture on one texture unit). The uniform ``transmittance_shadows`` switches the lookup off in views without a
+   transparent caster, which then render as before.
+
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it.
 """
@@ -45,7 +53,7 @@ from OpenGL import GL
 from OpenGL.GL import shaders as gl_shaders
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
-__all__ = ["ProgramCache", "SHADER_PATCHES", "surface_factors"]
+__all__ = ["ProgramCache", "SHADER_PATCHES", "SHADER_SOURCES", "surface_factors"]
 
 _SPOT_SHADOW_LOOKUP = """
 uniform int n_shadowed_spot_lights;
@@ -65,7 +73,60 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
               + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, texel.y), compare));
     return 1.0 - 0.25 * lit;
 }
+
+uniform int transmittance_shadows;     // 1 if this view has transparent casters, else 0
+uniform sampler2D transmittance_maps;  // spot light k's tile: transmittance (rgb), nearest caster w (a)
+uniform ivec2 transmittance_layout;    // (tile side in texels, tiles per column)
+
+vec3 spot_transmittance(mat4 light_matrix, int k)
+{
+    // Bilinear filter of light k's transmittance over the 4 nearest texels, each counted only where
+    // this fragment lies beyond that texel's nearest transparent caster (0.2 % margin: float16).
+    vec4 proj_coords = light_matrix * vec4(frag_position.xyz, 1.0);
+    int tile = transmittance_layout.x;
+    ivec2 origin = tile * ivec2(k / transmittance_layout.y, k % transmittance_layout.y);
+    vec2 st = (proj_coords.xy / proj_coords.w * 0.5 + 0.5) * float(tile) - 0.5;
+    ivec2 corner = ivec2(floor(st));
+    vec2 f = st - floor(st);
+    float depth = proj_coords.w * 0.998;
+    vec3 absorbed = vec3(0.0);
+    for (int j = 0; j < 4; j++) {
+        ivec2 offset = ivec2(j & 1, j >> 1);
+        vec4 texel = texelFetch(transmittance_maps, origin + clamp(corner + offset, ivec2(0), ivec2(tile - 1)), 0);
+        vec2 weight = mix(1.0 - f, f, vec2(offset));
+        absorbed += (depth > texel.a ? weight.x * weight.y : 0.0) * (1.0 - texel.rgb);
+    }
+    return 1.0 - absorbed;  // exactly 1 where no caster lies between the light and the fragment
+}
 """
+
+_FRESNEL_OPACITY = """
+float fresnel_opacity(float alpha, float cos_angle)
+{
+    // A blended surface's opacity, raised towards 1 by the Schlick-Fresnel reflectance (4 % head-on).
+    float fresnel = 0.04 + 0.96 * pow(1.0 - cos_angle, 5.0);
+    return mix(alpha, 1.0, fresnel);
+}
+"""
+
+_TRANSMITTANCE_FRAG = """#version 330 core
+// One transparent caster's transmittance seen from a spot light (see render.transmittance).
+uniform vec4 base_color;      // the caster's linear RGBA base colour
+uniform vec3 light_position;  // world frame
+in vec3 frag_position;        // world frame
+in vec3 frag_normal;
+out vec4 frag_color;
+""" + _FRESNEL_OPACITY + """
+void main()
+{
+    float nl = clamp(abs(dot(normalize(frag_normal), normalize(light_position - frag_position))), 0.0, 1.0);
+    vec3 tint = base_color.rgb / max(max(base_color.r, max(base_color.g, base_color.b)), 1e-6);
+    frag_color = vec4((1.0 - fresnel_opacity(base_color.a, nl)) * tint, 1.0 / gl_FragCoord.w);
+}
+"""
+
+SHADER_SOURCES: dict[str, str] = {"transmittance.frag": _TRANSMITTANCE_FRAG}
+"""Shaders of our own, by file name (pair them with pyrender's ``mesh.vert``); no ``#ifdef``."""
 
 _SURFACE_BRDF = """
         vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
@@ -89,13 +150,12 @@ vec3 compute_brdf("""
 
 _FRESNEL_ALPHA = """vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"""
 
-_EXACT_SRGB_ENCODE = """
+_EXACT_SRGB_ENCODE = _FRESNEL_OPACITY + """
 float surface_alpha(float alpha, vec3 n)
 {
     // Opacity of a blended surface: Schlick-Fresnel towards grazing views, plus its specular light.
     float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
-    float fresnel = 0.04 + 0.96 * pow(1.0 - nv, 5.0);
-    return clamp(mix(alpha, 1.0, fresnel) + max(specular_light.r, max(specular_light.g, specular_light.b)),
+    return clamp(fresnel_opacity(alpha, nv) + max(specular_light.r, max(specular_light.g, specular_light.b)),
                  0.0, 1.0);
 }
 
@@ -116,6 +176,11 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         # skip the lookup (a uniform branch), which would return "lit".
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
          "float shadow = i >= n_shadowed_spot_lights ? 0.0 : spot_shadow(\n            spot_lights[i].light_matrix,"),
+        ("            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n",
+         "            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n"
+         "        if (transmittance_shadows != 0 && i < n_shadowed_spot_lights) {\n"
+         "            res *= spot_transmittance(spot_lights[i].light_matrix, i);\n"
+         "        }\n"),
         ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
         ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),
@@ -142,6 +207,8 @@ class _PatchedProgram(ShaderProgram):
     """A pyrender shader program built from patched sources and linked without validation."""
 
     def _load(self, shader_filename: str) -> str:
+        if os.path.basename(shader_filename) in SHADER_SOURCES:
+            return SHADER_SOURCES[os.path.basename(shader_filename)]
         text = super()._load(shader_filename)
         for old, new in SHADER_PATCHES.get(os.path.basename(shader_filename), []):
             if text.count(old) != 1:

@@ -45,6 +45,7 @@ from ..timing import timed
 from .context import open_context
 from .meshes import MeshPool, plane_mesh
 from .programs import ProgramCache, surface_factors
+from .transmittance import TransmittanceMaps, vertex_defines
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
 
@@ -130,6 +131,11 @@ def _gl_material(material: Material, texture: pyrender.Texture | None = None) ->
     )
 
 
+def _transmits(node: pyrender.Node) -> bool:
+    """Whether a mesh node is blended (transparent): it casts a tinted shadow, not a dark one."""
+    return any(p.material.alphaMode == "BLEND" for p in node.mesh.primitives)
+
+
 class _RankedNode(pyrender.Node):
     """A scene node whose hash is its insertion rank in the scene, not its memory address.
 
@@ -161,6 +167,8 @@ class _GLRenderer(pyrender.Renderer):
     * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
       to the 4 nearest);
     * shadow maps may be any power-of-two size;
+    * transparent casters tint and lighten their shadows through transmittance maps instead of
+      darkening the depth maps (``render.transmittance``);
     * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
       whatever context is current, which may be another renderer's): the objects die with
       their context, which :class:`SceneRenderer` destroys.
@@ -174,6 +182,8 @@ class _GLRenderer(pyrender.Renderer):
         self._unused_shadow_map._add_to_context()
         self._make_depth_compare(self._unused_shadow_map)
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
+        self.transmittance = TransmittanceMaps(shadow_map_size // 2)
+        self._filtered = False  # whether the current draw's lights have transmittance maps
 
     def new_shadow_map(self) -> pyrender.Texture:
         """A depth texture for one light's shadow map (uploaded at first use)."""
@@ -210,18 +220,22 @@ class _GLRenderer(pyrender.Renderer):
         pass
 
     def _bind_lighting(self, scene, program, node, flags) -> None:
-        """pyrender's light binding, then the unused shadow samplers bound to one spare map.
+        """pyrender's light binding, then the unused shadow samplers bound to one spare map and
+        the transmittance maps bound after them.
 
         llvmpipe compiles a fragment-shader variant for every distinct layout of bound textures
         (about 1 s each). pyrender binds only the lights present, on units 0..k-1, and the
         painting on unit k, so every light count was a new layout. With all shadow samplers
-        bound, the layout is the same for every lit draw.
+        and the transmittance maps bound (used or not), the layout is the same for every lit draw.
         """
         super()._bind_lighting(scene, program, node, flags)
         if flags & RenderFlags.SHADOWS_SPOT:
             program.set_uniform("n_shadowed_spot_lights", self._n_shadowed)
             for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
                 self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
+            self._bind_texture(self.transmittance, "transmittance_maps", program)
+            program.set_uniform("transmittance_shadows", int(self._filtered))
+            program.set_uniform("transmittance_layout", np.array(self.transmittance.layout, np.int32))
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
@@ -229,6 +243,22 @@ class _GLRenderer(pyrender.Renderer):
     def _configure_shadow_mapping_viewport(self, light, flags) -> None:
         super()._configure_shadow_mapping_viewport(light, flags)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
+
+    def _transmittance_pass(self, scene: pyrender.Scene, light_node: pyrender.Node, k: int,
+                            filters: list[pyrender.Node], flags: int) -> None:
+        """Draw the transparent casters ``filters`` into tile ``k`` of the transmittance maps, from
+        ``light_node`` with the light matrix of its depth map."""
+        V, P = self._get_light_cam_matrices(scene, light_node, flags)
+        casters = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
+        self.transmittance.draw_tile(k, V, P, scene.get_pose(light_node)[:3, 3], casters,
+                                     self._transmittance_program)
+
+    def _transmittance_program(self, primitive: pyrender.Primitive):
+        program = self._program_cache.get_program("mesh.vert", "transmittance.frag",
+                                                  defines=vertex_defines(primitive))
+        if not program._in_context():
+            program._add_to_context()
+        return program
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              shadowed: set = frozenset(), seg_node_map: dict | None = None,
@@ -238,7 +268,9 @@ class _GLRenderer(pyrender.Renderer):
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
             seen: mesh nodes the camera sees.
-            casters: mesh nodes drawn into shadow maps.
+            casters: mesh nodes that cast shadows: opaque ones go into the depth maps, blended
+                (transparent) ones into the transmittance maps, which are drawn and looked up
+                only when there is one.
             shadowed: light nodes that get a shadow map and lookup (with ``SHADOWS_SPOT``); they
                 must be the first spot lights in the scene's order.
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
@@ -254,12 +286,26 @@ class _GLRenderer(pyrender.Renderer):
         """
         with timed(timings, "upload", GL.glFinish):
             self._update_context(scene, flags)
+        filters = sorted((n for n in casters if _transmits(n)), key=hash)  # hash: rank in the scene
+        self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
         if flags & RenderFlags.SHADOWS_SPOT:
             with timed(timings, "shadow", GL.glFinish):
+                opaque = False
                 for node in scene.mesh_nodes:
-                    node.mesh.is_visible = node in casters
+                    node.mesh.is_visible = node in casters and node not in filters
+                    opaque |= node.mesh.is_visible
                 for light_node in scene.light_nodes & shadowed:
-                    self._shadow_mapping_pass(scene, light_node, flags)
+                    if opaque:
+                        self._shadow_mapping_pass(scene, light_node, flags)
+                    else:  # only clear the map (pyrender's pass fails with nothing to draw)
+                        self._configure_shadow_mapping_viewport(light_node.light, flags)
+                if self._filtered:
+                    # Tile k is read by the shader's k-th spot light: pyrender's binding order.
+                    spots = [n for n in scene.light_nodes if isinstance(n.light, pyrender.SpotLight)]
+                    tiles = [(k, n) for k, n in enumerate(spots) if n in shadowed]
+                    self.transmittance.reserve(tiles[-1][0] + 1)
+                    for k, light_node in tiles:
+                        self._transmittance_pass(scene, light_node, k, filters, flags)
         self._n_shadowed = len(shadowed)
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
