@@ -34,11 +34,16 @@
 
 6. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
    transmittance map per shadowed spot light instead of its depth map (model and limits in
-   ``render.transmittance``; :data:`SHADER_SOURCES` holds the shader that draws them): the lit
-   shader multiplies each shadowed light's contribution by the map's colour where the fragment
-   lies beyond the nearest transparent caster (4 texels, per-texel distance test, bilinear
-   weights; the maps are tiles of one 2-D texture on one texture unit). The uniform ``transmittance_shadows`` switches the lookup off in views without a
-   transparent caster, which then render as before.
+   ``render.transmittance``; :data:`SHADER_SOURCES` holds the shader that draws them), and the
+   lit shader multiplies each shadowed light's contribution by the map's colour where the
+   fragment lies beyond the nearest transparent caster (4 texels, a distance test per texel,
+   bilinear weights; the maps are tiles of one 2-D texture on one texture unit). The lookup is a
+   program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by :class:`ProgramCache`) drawn
+   only in views with a transparent caster; other views run the shader without it, as before.
+   A uniform switch would not do: llvmpipe executes both sides of a branch under a lane mask,
+   uniform conditions included, so views without a transparent caster paid the whole lookup
+   (measured: +50 % CPU time per view); only a loop's trip count saves work, which is how the
+   variant skips the lights without a shadow map.
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it.
@@ -74,7 +79,7 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
     return 1.0 - 0.25 * lit;
 }
 
-uniform int transmittance_shadows;     // 1 if this view has transparent casters, else 0
+#ifdef TRANSMITTANCE_SHADOWS
 uniform sampler2D transmittance_maps;  // spot light k's tile: transmittance (rgb), nearest caster w (a)
 uniform ivec2 transmittance_layout;    // (tile side in texels, tiles per column)
 
@@ -98,6 +103,7 @@ vec3 spot_transmittance(mat4 light_matrix, int k)
     }
     return 1.0 - absorbed;  // exactly 1 where no caster lies between the light and the fragment
 }
+#endif
 """
 
 _FRESNEL_OPACITY = """
@@ -124,6 +130,9 @@ void main()
     frag_color = vec4((1.0 - fresnel_opacity(base_color.a, nl)) * tint, 1.0 / gl_FragCoord.w);
 }
 """
+
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS",)
+"""Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
 
 SHADER_SOURCES: dict[str, str] = {"transmittance.frag": _TRANSMITTANCE_FRAG}
 """Shaders of our own, by file name (pair them with pyrender's ``mesh.vert``); no ``#ifdef``."""
@@ -178,9 +187,11 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
          "float shadow = i >= n_shadowed_spot_lights ? 0.0 : spot_shadow(\n            spot_lights[i].light_matrix,"),
         ("            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n",
          "            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n"
-         "        if (transmittance_shadows != 0 && i < n_shadowed_spot_lights) {\n"
+         "#ifdef TRANSMITTANCE_SHADOWS\n"
+         "        for (int t = i < n_shadowed_spot_lights ? 1 : 0; t > 0; t--) {  // quirk 6\n"
          "            res *= spot_transmittance(spot_lights[i].light_matrix, i);\n"
-         "        }\n"),
+         "        }\n"
+         "#endif\n"),
         ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _EXACT_SRGB_ENCODE),
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
         ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),
@@ -214,7 +225,10 @@ class _PatchedProgram(ShaderProgram):
             if text.count(old) != 1:
                 raise RuntimeError(f"pyrender shader {shader_filename!r} changed: cannot patch {old.strip()!r}")
             text = text.replace(old, new)
-        return text
+        # pyrender resolved its own #ifdef lines before the patches went in; GLSL resolves ours.
+        version, rest = text.split("\n", 1)
+        defined = "".join(f"#define {name} 1\n" for name in PATCH_DEFINES if name in self.defines)
+        return f"{version}\n{defined}{rest}"
 
     def _add_to_context(self) -> None:
         if self._program_id is not None:
@@ -232,10 +246,18 @@ class ProgramCache(ShaderProgramCache):
     """pyrender's program cache for a single GL context: keyed by shader files and defines only.
 
     ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
+    While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant
+    that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 6).
     """
 
+    def __init__(self) -> None:
+        super().__init__()
+        self.transmittance = False
+
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
-        defines = defines or {}
+        defines = dict(defines or {})
+        if self.transmittance and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+            defines["TRANSMITTANCE_SHADOWS"] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:

@@ -233,9 +233,9 @@ class _GLRenderer(pyrender.Renderer):
             program.set_uniform("n_shadowed_spot_lights", self._n_shadowed)
             for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
                 self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
-            self._bind_texture(self.transmittance, "transmittance_maps", program)
-            program.set_uniform("transmittance_shadows", int(self._filtered))
-            program.set_uniform("transmittance_layout", np.array(self.transmittance.layout, np.int32))
+            if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
+                self._bind_texture(self.transmittance, "transmittance_maps", program)
+                program.set_uniform("transmittance_layout", np.array(self.transmittance.layout, np.int32))
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
@@ -307,6 +307,7 @@ class _GLRenderer(pyrender.Renderer):
                     for k, light_node in tiles:
                         self._transmittance_pass(scene, light_node, k, filters, flags)
         self._n_shadowed = len(shadowed)
+        self._program_cache.transmittance = self._filtered
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
