@@ -59,7 +59,7 @@ def main() -> None:
             for i, (sequence, out) in enumerate(rendered):
                 start = time.perf_counter()
                 effects = draw_effects(config, args.views, config.image_size, np.random.default_rng([repeat, i]))
-                apply_effects(out.views, out.masks, *sequence.cameras(), effects)
+                apply_effects(out.views, out.background, effects)
                 seconds.append(time.perf_counter() - start)
         print(f"  {name}: {1e3 * statistics.median(seconds):.1f} ms per sample")
 

@@ -4,7 +4,7 @@ Each is a per-pixel 2-D change of a rendered view, switched on in :class:`~sidar
 (all off by default). None moves a pixel, so every homography stays exact; the label and the
 masks are never touched. They follow a camera's pipeline, in this order, per view:
 
-1. **background**: pixels where the renderer drew nothing (see :func:`background_pixels`) take
+1. **background**: pixels where the renderer drew nothing (``RenderedSequence.background``) take
    the view's colour (8-bit sRGB);
 2. the 8-bit sRGB values are decoded to linear light (exact sRGB curve, float32);
 3. **exposure**: ``x * 2 ** stops``;
@@ -21,11 +21,9 @@ through untouched (without noise they are a function of the 8-bit value: a 256-e
 view). Exposure acts on the already rendered 8-bit view: pixels the renderer blew out (255)
 stay flat when darkened.
 
-Background limits (a post-process on the renderer's outputs, which do not say where nothing was
-drawn): a transparent occluder in front of the background was blended over black by the
-renderer and stays so (darker than it would look over the colour); an occluder pixel rendered
-exactly black outside the painting's outline takes the colour (see :func:`background_pixels`).
-Both are masked pixels. A textured background would need the same pixel set; it is left out.
+Background limit: a transparent occluder in front of the background was blended over black by
+the renderer and stays so (darker than it would look over the colour); nearly clear glass there
+(opacity under about 0.06) counts as background and takes the colour. Both are masked pixels.
 
 Randomness: :func:`draw_effects` draws, from the sample's generator after the scene sampler has
 drawn everything, and only for the effects that are on, in this order: background colours,
@@ -43,18 +41,10 @@ import numpy as np
 import torch
 from PIL import Image
 
-from . import geometry
 from .config import SidarConfig
 
-__all__ = ["ViewEffects", "apply_effects", "background_pixels", "draw_effects", "enabled_effects",
-           "jpeg_roundtrip", "linear_to_srgb", "painting_halfplanes", "srgb_to_linear"]
-
-PAINTING_EDGE_MARGIN = 0.01
-"""Pixels (Kornia): a black masked pixel whose centre lies at least about this far inside the
-painting's outline is an occluder, not background. It exceeds the rasteriser's snapping of
-vertices (llvmpipe: 1/256 pixel), so a painting-edge pixel the renderer left empty is not
-mistaken for a black occluder."""
-
+__all__ = ["ViewEffects", "apply_effects", "draw_effects", "enabled_effects", "jpeg_roundtrip", "linear_to_srgb",
+           "srgb_to_linear"]
 
 def srgb_to_linear(srgb: torch.Tensor) -> torch.Tensor:
     """Decode sRGB values in [0, 1] to linear light (the exact piecewise sRGB curve), any shape."""
@@ -145,51 +135,6 @@ def draw_effects(config: SidarConfig, n_views: int, image_size: tuple[int, int],
     return ViewEffects(background, gain, gamma, read, shot, noise, quality)
 
 
-def background_pixels(views: np.ndarray, masks: np.ndarray, K: np.ndarray, R: np.ndarray,
-                      t: np.ndarray) -> np.ndarray:
-    """Pixels where the renderer drew nothing (neither the painting nor an occluder).
-
-    The renderer clears to black, so such a pixel is masked and exactly ``(0, 0, 0)``; of those,
-    the ones whose centre lies inside the painting's outline (by :data:`PAINTING_EDGE_MARGIN`)
-    are black occluders in front of the painting.
-
-    Limit: an occluder pixel that renders exactly black *outside* the painting's outline (an
-    unlit side, ambient near 0) counts as background too: the renderer's outputs cannot tell
-    them apart. Such pixels are masked either way.
-
-    Args:
-        views: ``(V, H, W, 3)`` uint8 rendered views.
-        masks: ``(V, H, W)`` bool, True where the painting is not visible.
-        K, R: ``(V, 3, 3)`` and t ``(V, 3)`` float64 cameras (Kornia pixels, OpenCV frame).
-
-    Returns:
-        ``(V, H, W)`` bool.
-    """
-    empty = masks & ((views[..., 0] | views[..., 1] | views[..., 2]) == 0)
-    for v in range(len(views)):
-        rows, cols = np.nonzero(empty[v])
-        inside = np.ones(len(rows), bool)
-        for a in painting_halfplanes(K[v], R[v], t[v], views.shape[1:3]):
-            # The half-plane holds at the four points PAINTING_EDGE_MARGIN away along u and v.
-            inside &= a[0] * cols + a[1] * rows + a[2] > PAINTING_EDGE_MARGIN * max(abs(a[0]), abs(a[1]))
-        empty[v, rows[inside], cols[inside]] = False
-    return empty
-
-
-def painting_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """The pixels whose rays meet the painting in front of the camera, as half-planes: ``(5, 3)``
-    float64 rows ``a`` with ``a . (u, v, 1) >= 0`` (Kornia pixels) for each of the painting's four
-    edges and the camera's front.
-
-    A plane point ``(x, y, 0)`` is at pixel ``M (x, y, 1) / depth``, ``M = K [r_1, r_2, t]``, so
-    ``q = M^-1 (u, v, 1) = (x, y, 1) / depth`` (positive third coordinate in front of the
-    camera), and the painting is ``|q_1| <= w/2 q_3``, ``|q_2| <= h/2 q_3``.
-    """
-    width, height = geometry.plane_size(image_size)
-    in_plane = np.array([[-1.0, 0, width / 2], [1, 0, width / 2], [0, -1, height / 2], [0, 1, height / 2], [0, 0, 1]])
-    return in_plane @ np.linalg.inv(K @ np.column_stack([R[:, 0], R[:, 1], t]))
-
-
 def jpeg_roundtrip(view: np.ndarray, quality: int) -> np.ndarray:
     """``view`` ``(H, W, 3)`` uint8 compressed as JPEG at ``quality`` (1-100, 4:2:0 chroma) and
     decoded, in memory, ``(H, W, 3)`` uint8."""
@@ -198,14 +143,13 @@ def jpeg_roundtrip(view: np.ndarray, quality: int) -> np.ndarray:
     return np.asarray(Image.open(buffer).convert("RGB"))
 
 
-def apply_effects(views: np.ndarray, masks: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray,
-                  effects: ViewEffects | None) -> np.ndarray:
+def apply_effects(views: np.ndarray, background: np.ndarray, effects: ViewEffects | None) -> np.ndarray:
     """The views with ``effects`` applied (the pipeline of the module docstring).
 
     Args:
         views: ``(V, H, W, 3)`` uint8 sRGB rendered views (not modified).
-        masks: ``(V, H, W)`` bool, True where the painting is not visible.
-        K, R: ``(V, 3, 3)``, t ``(V, 3)`` float64: the views' cameras (for the background).
+        background: ``(V, H, W)`` bool, True where the renderer drew nothing
+            (``RenderedSequence.background``).
         effects: from :func:`draw_effects`; ``None`` returns ``views`` itself.
 
     Returns:
@@ -215,7 +159,7 @@ def apply_effects(views: np.ndarray, masks: np.ndarray, K: np.ndarray, R: np.nda
         return views
     out = views.copy()
     if effects.background is not None:
-        for view, where, colour in zip(out, background_pixels(views, masks, K, R, t), effects.background):
+        for view, where, colour in zip(out, background, effects.background):
             view[where] = colour
     if effects.noise is not None:
         out = _sensor(out, effects)

@@ -79,7 +79,7 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     views = rendered.views
     if effects is not None:
         with timed(timings, "effects"):
-            views = apply_effects(views, rendered.masks, K, R, t, effects)
+            views = apply_effects(views, rendered.background, effects)
     with timed(timings, "homographies"):
         homographies, homography_error = sequence_homographies(sequence)
     with timed(timings, "tensors"):

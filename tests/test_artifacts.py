@@ -12,14 +12,12 @@ import torch
 from PIL import Image
 
 from sidar_torch import SidarAugment, SidarDataset, geometry
-from sidar_torch.artifacts import (ViewEffects, apply_effects, background_pixels, draw_effects, linear_to_srgb,
-                                   srgb_to_linear)
+from sidar_torch.artifacts import ViewEffects, apply_effects, draw_effects, linear_to_srgb, srgb_to_linear
 from sidar_torch.dataset import render_sample
 from sidar_torch.render import shared_renderer
-from sidar_torch.scene import Camera, Material, Occluder, sample_sequence
+from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, sample_digest, small_config
-from test_realism import render
 
 H, W = SMALL
 ALL_ON = dict(background="view", background_level=(0.2, 1.0), exposure_jitter=True, sensor_noise=True,
@@ -167,23 +165,22 @@ def test_background_pixels_take_the_colour_and_nothing_else_changes(mode):
         assert sample_digest(off)[key] == sample_digest(on)[key], key
 
 
-def test_black_occluders_over_the_painting_are_not_background():
+def test_background_is_where_the_renderer_drew_nothing_even_beside_black_occluders():
     camera = Camera(geometry.intrinsics_from_fov(100, SMALL), *geometry.look_at(np.array([0.3, 0.2, 0.9])))
     edge = np.array([geometry.plane_size(SMALL)[0] / 2, 0.0, 0.1])  # a cube across the painting's right edge
 
-    def cube(rgb):
-        return Occluder("cube", edge, np.eye(3), np.full(3, 0.15), Material(np.array([*rgb, 1.0]), 0.0, 1.0, 0.0))
+    def drawn(rgb):
+        cube = Occluder("cube", edge, np.eye(3), np.full(3, 0.15), Material(np.array([*rgb, 1.0]), 0.0, 1.0, 0.0))
+        sequence = SceneSequence(SMALL, (ViewScene(camera, (), (cube,), Material(np.ones(4), 0.0, 1.0), 1.0),),
+                                 True, True)
+        return shared_renderer(SMALL, 1024).render(sequence, np.full((*SMALL, 3), 100, np.uint8))
 
-    painting = ~render([], ambient=1.0, camera=camera)[1]  # where the renderer drew the painting
-    white, white_mask = render([cube((1, 1, 1))], ambient=1.0, camera=camera)
-    on_cube = white_mask & (white > 0).any(axis=2)
-    black, mask = render([cube((0, 0, 0))], ambient=1.0, camera=camera)
-    assert (painting & on_cube).sum() > 100 and (~painting & on_cube).sum() > 100 and (~painting & ~on_cube).any()
-    assert not black[on_cube].any()  # the cube renders exactly black, like the background
-    found = background_pixels(black[None].astype(np.uint8), mask[None], camera.K[None], camera.R[None], camera.t[None])[0]
-    assert not found[painting].any()  # the black cube in front of the painting, edge pixels included
-    assert found[~painting & ~on_cube].all()
-    assert found[~painting & on_cube].all()  # the documented limit: black occluder outside the painting
+    white, black = drawn((1, 1, 1)), drawn((0, 0, 0))
+    nothing = (white.views[0] == 0).all(axis=2)  # a white cube and a grey painting: drawn pixels are not black
+    on_black_cube = (black.views[0] == 0).all(axis=2) & ~nothing
+    assert on_black_cube.sum() > 100 and nothing.sum() > 100
+    assert np.array_equal(black.background[0], nothing)  # black occluder pixels are not background
+    assert np.array_equal(white.background[0], nothing)
 
 
 def test_apply_effects_with_identity_settings_changes_no_pixel():
@@ -193,9 +190,8 @@ def test_apply_effects_with_identity_settings_changes_no_pixel():
     one = np.ones(3)
     identity = ViewEffects(gain=one, gamma=one, read_noise=0 * one, shot_noise=0 * one,
                            noise=np.ones((3, H, W, 3), np.float32))
-    K, R, t = (sample[k].double().numpy() for k in ("K", "R", "t"))
-    assert np.array_equal(apply_effects(views, masks, K, R, t, identity), views)
-    assert apply_effects(views, masks, K, R, t, None) is views
+    assert np.array_equal(apply_effects(views, masks, identity), views)
+    assert apply_effects(views, masks, None) is views
 
 
 def test_augment_applies_the_effects_after_the_same_scenes():

@@ -46,6 +46,16 @@
    ``n_shadowed_spot_lights`` with their shadow lookup, the rest without (the renderer orders
    the lights so; the sum runs in the same order, so the pixels are the same either way).
 
+7. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
+   transmittance map per shadowed spot light instead of its depth map (model and limits in
+   ``render.transmittance``; :data:`SHADER_SOURCES` holds the shader that draws them), and the
+   lit shader multiplies each shadowed light's contribution by the map's colour where the
+   fragment lies beyond the nearest transparent caster (4 texels, a distance test per texel,
+   bilinear weights; the maps are tiles of one 2-D texture on one texture unit). The lookup is a
+   program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by :class:`ProgramCache`) drawn
+   only in views with a transparent caster; other views run the shader without it, as before
+   (a uniform switch cost +50 % CPU time per view without any transparent caster: quirk 6).
+
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it.
 """
@@ -59,7 +69,7 @@ from OpenGL import GL
 from OpenGL.GL import shaders as gl_shaders
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
-__all__ = ["ProgramCache", "SHADER_PATCHES", "surface_factors"]
+__all__ = ["ProgramCache", "SHADER_PATCHES", "SHADER_SOURCES", "surface_factors"]
 
 _SPOT_SHADOW_LOOKUP = """
 uniform int n_shadowed_spot_lights;
@@ -83,6 +93,32 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
 #endif
     return 1.0 - 0.25 * lit;
 }
+
+#ifdef TRANSMITTANCE_SHADOWS
+uniform sampler2D transmittance_maps;  // spot light k's tile: transmittance (rgb), nearest caster w (a)
+uniform ivec2 transmittance_layout;    // (tile side in texels, tiles per column)
+
+vec3 spot_transmittance(mat4 light_matrix, int k)
+{
+    // Bilinear filter of light k's transmittance over the 4 nearest texels, each counted only where
+    // this fragment lies beyond that texel's nearest transparent caster (0.2 % margin: float16).
+    vec4 proj_coords = light_matrix * vec4(frag_position.xyz, 1.0);
+    int tile = transmittance_layout.x;
+    ivec2 origin = tile * ivec2(k / transmittance_layout.y, k % transmittance_layout.y);
+    vec2 st = (proj_coords.xy / proj_coords.w * 0.5 + 0.5) * float(tile) - 0.5;
+    ivec2 corner = ivec2(floor(st));
+    vec2 f = st - floor(st);
+    float depth = proj_coords.w * 0.998;
+    vec3 absorbed = vec3(0.0);
+    for (int j = 0; j < 4; j++) {
+        ivec2 offset = ivec2(j & 1, j >> 1);
+        vec4 texel = texelFetch(transmittance_maps, origin + clamp(corner + offset, ivec2(0), ivec2(tile - 1)), 0);
+        vec2 weight = mix(1.0 - f, f, vec2(offset));
+        absorbed += (depth > texel.a ? weight.x * weight.y : 0.0) * (1.0 - texel.rgb);
+    }
+    return 1.0 - absorbed;  // exactly 1 where no caster lies between the light and the fragment
+}
+#endif
 """
 
 _SPOT_LIGHT = """
@@ -140,6 +176,37 @@ _UNSHADOWED_SPOT_LOOP = """        color.xyz += res;
     }
     color.xyz += base_color.xyz * ambient_light;"""
 
+_FRESNEL_OPACITY = """
+float fresnel_opacity(float alpha, float cos_angle)
+{
+    // A blended surface's opacity, raised towards 1 by the Schlick-Fresnel reflectance (4 % head-on).
+    float fresnel = 0.04 + 0.96 * pow(1.0 - cos_angle, 5.0);
+    return mix(alpha, 1.0, fresnel);
+}
+"""
+
+_TRANSMITTANCE_FRAG = """#version 330 core
+// One transparent caster's transmittance seen from a spot light (see render.transmittance).
+uniform vec4 base_color;      // the caster's linear RGBA base colour
+uniform vec3 light_position;  // world frame
+in vec3 frag_position;        // world frame
+in vec3 frag_normal;
+out vec4 frag_color;
+""" + _FRESNEL_OPACITY + """
+void main()
+{
+    float nl = clamp(abs(dot(normalize(frag_normal), normalize(light_position - frag_position))), 0.0, 1.0);
+    vec3 tint = base_color.rgb / max(max(base_color.r, max(base_color.g, base_color.b)), 1e-6);
+    frag_color = vec4((1.0 - fresnel_opacity(base_color.a, nl)) * tint, 1.0 / gl_FragCoord.w);
+}
+"""
+
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS",)
+"""Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
+
+SHADER_SOURCES: dict[str, str] = {"transmittance.frag": _TRANSMITTANCE_FRAG}
+"""Shaders of our own, by file name (pair them with pyrender's ``mesh.vert``); no ``#ifdef``."""
+
 _SURFACE_BRDF = """
         vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);
 
@@ -162,21 +229,12 @@ vec3 compute_brdf("""
 
 _FRESNEL_ALPHA = """vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"""
 
-_FRESNEL_OPACITY = """
-float fresnel_opacity(float alpha, vec3 n)
-{
-    // A blended surface's opacity rises from alpha towards 1 with the Schlick-Fresnel reflectance of the view.
-    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
-    float fresnel = 0.04 + 0.96 * pow(1.0 - nv, 5.0);
-    return mix(alpha, 1.0, fresnel);
-}
-"""
-
 _EXACT_SRGB_ENCODE = _FRESNEL_OPACITY + """
 float surface_alpha(float alpha, vec3 n)
 {
     // Opacity of a blended surface: Schlick-Fresnel towards grazing views, plus its specular light.
-    return clamp(fresnel_opacity(alpha, n) + max(specular_light.r, max(specular_light.g, specular_light.b)),
+    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
+    return clamp(fresnel_opacity(alpha, nv) + max(specular_light.r, max(specular_light.g, specular_light.b)),
                  0.0, 1.0);
 }
 
@@ -202,6 +260,11 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("for (int i = 0; i < n_directional_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
         ("for (int i = 0; i < n_point_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
         ("\nvoid main()\n", _SPOT_SHADOW_LOOKUP + _SPOT_LIGHT + _EXACT_SRGB_ENCODE),
+        ("            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n",
+         "            spot_lights[i].shadow_map,\n            nl\n        );\n        res = res * (1.0 - shadow);\n"
+         "#ifdef TRANSMITTANCE_SHADOWS\n"
+         "        res *= spot_transmittance(spot_lights[i].light_matrix, i);  // in the shadowed loop only\n"
+         "#endif\n"),
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)", _FRESNEL_ALPHA),
         ("\nvec3 compute_brdf(", _SURFACE_GLOBALS),
         ("""
@@ -216,7 +279,8 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
     "flat.frag": [
         ("\nvoid main()\n", _FRESNEL_OPACITY + "\nvoid main()\n"),
         ("frag_color = clamp(base_color, 0.0, 1.0);",
-         "frag_color = vec4(clamp(base_color.rgb, 0.0, 1.0), fresnel_opacity(base_color.a, normalize(frag_normal)));"),
+         "frag_color = vec4(clamp(base_color.rgb, 0.0, 1.0), fresnel_opacity(base_color.a, "
+         "clamp(abs(dot(normalize(frag_normal), normalize(cam_pos - frag_position))), 0.0, 1.0)));"),
     ],
 }
 """Per shader file, ``(old, new)`` text replacements, applied after pyrender has resolved the
@@ -233,6 +297,8 @@ class _PatchedProgram(ShaderProgram):
     """A pyrender shader program built from patched sources and linked without validation."""
 
     def _load(self, shader_filename: str) -> str:
+        if os.path.basename(shader_filename) in SHADER_SOURCES:
+            return SHADER_SOURCES[os.path.basename(shader_filename)]
         text = super()._load(shader_filename)
         for old, new in SHADER_PATCHES.get(os.path.basename(shader_filename), []):
             if text.count(old) != 1:
@@ -241,7 +307,10 @@ class _PatchedProgram(ShaderProgram):
         for name, value in self.defines.items():  # pyrender substituted its own before the patches
             if name.startswith("SIDAR_"):
                 text = text.replace(name, str(value))
-        return text
+        # pyrender resolved its own #ifdef lines before the patches went in; GLSL resolves ours.
+        version, rest = text.split("\n", 1)
+        defined = "".join(f"#define {name} 1\n" for name in PATCH_DEFINES if name in self.defines)
+        return f"{version}\n{defined}{rest}"
 
     def _add_to_context(self) -> None:
         if self._program_id is not None:
@@ -260,6 +329,9 @@ class ProgramCache(ShaderProgramCache):
 
     ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
 
+    While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant
+    that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7).
+
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
     """
@@ -267,9 +339,12 @@ class ProgramCache(ShaderProgramCache):
     def __init__(self, shadow_taps: int = 4):
         super().__init__()
         self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
+        self.transmittance = False
 
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
         defines = {**(defines or {}), **self._extra_defines}
+        if self.transmittance and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+            defines["TRANSMITTANCE_SHADOWS"] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:

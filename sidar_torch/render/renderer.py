@@ -58,6 +58,7 @@ from .framebuffer import FLIP_Y, Framebuffer
 from .meshes import FIXED_LEVEL, MeshPool, detail_level, plane_mesh
 from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
+from .transmittance import TransmittanceMaps, vertex_defines
 
 __all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
 
@@ -92,6 +93,10 @@ class RenderedSequence:
         views: ``(V, H, W, 3)`` uint8 sRGB.
         masks: ``(V, H, W)`` bool, True where the painting is not visible.
         label: ``(H, W, 3)`` uint8 sRGB, the painting as view 0's camera sees it, unlit.
+        background: ``(V, H, W)`` bool, True where the view's colour draw drew nothing (neither
+            the painting nor an occluder): the draw clears to alpha 0 and every surface writes a
+            positive alpha, except glass of opacity under about 0.06 over the background, whose
+            blended alpha rounds to 0 in 8 bits.
         opacities: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
             painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
     """
@@ -99,6 +104,7 @@ class RenderedSequence:
     views: np.ndarray
     masks: np.ndarray
     label: np.ndarray
+    background: np.ndarray
     opacities: np.ndarray | None = None
 
 
@@ -170,6 +176,11 @@ def _gl_material(material: Material, texture: pyrender.Texture | None = None) ->
     )
 
 
+def _transmits(node: pyrender.Node) -> bool:
+    """Whether a mesh node is blended (transparent): it casts a tinted shadow, not a dark one."""
+    return any(p.material.alphaMode == "BLEND" for p in node.mesh.primitives)
+
+
 class _RankedNode(pyrender.Node):
     """A scene node whose hash is its insertion rank in the scene, not its memory address.
 
@@ -204,6 +215,8 @@ class _GLRenderer(pyrender.Renderer):
     * shadow maps may be any power-of-two size;
     * forward passes draw upside down into its own single-sampled :class:`Framebuffer` (EGL
       contexts have no default framebuffer; ``framebuffer`` explains the orientation);
+    * transparent casters tint and lighten their shadows through transmittance maps instead of
+      darkening the depth maps (``render.transmittance``);
     * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
       whatever context is current, which may be another renderer's): the objects die with
       their context, which :class:`SceneRenderer` destroys.
@@ -221,6 +234,8 @@ class _GLRenderer(pyrender.Renderer):
         self.shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
         """Light node -> fitted frustum (``geometry.light_frustum``) for the next draws; a light
         not in it gets pyrender's frustum, fitted to its cone."""
+        self.transmittance = TransmittanceMaps(shadow_map_size // 2)
+        self._filtered = False  # whether the current draw's lights have transmittance maps
 
     def new_shadow_map(self) -> pyrender.Texture:
         """A depth texture for one light's shadow map (uploaded at first use)."""
@@ -258,12 +273,13 @@ class _GLRenderer(pyrender.Renderer):
         pass
 
     def _bind_lighting(self, scene, program, node, flags) -> None:
-        """pyrender's light binding, then the unused shadow samplers bound to one spare map.
+        """pyrender's light binding, then the unused shadow samplers bound to one spare map and
+        the transmittance maps bound after them.
 
         llvmpipe compiles a fragment-shader variant for every distinct layout of bound textures
         (about 1 s each). pyrender binds only the lights present, on units 0..k-1, and the
         painting on unit k, so every light count was a new layout. With all shadow samplers
-        bound, the layout is the same for every lit draw.
+        and the transmittance maps bound (used or not), the layout is the same for every lit draw.
         """
         super()._bind_lighting(scene, program, node, flags)
         shadowed = bool(flags & RenderFlags.SHADOWS_SPOT)
@@ -271,6 +287,9 @@ class _GLRenderer(pyrender.Renderer):
         if shadowed:
             for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
                 self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
+            if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
+                self._bind_texture(self.transmittance, "transmittance_maps", program)
+                program.set_uniform("transmittance_layout", np.array(self.transmittance.layout, np.int32))
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
@@ -308,6 +327,22 @@ class _GLRenderer(pyrender.Renderer):
         super()._configure_shadow_mapping_viewport(light, flags)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
 
+    def _transmittance_pass(self, scene: pyrender.Scene, light_node: pyrender.Node, k: int,
+                            filters: list[pyrender.Node], flags: int) -> None:
+        """Draw the transparent casters ``filters`` into tile ``k`` of the transmittance maps, from
+        ``light_node`` with the light matrix of its depth map."""
+        V, P = self._get_light_cam_matrices(scene, light_node, flags)
+        casters = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
+        self.transmittance.draw_tile(k, V, P, scene.get_pose(light_node)[:3, 3], casters,
+                                     self._transmittance_program)
+
+    def _transmittance_program(self, primitive: pyrender.Primitive):
+        program = self._program_cache.get_program("mesh.vert", "transmittance.frag",
+                                                  defines=vertex_defines(primitive))
+        if not program._in_context():
+            program._add_to_context()
+        return program
+
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
@@ -316,7 +351,9 @@ class _GLRenderer(pyrender.Renderer):
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
             seen: mesh nodes the camera sees.
-            casters: mesh nodes drawn into shadow maps.
+            casters: mesh nodes that cast shadows: opaque ones go into the depth maps, blended
+                (transparent) ones into the transmittance maps, which are drawn and looked up
+                only when there is one.
             shadowed: light nodes that get a shadow map and lookup (with ``SHADOWS_SPOT``); they
                 must be the first spot lights in the scene's order.
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
@@ -335,13 +372,28 @@ class _GLRenderer(pyrender.Renderer):
         """
         with timed(timings, "upload", GL.glFinish):
             self._update_context(scene, flags)
+        filters = sorted((n for n in casters if _transmits(n)), key=hash)  # hash: rank in the scene
+        self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
         if flags & RenderFlags.SHADOWS_SPOT:
             with timed(timings, "shadow", GL.glFinish):
+                opaque = False
                 for node in scene.mesh_nodes:
-                    node.mesh.is_visible = node in casters
+                    node.mesh.is_visible = node in casters and node not in filters
+                    opaque |= node.mesh.is_visible
                 for light_node in scene.light_nodes & (shadowed if stale is None else stale):
-                    self._shadow_mapping_pass(scene, light_node, flags)
+                    if opaque:
+                        self._shadow_mapping_pass(scene, light_node, flags)
+                    else:  # only clear the map (pyrender's pass fails with nothing to draw)
+                        self._configure_shadow_mapping_viewport(light_node.light, flags)
+                if self._filtered:
+                    # Tile k is read by the shader's k-th spot light: pyrender's binding order.
+                    spots = [n for n in scene.light_nodes if isinstance(n.light, pyrender.SpotLight)]
+                    tiles = [(k, n) for k, n in enumerate(spots) if n in shadowed]
+                    self.transmittance.reserve(tiles[-1][0] + 1)
+                    for k, light_node in tiles:
+                        self._transmittance_pass(scene, light_node, k, filters, flags)
         self._n_shadowed = len(shadowed)
+        self._program_cache.transmittance = self._filtered
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
@@ -452,7 +504,9 @@ class SceneRenderer:
             masks.append(mask)
             hidden.append(opacity)
         label = self._render_label(sequence.views[0].camera, texture, timings)
-        return RenderedSequence(np.stack(views), np.stack(masks), label, np.stack(hidden) if opacities else None)
+        views = np.stack(views)
+        return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
+                                np.stack(hidden) if opacities else None)
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
@@ -479,7 +533,8 @@ class SceneRenderer:
         return self._texture
 
     def _new_scene(self, camera: Camera, ambient: float, texture: pyrender.Texture, material: Material):
-        scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 1.0), ambient_light=np.full(3, ambient))
+        # Alpha 0 where nothing is drawn: ``RenderedSequence.background``.
+        scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 0.0), ambient_light=np.full(3, ambient))
         self._plane.primitives[0].material = _gl_material(material, texture)
         plane = _add(scene, mesh=self._plane)
         gl_cam, pose = gl_camera(camera, *_clip_range(camera, self.image_size))
@@ -489,8 +544,8 @@ class SceneRenderer:
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
                      timings: dict[str, float] | None = None,
                      opacity: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """The view ``(H, W, 3)`` uint8, its mask ``(H, W)`` bool and, if ``opacity``, its opacity
-        ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
+        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and, if
+        ``opacity``, its opacity ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
             # Every occluder is added, culled or not: the scene's bounds set the depth range of the
@@ -531,7 +586,7 @@ class SceneRenderer:
             seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                                 timings=timings, step="mask")
             mask = seg[..., 0] < 128
-        return image[..., :3], mask, self._render_opacity(scene, plane, drawn, mask, timings) if opacity else None
+        return image, mask, self._render_opacity(scene, plane, drawn, mask, timings) if opacity else None
 
     def _mesh_level(self, occ: Occluder, view: ViewScene, sequence: SceneSequence) -> int:
         """The level of detail of ``occ``'s mesh in this view (:data:`~.meshes.FIXED_LEVEL` unless

@@ -1,0 +1,152 @@
+"""Coloured shadows of transparent occluders: a transmittance map per shadowed spot light.
+
+Opaque occluders go into each shadowed light's depth map (``renderer``); transparent ones
+(``alphaMode == "BLEND"``) go instead into that light's tile of one RGBA float16 texture, drawn
+from the light's view with the same light matrix:
+
+* **RGB** starts at white and is multiplied (blending ``GL_ZERO, GL_SRC_COLOR``) by the
+  transmittance of every transparent caster on the texel's ray,
+  ``T = (1 - a_F) * rgb / max(rgb)``: ``rgb`` is the caster's linear base colour, so its hue and
+  saturation tint the light while its brightness does not darken it; ``a_F`` is its alpha raised
+  towards 1 with the Schlick-Fresnel reflectance at the light's incidence (4 % head-on), as
+  ``programs`` raises the opacity the camera sees. Clear glass gives a light, uncoloured shadow,
+  coloured glass a tinted one, and alpha -> 1 a black one, like an opaque caster.
+* **A** keeps the nearest caster's distance along the light's axis (clip ``w``, painting units;
+  blending ``GL_MIN``), so the lookup (``programs``) tints only what lies beyond it.
+
+Only the casters' **back faces** (seen from the light) are drawn: a ray crosses a closed convex
+caster once, so its ``T`` applies once, as the camera sees one blended layer of it; and the
+stored distance is that of the caster's far side, so its own lit surface is not tinted by itself.
+Limits: a surface between two transparent casters gets the product of both; light is neither
+refracted nor focused (no caustics); where a ray crosses a non-convex caster (a torus) twice it
+is filtered twice, as the camera then sees two layers.
+
+Tiles are ``shadow_map_size / 2`` texels square (bilinear filtering softens the tinted shadow a
+little more than the depth map's) and laid out in one ``GL_TEXTURE_2D``: tile ``k`` at column
+``k // rows``, row ``k % rows``. One texture unit serves every light. A ``GL_TEXTURE_2D_ARRAY``
+would be the natural layout, but with one bound next to the depth-compare samplers, llvmpipe
+(Mesa 22.3.6, LLVM 15) crashes in LLVM while compiling the lit shader. Tiles are allocated for
+the most shadowed lights a view with a transparent caster has had, and reused.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from typing import Callable
+
+import numpy as np
+import pyrender
+from OpenGL import GL
+from pyrender.constants import BufFlags
+
+__all__ = ["TransmittanceMaps", "vertex_defines"]
+
+FAR = 60000.0
+"""Distance stored where no transparent caster covers a texel (float16 holds up to 65504)."""
+
+_ATTRIBUTES = ("NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0", "JOINTS_0", "WEIGHTS_0")
+"""pyrender's vertex buffers after the position, in the order of their attribute locations."""
+
+
+def vertex_defines(primitive: pyrender.Primitive) -> dict[str, int]:
+    """The attribute locations pyrender's ``mesh.vert`` needs for ``primitive``'s vertex buffers
+    (``NORMAL_LOC`` ..., ``INST_M_LOC``), as pyrender assigns them."""
+    present = [name for name in _ATTRIBUTES if primitive.buf_flags & getattr(BufFlags, name)]
+    defines = {f"{name}_LOC": k + 1 for k, name in enumerate(present)}
+    defines["INST_M_LOC"] = len(present) + 1
+    return defines
+
+
+class TransmittanceMaps:
+    """The transmittance maps of one GL context: tile ``k`` belongs to the view's ``k``-th spot light.
+
+    Args:
+        tile: side of each light's map, texels.
+
+    Pass an instance to pyrender's ``_bind_texture`` like a texture (it has ``_bind``); the
+    shader reads it as ``sampler2D`` with ``texelFetch`` and needs :attr:`layout`.
+    """
+
+    def __init__(self, tile: int):
+        self.tile = tile
+        self.rows = max(1, int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_SIZE)) // tile)
+        self.tiles = 0
+        self.passes = 0  # tiles drawn so far (for tests and benchmarks)
+        self._texture = int(GL.glGenTextures(1))
+        self._framebuffer = int(GL.glGenFramebuffers(1))
+        self.reserve(1)  # a complete texture, so every lit draw can bind it
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self._texture)
+        for parameter in (GL.GL_TEXTURE_MIN_FILTER, GL.GL_TEXTURE_MAG_FILTER):
+            GL.glTexParameteri(GL.GL_TEXTURE_2D, parameter, GL.GL_NEAREST)  # read by texelFetch
+        GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+
+    @property
+    def layout(self) -> tuple[int, int]:
+        """``(tile, rows)``: tile side in texels and tiles per column, as the shader reads them."""
+        return self.tile, self.rows
+
+    def _bind(self) -> None:
+        GL.glBindTexture(GL.GL_TEXTURE_2D, self._texture)
+
+    def reserve(self, tiles: int) -> None:
+        """Make room for ``tiles`` tiles (reallocates, losing the contents, only to grow)."""
+        if tiles > self.tiles:
+            columns = -(-tiles // self.rows)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, self._texture)
+            GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA16F, self.tile * columns,
+                            self.tile * min(tiles, self.rows), 0, GL.GL_RGBA, GL.GL_FLOAT, None)
+            GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
+            self.tiles = tiles
+
+    def draw_tile(self, k: int, V: np.ndarray, P: np.ndarray, light_position: np.ndarray,
+                  casters: list[tuple[pyrender.Primitive, np.ndarray]],
+                  program_for: Callable[[pyrender.Primitive], object]) -> None:
+        """Clear tile ``k`` and draw ``casters`` into it from a light.
+
+        Args:
+            k: ``0 <= k < self.tiles``.
+            V, P: ``(4, 4)`` the light's world-to-camera (OpenGL frame) and projection matrices.
+            light_position: ``(3,)`` world position of the light.
+            casters: ``(primitive, pose)`` pairs, ``pose`` the ``(4, 4)`` object-to-world matrix;
+                the primitive's material gives the colour and alpha. Drawn in this order (the
+                float16 product rounds in that order).
+            program_for: the uploaded transmittance program for a primitive (its vertex layout).
+        """
+        x, y = self.tile * (k // self.rows), self.tile * (k % self.rows)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._framebuffer)
+        GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D, self._texture, 0)
+        GL.glViewport(x, y, self.tile, self.tile)
+        GL.glScissor(x, y, self.tile, self.tile)
+        GL.glEnable(GL.GL_SCISSOR_TEST)
+        GL.glClearColor(1.0, 1.0, 1.0, FAR)
+        GL.glClear(GL.GL_COLOR_BUFFER_BIT)
+        GL.glDisable(GL.GL_DEPTH_TEST)  # products and minima do not depend on the order
+        GL.glEnable(GL.GL_BLEND)
+        GL.glBlendEquationSeparate(GL.GL_FUNC_ADD, GL.GL_MIN)
+        GL.glBlendFuncSeparate(GL.GL_ZERO, GL.GL_SRC_COLOR, GL.GL_ONE, GL.GL_ONE)
+        GL.glEnable(GL.GL_CULL_FACE)
+        GL.glCullFace(GL.GL_FRONT)  # back faces only: see the module docstring
+        GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+        for primitive, pose in casters:
+            program = program_for(primitive)
+            program._bind()
+            program.set_uniform("V", V)
+            program.set_uniform("P", P)
+            program.set_uniform("M", pose)
+            program.set_uniform("light_position", light_position)
+            program.set_uniform("base_color", primitive.material.baseColorFactor)
+            primitive._bind()
+            if primitive.indices is None:  # flat-shaded meshes are unindexed
+                GL.glDrawArraysInstanced(primitive.mode, 0, len(primitive.positions), 1)
+            else:
+                GL.glDrawElementsInstanced(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT,
+                                           ctypes.c_void_p(0), 1)
+            primitive._unbind()
+            program._unbind()
+        # Leave the state pyrender assumes: it sets blend functions and culling, never these.
+        GL.glBlendEquation(GL.GL_FUNC_ADD)
+        GL.glDisable(GL.GL_SCISSOR_TEST)
+        GL.glCullFace(GL.GL_BACK)
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+        GL.glFlush()
+        self.passes += 1
