@@ -54,10 +54,8 @@ def _accuracy(args: argparse.Namespace) -> None:
 
     if args.scenes is not None and args.scenes < 1:
         raise SystemExit(f"--scenes {args.scenes}: expected at least 1")
-    changes = {"preset": args.config, "overrides": _parse_set(args.set),
-               **({"scenes": args.scenes} if args.scenes is not None else {})}
     try:
-        settings = (accuracy_report.AccuracySettings.quick if args.quick else accuracy_report.AccuracySettings)(**changes)
+        settings = _report_settings(accuracy_report.AccuracySettings, args)
     except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"accuracy: {error}") from error
     # One thread: the sweep is a long run of tiny tensor operations, which torch's thread pool
@@ -123,10 +121,8 @@ def _export(args: argparse.Namespace) -> None:
 def _sweep(args: argparse.Namespace) -> None:
     from . import sweep
 
-    changes = {"preset": args.config, "overrides": _parse_set(args.set),
-               **({"scenes": args.scenes} if args.scenes is not None else {})}
     try:
-        settings = (sweep.SweepSettings.quick if args.quick else sweep.SweepSettings)(**changes)
+        settings = _report_settings(sweep.SweepSettings, args)
     except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"sweep: {error}") from error
     report = sweep.run_sweep(settings, log=lambda line: print(line, file=sys.stderr))
@@ -141,14 +137,25 @@ def _schema(args: argparse.Namespace) -> None:
     print(schema_markdown())
 
 
+def _report_settings(settings_class: Any, args: argparse.Namespace) -> Any:
+    """``settings_class`` (``quick()`` with ``--quick``) from ``--config``, ``--set`` and ``--scenes``."""
+    changes = {"preset": args.config, "overrides": _parse_set(args.set),
+               **({"scenes": args.scenes} if args.scenes is not None else {})}
+    return (settings_class.quick if args.quick else settings_class)(**changes)
+
+
+def _config_options(command: argparse.ArgumentParser, config_help: str, set_help: str) -> None:
+    """``--config`` (a preset name or YAML path, default misaligned) and repeatable ``--set KEY=VALUE``."""
+    command.add_argument("--config", default="misaligned", help=f"{config_help} (default misaligned)")
+    command.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=set_help)
+
+
 def _dataset_options(command: argparse.ArgumentParser) -> None:
     """The options naming a dataset: ``--config``, ``--source``, ``--seed`` and ``--set``."""
-    command.add_argument("--config", default="misaligned",
-                         help=f"preset name ({', '.join(available_presets())}) or YAML path (default misaligned)")
+    _config_options(command, f"preset name ({', '.join(available_presets())}) or YAML path",
+                    "override a config field (repeatable), e.g. --set n_views=4 --set image_size=[192,256]")
     command.add_argument("--source", default=None, help="image folder or file (default: built-in paintings)")
     command.add_argument("--seed", type=int, default=0, help="dataset seed: sample i is a function of (seed, i)")
-    command.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                         help="override a config field (repeatable), e.g. --set n_views=4 --set image_size=[192,256]")
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -165,11 +172,9 @@ def _parser() -> argparse.ArgumentParser:
                     "against the analytic plane-induced homographies over 100,000 scenes, label PSNR.")
     accuracy.add_argument("--quick", action="store_true", help="two small sizes and 2,000 scenes (about a minute)")
     accuracy.add_argument("--scenes", type=int, default=None, help="scenes in the homography sweep")
-    accuracy.add_argument("--config", default="misaligned",
-                          help="preset name or YAML path whose cameras the homography sweep draws (default misaligned)")
-    accuracy.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                          help="override a config field of every configuration the report loads (repeatable), "
-                               "e.g. --set fov_deg=[20,40]; image_size and n_views come from the report's sizes")
+    _config_options(accuracy, "preset name or YAML path whose cameras the homography sweep draws",
+                    "override a config field of every configuration the report loads (repeatable), "
+                    "e.g. --set fov_deg=[20,40]; image_size and n_views come from the report's sizes")
     accuracy.add_argument("--json", default=None, help="also write the figures as JSON to this path")
     accuracy.add_argument("--markdown", default=None, help="also write the table as markdown to this path")
     accuracy.set_defaults(run=_accuracy)
@@ -231,11 +236,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="256x192, shadow maps 256 and 1024 against a 2048 reference, 3 scenes of 3 views "
                             "(under a minute)")
     sweep.add_argument("--scenes", type=int, default=None, help="scenes per setting (default 6, quick 3)")
-    sweep.add_argument("--config", default="misaligned",
-                       help="preset name or YAML path the scenes come from (default misaligned)")
-    sweep.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                       help="override a config field of the scenes (repeatable), e.g. --set n_occluders=[1,3]; "
-                            "image_size and the swept knobs come from the sweep")
+    _config_options(sweep, "preset name or YAML path the scenes come from",
+                    "override a config field of the scenes (repeatable), e.g. --set n_occluders=[1,3]; "
+                    "image_size and the swept knobs come from the sweep")
     sweep.add_argument("--out-dir", default="out", help="output folder (default out)")
     sweep.set_defaults(run=_sweep)
     schema = commands.add_parser("schema", help="print every config field with its default, allowed values "
