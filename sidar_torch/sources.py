@@ -6,9 +6,11 @@ passes as ``source`` into a :class:`PaintingSource`:
 
 * ``None`` -> :class:`ProceduralPaintings`, a deterministic generator of
   synthetic paintings, so that the package runs with no data at all;
-* a folder -> :class:`ImageFiles` over every image file below it (recursively;
-  extensions in :data:`IMAGE_EXTENSIONS`, case-insensitive), sorted by their
-  relative POSIX path so that the order is the same on every machine;
+* a folder -> :class:`ImageFiles` over every image file below it (recursively,
+  following symbolic links to folders but not links that loop back to a folder
+  above them; extensions in :data:`IMAGE_EXTENSIONS`, case-insensitive), sorted
+  by their relative POSIX path so that the order is the same on every machine;
+  files are named by absolute paths, so one folder spelled two ways is one source;
 * a single image file, or a list/tuple of image files -> :class:`ImageFiles`
   (given order);
 * a ``torch.Tensor`` of shape ``(N, 3, h, w)`` or ``(3, h, w)`` ->
@@ -104,12 +106,16 @@ was listed, a dataset item whose loading raises or that is not an image. The
 * ``"skip"``: painting ``i`` is the first readable image of ``i, i + 1, ...``
   (wrapping around). Each unreadable image gives one :class:`BadImageWarning`
   naming it and the error, and is recorded in the source's ``bad_images``
-  (``{name: reason}``; the name is the file path or ``"dataset item <i>"``)
-  so that it is not read again; ``len(bad_images)`` is the count. The
-  painting an index shows depends only on the index and on which images are
-  readable, not on the order of requests or on the process; each DataLoader
-  worker keeps its own ``bad_images`` and warns on its own. If no image can
-  be read at all, ``ValueError``.
+  (``{name: reason}``; the name is the file's absolute path or ``"dataset item <i>"``)
+  so that it is not read again; ``len(bad_images)`` is the count. A process
+  warns once per image, whichever source met it. The painting an index shows
+  depends only on the index and on which images are readable, not on the
+  order of requests or on the process. Each DataLoader worker keeps its own
+  ``bad_images``, which never reach the main process: to learn which images
+  are unreadable there (and keep workers silent), call ``source.scan()``
+  before iterating (``SidarDataset(...).source.scan()``); ``export`` reports
+  the images it skipped at its end. If no image can be read at all,
+  ``ValueError``.
 
 Damage that the decoder reads through (e.g. flipped bits inside JPEG data,
 which libjpeg decodes with artefacts) cannot be detected and gives a painting.
@@ -163,6 +169,11 @@ CROP_MODES = ("center", "none")
 
 class BadImageWarning(UserWarning):
     """An image could not be read and was skipped (``on_bad_image="skip"``)."""
+
+
+_WARNED: set[str] = set()
+"""Names of the unreadable images this process has warned about: one warning per image and process,
+whichever source (or copy of a source) met it. Forked workers inherit it."""
 
 
 _ROTATING_ORIENTATIONS = frozenset({5, 6, 7, 8})  # EXIF orientations that swap width and height
@@ -379,17 +390,24 @@ def _load_image(path: str | os.PathLike[str], size: PaintingSize) -> Image.Image
 
 
 def _list_images(folder: Path) -> list[str]:
-    """Every image file below ``folder`` (recursive), sorted by relative POSIX path.
+    """Every image file below ``folder`` (recursive, following symbolic links to folders), sorted by
+    relative POSIX path.
 
-    Unreadable folders raise the OS error (e.g. ``PermissionError``), which
-    names the folder.
+    A linked folder is listed once per path that reaches it, but a link back to a folder that
+    contains it (a loop) is not followed. Unreadable folders raise the OS error (e.g.
+    ``PermissionError``), which names the folder.
     """
 
     def fail(error: OSError) -> None:
         raise error
 
     found: list[tuple[str, str]] = []
-    for dirpath, _, filenames in os.walk(folder, onerror=fail):
+    for dirpath, dirnames, filenames in os.walk(folder, onerror=fail, followlinks=True):
+        # The real folders on the way from ``folder`` down to here: a subfolder that is one of them
+        # would walk the same tree again, forever.
+        steps = Path(os.path.relpath(dirpath, folder)).parts
+        above = {os.path.realpath(os.path.join(folder, *steps[:depth])) for depth in range(len(steps) + 1)}
+        dirnames[:] = [d for d in dirnames if os.path.realpath(os.path.join(dirpath, d)) not in above]
         for name in filenames:
             if os.path.splitext(name)[1].lower() in IMAGE_EXTENSIONS:
                 full = os.path.join(dirpath, name)
@@ -456,6 +474,35 @@ class _ReadingSource(_ImageSource):
         self.on_bad_image = _check_choice("on_bad_image", on_bad_image, ON_BAD_IMAGE)
         self.bad_images: dict[str, str] = {}
 
+    def scan(self, size: PaintingSize = (64, 64)) -> dict[str, str]:
+        """Read every image once (at ``size``, a cheap draft for JPEGs) and record the unreadable ones.
+
+        Call it in the main process before handing the dataset to DataLoader workers: the workers
+        get the source with ``bad_images`` filled, so they neither read nor warn about those files
+        again, and the main process knows them (a worker's own ``bad_images`` never reaches it).
+
+        Returns:
+            ``bad_images``: ``{name: "<error type>: <message>"}`` of every image that cannot be read.
+        """
+        size = _check_size(size)
+        for index in range(len(self)):
+            name = self._name(index)
+            if name in self.bad_images:
+                continue
+            try:
+                self._read(index, size)
+            except Exception as exc:  # as in _image
+                self._record_bad(name, exc)
+        return dict(self.bad_images)
+
+    def _record_bad(self, name: str, exc: Exception) -> None:
+        """Remember that image ``name`` cannot be read; warn unless this process warned about it before."""
+        self.bad_images[name] = f"{type(exc).__name__}: {exc}"
+        if name not in _WARNED:
+            _WARNED.add(name)
+            warnings.warn(f"on_bad_image='skip': skipping unreadable image {name}: {self.bad_images[name]}",
+                          BadImageWarning, stacklevel=4)
+
     @abc.abstractmethod
     def _read(self, index: int, size: PaintingSize) -> Image.Image:
         """Read image ``index`` as in :meth:`_image`, raising whatever reading raises."""
@@ -475,12 +522,7 @@ class _ReadingSource(_ImageSource):
             try:
                 return self._read(candidate, size)
             except Exception as exc:  # Pillow and users' datasets raise many types for bad data
-                self.bad_images[name] = f"{type(exc).__name__}: {exc}"
-                warnings.warn(
-                    f"on_bad_image='skip': skipping unreadable image {name}: {self.bad_images[name]}",
-                    BadImageWarning,
-                    stacklevel=3,
-                )
+                self._record_bad(name, exc)
         name = self._name(index)
         raise ValueError(
             f"on_bad_image='skip', but none of the {len(self)} images of this {type(self).__name__} can be read; "
@@ -506,7 +548,7 @@ class ImageFiles(_ReadingSource):
         self, paths: Sequence[str | os.PathLike[str]], *, crop: str = "center", on_bad_image: str = "raise"
     ) -> None:
         super().__init__(crop, on_bad_image)
-        self.paths = tuple(os.fspath(path) for path in paths)
+        self.paths = tuple(os.path.abspath(path) for path in paths)
         if not self.paths:
             raise ValueError("ImageFiles needs at least one path, got an empty list")
 

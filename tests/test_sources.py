@@ -489,16 +489,18 @@ def test_skip_takes_next_readable_image_wrapping_around_in_any_order(tmp_path):
     for bad in (paths[1], paths[3]):
         bad.write_text("not an image")
     expected = {0: pixels[0], 1: pixels[2], 2: pixels[2], 3: pixels[0], 5: pixels[2], 7: pixels[0]}
-    for order in (sorted(expected), sorted(expected, reverse=True)):
+    for order, warned in ((sorted(expected), 2), (sorted(expected, reverse=True), 0)):
         source = make_source(tmp_path, on_bad_image="skip")
-        with pytest.warns(BadImageWarning):
+        with warnings.catch_warnings(record=True) as record:  # the second source is silent: warned already
+            warnings.simplefilter("always")
             got = {index: source.painting(index, (8, 8)) for index in order}
+        assert len(record) == warned
         for index, painting in expected.items():
             np.testing.assert_array_equal(got[index], painting)
         assert sorted(source.bad_images) == [str(paths[1]), str(paths[3])]
     fresh = pickle.loads(pickle.dumps(make_source(tmp_path, on_bad_image="skip")))  # as a new worker gets it
-    with pytest.warns(BadImageWarning):
-        np.testing.assert_array_equal(fresh.painting(3, (8, 8)), pixels[0])
+    np.testing.assert_array_equal(fresh.painting(3, (8, 8)), pixels[0])
+    assert sorted(fresh.bad_images) == [str(paths[3])]
 
 
 def test_skip_with_no_readable_image_raises_instead_of_looping(tmp_path):
@@ -744,3 +746,43 @@ def test_dataset_with_unsupported_items_raises_type_error():
     source = make_source(BadItemDataset())
     with pytest.raises(TypeError, match="str"):
         source.painting(0, (4, 4))
+
+
+# --------------------------------------------------------------------------- paths, links, bad images in workers
+
+
+def test_a_folder_spelled_relative_or_absolute_is_the_same_source(tmp_path, monkeypatch):
+    (tmp_path / "photos").mkdir()
+    _solid(tmp_path / "photos" / "a.png", RED)
+    monkeypatch.chdir(tmp_path)
+    relative, absolute = make_source("photos"), make_source(tmp_path / "photos")
+    assert relative.paths == absolute.paths == (str(tmp_path / "photos" / "a.png"),)
+    assert make_source(["./photos/../photos/a.png"]).paths == absolute.paths
+
+
+def test_symlinked_subfolders_are_followed_and_loops_are_not(tmp_path):
+    elsewhere, photos = tmp_path / "elsewhere", tmp_path / "photos"
+    elsewhere.mkdir(), photos.mkdir()
+    for k in range(20):
+        _solid(elsewhere / f"{k:02d}.png", RED)
+    _solid(photos / "own.png", RED)
+    (photos / "linked").symlink_to(elsewhere, target_is_directory=True)
+    (elsewhere / "back").symlink_to(tmp_path, target_is_directory=True)  # a loop: elsewhere/back/elsewhere/...
+    (photos / "self").symlink_to(photos, target_is_directory=True)  # a loop onto itself
+    source = make_source(photos)
+    assert len(source) == 21  # own.png and the 20 linked ones, each once
+    assert sorted(Path(p).name for p in source.paths) == sorted(["own.png"] + [f"{k:02d}.png" for k in range(20)])
+
+
+def test_scan_finds_bad_images_in_the_main_process_and_workers_stay_silent(tmp_path, capfd):
+    for name in "abcd":
+        _solid(tmp_path / f"{name}.png", RED)
+    (tmp_path / "b.png").write_text("not an image")
+    dataset = SidarDataset(tmp_path, config=small_config(on_bad_image="skip", n_views=1, image_size=(16, 16),
+                                                         n_occluders=(0, 0), n_lights=(0, 0)), length=4)
+    with pytest.warns(BadImageWarning, match="b.png"):
+        assert dataset.source.scan() == {str(tmp_path / "b.png"): dataset.source.bad_images[str(tmp_path / "b.png")]}
+    capfd.readouterr()
+    batches = list(torch.utils.data.DataLoader(dataset, batch_size=None, num_workers=2))
+    assert sorted(int(b["index"]) for b in batches) == [0, 1, 2, 3]
+    assert "unreadable" not in capfd.readouterr().err  # the workers knew b.png from the scan
