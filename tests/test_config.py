@@ -1,5 +1,9 @@
+import dataclasses
+from pathlib import Path
+
 import pytest
 
+import sidar_torch.config
 from sidar_torch import SidarConfig, available_presets, load_config
 
 CORE_PRESETS = ["misaligned", "aligned", "ambient", "shadows_only", "occlusions_only"]
@@ -72,3 +76,40 @@ def test_on_bad_image_switch():
 def test_too_many_shadowed_emitters_rejected():
     with pytest.raises(ValueError, match="area_light_samples"):
         SidarConfig(n_lights=(1, 8), area_light_samples=4)
+
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+
+
+@pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)
+def test_each_example_config_loads_and_changes_its_base(path):
+    # configs/ holds user-facing examples that derive from a preset; the presets ship in the package.
+    config = load_config(path)
+    assert config != load_config("misaligned")
+    assert path.stem not in available_presets()
+
+
+def test_example_configs_say_what_the_readme_says():
+    training = load_config(CONFIGS / "homography_training.yaml")
+    assert training.image_size == (192, 256) and training.n_views == 4 and training.min_overlap == 0.3
+    photos = load_config(CONFIGS / "own_photos.yaml")
+    assert photos.image_size == (192, 256) and photos.on_bad_image == "skip" and photos.opacity_output
+    readme = (CONFIGS / "README.md").read_text()
+    assert all(f"`{p.name}`" in readme for p in CONFIGS.glob("*.yaml"))
+
+
+def test_presets_ship_inside_the_package_not_in_configs():
+    from sidar_torch.config import PRESET_DIR
+
+    assert PRESET_DIR.parent == Path(sidar_torch.config.__file__).parent
+    assert sorted(p.stem for p in PRESET_DIR.glob("*.yaml")) == available_presets()
+    assert set(CORE_PRESETS) | {"paper_misaligned", "paper_aligned"} <= set(available_presets())
+    assert not {p.stem for p in CONFIGS.glob("*.yaml")} & set(available_presets())
+
+
+def test_field_meanings_are_metadata():
+    from sidar_torch.config import field_meaning
+
+    for f in dataclasses.fields(SidarConfig):
+        assert f.metadata["meaning"] == field_meaning(f.name) and f.metadata["meaning"].endswith("."), f.name
+    assert "(H, W)" in field_meaning("image_size")
