@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 __all__ = [
-    "BACKGROUNDS", "LIGHT_TYPES", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
+    "BACKGROUNDS", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
 ]
 
@@ -19,3 +19,10 @@ TEXTURE_FILTERS = ("trilinear", "bilinear")
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
+
+MAX_GL_SIZE = 16384
+"""Largest side, in pixels or texels, of the views and shadow maps the renderer can allocate: Mesa's
+llvmpipe (OSMesa and EGL, Mesa 22.3) reports ``GL_MAX_TEXTURE_SIZE = GL_MAX_RENDERBUFFER_SIZE =
+16384`` (``GL_MAX_VIEWPORT_DIMS`` is 16384 x 16384 too). GPU drivers report the same or more; the
+bound is checked when the config is made, so a larger size fails there, naming the field, rather
+than inside OpenGL at the first render."""

@@ -13,14 +13,14 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from .allowed import (BACKGROUNDS, LIGHT_TYPES, MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES,
+from .allowed import (BACKGROUNDS, LIGHT_TYPES, MAX_GL_SIZE, MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES,
                       ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
 
 __all__ = ["SidarConfig", "field_meaning"]
 
 UNBOUNDED = float("inf")
-"""The ``highest high`` of a range field with no upper limit."""
+"""The ``highest high`` of a range field with no upper limit (its values must still be finite)."""
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -67,11 +67,13 @@ class SidarConfig:
     Sizes are ``(H, W)``. A range is a pair ``(low, high)`` with ``low <= high``; values are drawn
     uniformly from it. Each field's meaning is its metadata (:func:`field_meaning`;
     ``python -m sidar_torch schema`` prints them all). Numbers may be Python, NumPy or 0-d torch
-    scalars.
+    scalars (see ``sidar_torch.config.numbers``).
     """
 
     # Output
-    image_size: tuple[int, int] = _field((384, 512), meaning="``(H, W)`` of every view, mask and label, in pixels.")
+    image_size: tuple[int, int] = _field((384, 512), meaning=(
+        f"``(H, W)`` of every view, mask and label, in pixels; each at most {MAX_GL_SIZE} (the largest "
+        "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``)."))
     n_views: int = _field(6, meaning="number of views ``V`` per sample; view 0 is the fronto-parallel reference.")
 
     # Cameras
@@ -136,8 +138,10 @@ class SidarConfig:
     scene_per_view: bool = _field(True, meaning="draw new lights, occluders and painting material for every view.")
 
     # Rendering
-    shadow_map_size: int = _field(1024, meaning="side of each shadow map in texels (power of two).")
-    shadow_filter: str = _field("tent", meaning=(
+    shadow_map_size: int = _field(1024, meaning=(
+        f"side of each shadow map in texels (a power of two from 16 to {MAX_GL_SIZE}, the largest texture "
+        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``)."))
+    shadow_filter: str = _field("tent", choices=SHADOW_FILTERS, meaning=(
         'how a shadow-map lookup is filtered: ``"tent"``, a 3 x 3 tent-weighted percentage-closer filter from 4 '
         'bilinear depth-compare taps, or ``"bilinear"``, a 2 x 2 filter from one tap (a quarter of the texture '
         "reads: shadow edges one texel sharper)."))

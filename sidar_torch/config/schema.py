@@ -31,7 +31,7 @@ def _allowed(f: dataclasses.Field) -> str:
     """What the field may hold, from its ``bounds`` or ``choices`` metadata ("" if neither)."""
     if "bounds" in f.metadata:
         lo, hi = f.metadata["bounds"]
-        return f"{_format(lo)} <= low <= high <= {_format(hi)}"
+        return f"{_format(lo)} <= low <= high" + (f" <= {_format(hi)}" if math.isfinite(hi) else " (finite)")
     if "choices" in f.metadata:
         return ("any of " if f.type.startswith("tuple") else "one of ") + ", ".join(f.metadata["choices"])
     return ""

@@ -7,9 +7,11 @@ unknown field), says what was expected, and shows what was given. Sizes read ``(
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import math
 from typing import Any, Mapping
 
-from .allowed import MAX_SHADOWED_LIGHTS
+from .allowed import MAX_GL_SIZE, MAX_SHADOWED_LIGHTS
 from .numbers import as_float, as_int
 
 __all__ = ["check_names", "coerce", "validate"]
@@ -29,11 +31,14 @@ def coerce(f: dataclasses.Field, value: Any) -> Any:
             # Sets are refused: their order follows string hashing, which changes between processes.
             raise ValueError(f"{name}: expected a list or tuple, got {value!r}")
         value = tuple(value)
-        pair = {"Range": "(low, high)", "IntRange": "(low, high)", "tuple[int, int]": "(low, high)"}.get(kind)
+        pair = {"Range": "(low, high)", "IntRange": "(low, high)", "tuple[int, int]": "(H, W)"}.get(kind)
         if pair and len(value) != 2:
-            raise ValueError(f"{name}: expected 2 values {pair}, got {value!r}")
+            raise ValueError(f"{name}: expected 2 values {pair}, got {len(value)}: {value!r}")
         if kind == "Range":
-            value = tuple(as_float(name, v) for v in value)
+            value = tuple(as_float(name, v, finite=False) for v in value)
+            if not all(map(math.isfinite, value)):
+                raise ValueError(f"{name}: expected finite numbers (values are drawn uniformly from (low, high), "
+                                 f"so both ends must be finite), got {value!r}")
         elif pair:
             value = tuple(as_int(name, v) for v in value)
     elif kind == "float":
@@ -58,6 +63,8 @@ def validate(config: Any) -> None:
 
     c = config
     need(all(s >= 1 for s in c.image_size), "image_size", "(H, W) with H, W >= 1")
+    need(all(s <= MAX_GL_SIZE for s in c.image_size), "image_size",
+         f"(H, W) with H, W <= {MAX_GL_SIZE} (the largest renderbuffer side of Mesa's llvmpipe)")
     need(c.n_views >= 1, "n_views", "at least 1")
     need(c.camera_xy >= 0, "camera_xy", ">= 0")
     need(c.max_tilt_deg >= 0 and c.max_tilt_deg < 90, "max_tilt_deg", "0 <= max_tilt_deg < 90")
@@ -71,6 +78,8 @@ def validate(config: Any) -> None:
     need(0 <= c.mask_min_opacity <= 1, "mask_min_opacity", "a value in [0, 1]")
     size = c.shadow_map_size
     need(size >= 16 and size & (size - 1) == 0, "shadow_map_size", "a power of two >= 16")
+    need(size <= MAX_GL_SIZE, "shadow_map_size",
+         f"a power of two <= {MAX_GL_SIZE} (the largest texture side of Mesa's llvmpipe)")
     need(c.mesh_error_px >= 0, "mesh_error_px", ">= 0 (pixels)")
     for f in dataclasses.fields(c):
         value = getattr(c, f.name)
@@ -89,12 +98,21 @@ def validate(config: Any) -> None:
 
 
 def check_names(values: Mapping[str, Any], config_class: type, what: str) -> None:
-    """Refuse keys of ``values`` that are no field of ``config_class``.
+    """Refuse keys of ``values`` that are no field of ``config_class``, suggesting the closest names.
+
+    Args:
+        what: what the keys are, for the message (``"override"``, ``"field in 'mine.yaml':"``).
 
     Raises:
-        ValueError: naming the unknown keys and listing the known fields.
+        ValueError: ``unknown config <what> 'name' (did you mean 'a' or 'b'?)``, one clause per unknown key.
     """
-    known = {f.name for f in dataclasses.fields(config_class)}
-    unknown = sorted(set(values) - known)
+    known = [f.name for f in dataclasses.fields(config_class)]
+    unknown = sorted(set(values) - set(known))
     if unknown:
-        raise ValueError(f"unknown config {what} {unknown}; known fields: {sorted(known)}")
+        clauses = []
+        for name in unknown:
+            close = difflib.get_close_matches(str(name), known, n=3, cutoff=0.6)
+            hint = f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
+            clauses.append(f"{name!r}{hint}")
+        raise ValueError(f"unknown config {what} {', '.join(clauses)}; `python -m sidar_torch schema` lists "
+                         f"the {len(known)} fields")
