@@ -4,8 +4,12 @@
 >>> from sidar_torch import SidarDataset, load_config
 >>> ds = SidarDataset(source=None, config=load_config("misaligned", image_size=(384, 512)), seed=0)
 >>> batch = next(iter(DataLoader(ds, batch_size=8, num_workers=2)))  # doctest: +SKIP
+
+Importing the package loads no GL library (pyrender and PyOpenGL load at the first render), so
+configs, ``homography_pairs`` and ``ExportedDataset`` work on machines without them.
 """
 
+from . import render  # noqa: F401  (sets PYOPENGL_PLATFORM, LP_NUM_THREADS before OpenGL's import; loads no GL)
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .dataset import SidarDataset

@@ -132,7 +132,7 @@ def _sweep(args: argparse.Namespace) -> None:
 
 
 def _schema(args: argparse.Namespace) -> None:
-    from .schema import schema_markdown
+    from .config.schema import schema_markdown
 
     print(schema_markdown())
 

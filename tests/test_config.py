@@ -1,5 +1,11 @@
-import pytest
+import dataclasses
+from pathlib import Path
 
+import numpy as np
+import pytest
+import torch
+
+import sidar_torch.config
 from sidar_torch import SidarConfig, available_presets, load_config
 
 CORE_PRESETS = ["misaligned", "aligned", "ambient", "shadows_only", "occlusions_only"]
@@ -72,3 +78,155 @@ def test_on_bad_image_switch():
 def test_too_many_shadowed_emitters_rejected():
     with pytest.raises(ValueError, match="area_light_samples"):
         SidarConfig(n_lights=(1, 8), area_light_samples=4)
+
+
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+
+
+@pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)
+def test_each_example_config_loads_and_changes_its_base(path):
+    # configs/ holds user-facing examples that derive from a preset; the presets ship in the package.
+    config = load_config(path)
+    assert config != load_config("misaligned")
+    assert path.stem not in available_presets()
+
+
+def test_example_configs_say_what_the_readme_says():
+    training = load_config(CONFIGS / "homography_training.yaml")
+    assert training.image_size == (192, 256) and training.n_views == 4 and training.min_overlap == 0.3
+    photos = load_config(CONFIGS / "own_photos.yaml")
+    assert photos.image_size == (192, 256) and photos.on_bad_image == "skip" and photos.opacity_output
+    readme = (CONFIGS / "README.md").read_text()
+    assert all(f"`{p.name}`" in readme for p in CONFIGS.glob("*.yaml"))
+
+
+def test_presets_ship_inside_the_package_not_in_configs():
+    from sidar_torch.config import PRESET_DIR
+
+    assert PRESET_DIR.parent == Path(sidar_torch.config.__file__).parent
+    assert sorted(p.stem for p in PRESET_DIR.glob("*.yaml")) == available_presets()
+    assert set(CORE_PRESETS) | {"paper_misaligned", "paper_aligned"} <= set(available_presets())
+    assert not {p.stem for p in CONFIGS.glob("*.yaml")} & set(available_presets())
+
+
+def test_field_meanings_are_metadata():
+    from sidar_torch.config import field_meaning
+
+    for f in dataclasses.fields(SidarConfig):
+        assert f.metadata["meaning"] == field_meaning(f.name) and f.metadata["meaning"].endswith("."), f.name
+    assert "(H, W)" in field_meaning("image_size")
+
+
+# Issue 13 item 3: numbers as users pass them.
+@pytest.mark.parametrize("overrides, expected", [
+    ({"n_views": np.int64(3)}, {"n_views": 3}),
+    ({"n_views": np.uint8(3)}, {"n_views": 3}),
+    ({"image_size": (np.int32(192), 256)}, {"image_size": (192, 256)}),
+    ({"image_size": (torch.tensor(192), torch.tensor(256, dtype=torch.int16))}, {"image_size": (192, 256)}),
+    ({"image_size": torch.tensor([192, 256])}, {"image_size": (192, 256)}),
+    ({"image_size": np.array([192, 256])}, {"image_size": (192, 256)}),
+    ({"fov_deg": (np.float32(40), 60)}, {"fov_deg": (40.0, 60.0)}),
+    ({"fov_deg": (np.float16(40), torch.tensor(60.0, dtype=torch.float64))}, {"fov_deg": (40.0, 60.0)}),
+    ({"max_tilt_deg": np.float64(45), "n_lights": (np.int16(1), np.int64(2))}, {"max_tilt_deg": 45.0, "n_lights": (1, 2)}),
+    ({"shadow_map_size": torch.tensor(512), "mask_min_opacity": torch.tensor(0.5)},
+     {"shadow_map_size": 512, "mask_min_opacity": 0.5}),
+])
+def test_numpy_and_torch_scalars_are_accepted_as_plain_numbers(overrides, expected):
+    config = load_config("misaligned", **overrides)
+    for name, value in expected.items():
+        got = getattr(config, name)
+        assert got == value and type(got) is type(value), (name, got)
+        if isinstance(value, tuple):
+            assert [type(v) for v in got] == [type(v) for v in value], (name, got)
+    assert config == load_config("misaligned", **expected)  # the same config, hashable and comparable
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("n_views", np.True_, "expected a number"),
+    ("n_views", torch.tensor(True), "expected a number"),
+    ("n_views", True, "expected a number"),
+    ("n_views", np.float32(2.5), "expected an integer"),
+    ("n_views", torch.tensor([3, 4]), "expected a number"),
+    ("fov_deg", (np.float32(40), np.nan), "finite"),
+    ("image_size", (np.int32(192), np.complex64(256)), "expected a number"),
+])
+def test_bools_non_integers_and_arrays_are_still_refused(field, value, message):
+    with pytest.raises(ValueError, match=f"'{field}'.*{message}"):
+        load_config("misaligned", **{field: value})
+
+
+def test_as_int_and_as_float_are_the_one_conversion_other_layers_reuse():
+    from sidar_torch.config import as_float, as_int
+
+    assert as_int("count", np.int64(3)) == 3 and type(as_int("count", torch.tensor(3))) is int
+    assert as_int("count", 4.0) == 4
+    assert as_float("scale", np.float32(0.5)) == 0.5 and type(as_float("scale", torch.tensor(2))) is float
+    with pytest.raises(ValueError, match="^count: expected a number, got True"):
+        as_int("count", True)
+    with pytest.raises(ValueError, match="^count: expected an integer"):
+        as_int("count", float("inf"))
+    with pytest.raises(ValueError, match="^scale: expected a finite number"):
+        as_float("scale", np.float64("inf"))
+
+
+# Issue 13 item 4: limits found when the config is made; YAML errors name the file and line;
+# unknown fields suggest the closest names.
+@pytest.mark.parametrize("field, value", [
+    ("image_size", (64, 16385)), ("image_size", (16385, 64)), ("shadow_map_size", 32768),
+])
+def test_sizes_beyond_the_gl_limit_are_refused_naming_the_field_and_the_limit(field, value):
+    with pytest.raises(ValueError, match=f"config field '{field}'.*16384"):
+        load_config("misaligned", **{field: value})
+    assert load_config("misaligned", image_size=(16, 16384), shadow_map_size=16384).shadow_map_size == 16384
+
+
+def test_the_gl_limit_is_said_in_the_fields_meaning():
+    from sidar_torch.config import MAX_GL_SIZE, field_meaning
+
+    assert MAX_GL_SIZE == 16384
+    assert "16384" in field_meaning("image_size") and "16384" in field_meaning("shadow_map_size")
+
+
+def test_malformed_yaml_names_the_file_and_line(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("base: misaligned\nn_views: 3\nimage_size: [96, 128\nshadows: false\n")
+    with pytest.raises(ValueError, match=r"broken\.yaml', line 4, column \d+: malformed YAML") as error:
+        load_config(path)
+    assert "<unicode string>" not in str(error.value)
+    path.write_text("base: misaligned\n- n_views: 3\n")
+    with pytest.raises(ValueError, match=r"broken\.yaml', line 2, column 1: malformed YAML"):
+        load_config(path)
+
+
+def test_unknown_fields_suggest_the_closest_names_not_all_of_them(tmp_path):
+    with pytest.raises(ValueError, match=r"'n_veiws' \(did you mean 'n_views'\?\)") as error:
+        load_config("misaligned", n_veiws=3)
+    assert "light_irradiance" not in str(error.value)  # no list of every field
+    with pytest.raises(ValueError, match=r"'shadow_map' \(did you mean 'shadow_map_size'"):
+        SidarConfig().replace(shadow_map=512)
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: misaligned\nimage_sise: [96, 128]\nzzz: 1\n")
+    with pytest.raises(ValueError, match=r"mine\.yaml.*'image_sise' \(did you mean 'image_size'\?\), 'zzz';"):
+        load_config(path)
+
+
+# Issue 13 item 7: sizes read (H, W); a 3-element image_size is not a (low, high) range.
+def test_a_three_element_image_size_says_it_expects_h_w():
+    with pytest.raises(ValueError, match=r"'image_size': expected 2 values \(H, W\), got 3") as error:
+        load_config("misaligned", image_size=(96, 128, 3))
+    assert "low, high" not in str(error.value)
+    with pytest.raises(ValueError, match=r"'fov_deg': expected 2 values \(low, high\)"):
+        load_config("misaligned", fov_deg=(40, 50, 60))
+
+
+# Issue 13 item 8: an infinite end of a range cannot be drawn from uniformly (numpy's uniform raises
+# OverflowError); the schema says the ends must be finite, and the error says why.
+@pytest.mark.parametrize("field", ["camera_height", "light_height", "ambient", "occluder_size", "spot_irradiance"])
+def test_an_infinite_range_end_is_refused_saying_why_and_the_schema_does_not_offer_inf(field):
+    from sidar_torch.config.schema import schema_rows
+
+    with pytest.raises(ValueError, match=f"'{field}': expected finite numbers .*drawn uniformly"):
+        load_config("misaligned", **{field: [1, float("inf")]})
+    (row,) = [r for r in schema_rows() if r["name"] == field]
+    assert "inf" not in row["allowed"] and row["allowed"].endswith("(finite)"), row
+    assert load_config("misaligned", **{field: [1, 1e6]}) is not None  # no upper limit

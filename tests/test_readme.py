@@ -45,7 +45,7 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
 
 
 def test_readme_config_table_is_the_generated_schema():
-    from sidar_torch.schema import schema_markdown
+    from sidar_torch.config.schema import schema_markdown
 
     text = README.read_text()
     start = text.index("<!-- schema:")
@@ -54,6 +54,6 @@ def test_readme_config_table_is_the_generated_schema():
 
 
 def test_every_config_field_has_a_meaning_in_the_schema():
-    from sidar_torch.schema import schema_rows
+    from sidar_torch.config.schema import schema_rows
 
     assert all(row["meaning"] for row in schema_rows()), [row["name"] for row in schema_rows() if not row["meaning"]]

@@ -10,17 +10,49 @@ Importing this package fixes two environment variables before anything imports O
   the parent rendered. On 2 cores, one thread per worker process is also the fastest split.
 
 Set either variable before importing ``sidar_torch`` to choose otherwise.
+
+Importing this package loads no GL library: ``renderer`` (pyrender, PyOpenGL) is imported at the
+first use of :func:`shared_renderer`, :func:`renderer_options` or an attribute named in
+``__all__``, after :func:`~.context.check_platform_libraries`, whose error names what to install.
+So ``import sidar_torch`` and everything that does not render work without the GL libraries.
 """
 
+import functools
 import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
 
-from .context import check_platform_libraries  # noqa: E402  (after the environment is set)
-
-check_platform_libraries()  # before pyrender's import, which fails obscurely without them
-
-from .renderer import RenderedSequence, SceneRenderer, renderer_options, shared_renderer  # noqa: E402
-
 __all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
+
+
+@functools.cache
+def _renderer():
+    """The ``renderer`` module, imported at the first call once the platform's libraries are found.
+
+    Raises:
+        RuntimeError: a GL library is missing (the message names the package to install).
+    """
+    from .context import check_platform_libraries
+
+    check_platform_libraries()  # before pyrender's import, which fails obscurely without them
+    from . import renderer
+
+    return renderer
+
+
+def shared_renderer(image_size, shadow_map_size, **options):
+    """:func:`.renderer.shared_renderer` (this process's renderer for these settings), importing the
+    renderer at the first call; defined here so that ``from .render import shared_renderer`` loads no GL."""
+    return _renderer().shared_renderer(image_size, shadow_map_size, **options)
+
+
+def renderer_options(config):
+    """:func:`.renderer.renderer_options`, imported at the first call (see :func:`shared_renderer`)."""
+    return _renderer().renderer_options(config)
+
+
+def __getattr__(name):
+    if name in ("RenderedSequence", "SceneRenderer"):
+        return getattr(_renderer(), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

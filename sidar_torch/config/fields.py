@@ -1,0 +1,206 @@
+"""``SidarConfig``: every field of a SIDAR scene and its renderer, with its meaning as field metadata.
+
+Each field is declared with :func:`_field`, whose ``metadata`` holds ``meaning`` (one sentence or
+more, the text ``python -m sidar_torch schema`` prints), and where they apply ``bounds`` (the
+``(lowest low, highest high)`` of a range field) and ``choices`` (the allowed words of a text
+field). Validation (``validation``) and the schema (``schema``) read the metadata; nothing parses
+this module's docstrings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from .allowed import (BACKGROUNDS, LIGHT_TYPES, MAX_GL_SIZE, MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES,
+                      ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
+from .validation import check_names, coerce, validate
+
+__all__ = ["SidarConfig", "field_meaning"]
+
+UNBOUNDED = float("inf")
+"""The ``highest high`` of a range field with no upper limit (its values must still be finite)."""
+
+Range = tuple[float, float]
+IntRange = tuple[int, int]
+
+
+def _field(default: Any, *, meaning: str, bounds: tuple[float, float] | None = None,
+           choices: tuple[str, ...] | None = None) -> Any:
+    """A dataclass field with its ``meaning`` and, where given, ``bounds`` and ``choices`` as metadata."""
+    metadata = {"meaning": meaning}
+    if bounds is not None:
+        metadata["bounds"] = bounds
+    if choices is not None:
+        metadata["choices"] = choices
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+def field_meaning(name: str) -> str:
+    """The meaning of the ``SidarConfig`` field ``name`` (its ``metadata["meaning"]``)."""
+    return SidarConfig.__dataclass_fields__[name].metadata["meaning"]
+
+
+# Meanings shared by fields described together.
+_LIGHT_BOX = "light position box, like the cameras'."
+_IRRADIANCE = (
+    "ranges of a point, spot and area light's irradiance at the painting's centre (an area light's summed "
+    "over its emitters). The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area 1-2 "
+    "kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen so that the fraction "
+    "of blown-out painting pixels matches the paper's renders (``scripts/exposure.py``).")
+_OCCLUDER_KINDS = "kinds to draw from."
+_OCCLUDER_BOX = "box of occluder centres."
+_PLANE_MATERIAL = "ranges of the painting's material."
+_COAT = ("ranges of the weight and roughness of a clear coat on the painting (a second, sharper specular lobe "
+         "with 4 % reflectance).")
+
+
+@dataclass(frozen=True)
+class SidarConfig:
+    """Every parameter of the scene sampler and renderer (frozen).
+
+    Units. Lengths are in *painting units*: the painting's shorter side is 1 (the paper's Blender
+    scenes use 7 Blender units for it, so its ranges are divided by 7 here). Angles are in degrees.
+    Light strength is the irradiance a light gives the painting's centre, in the renderer's linear
+    units, where a white diffuse painting saturates at about 3.3 (see ``sidar_torch.render``).
+    Sizes are ``(H, W)``. A range is a pair ``(low, high)`` with ``low <= high``; values are drawn
+    uniformly from it. Each field's meaning is its metadata (:func:`field_meaning`;
+    ``python -m sidar_torch schema`` prints them all). Numbers may be Python, NumPy or 0-d torch
+    scalars (see ``sidar_torch.config.numbers``).
+    """
+
+    # Output
+    image_size: tuple[int, int] = _field((384, 512), meaning=(
+        f"``(H, W)`` of every view, mask and label, in pixels; each at most {MAX_GL_SIZE} (the largest "
+        "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``)."))
+    n_views: int = _field(6, meaning="number of views ``V`` per sample; view 0 is the fronto-parallel reference.")
+
+    # Cameras
+    aligned: bool = _field(False, meaning="every view through the reference camera (all homographies identity).")
+    camera_xy: float = _field(5 / 7, meaning="half-width of the square in which camera x and y are drawn.")
+    camera_height: Range = _field((5 / 7, 1.0), bounds=(1e-3, UNBOUNDED), meaning=(
+        "range of camera z (distance above the painting's plane)."))
+    fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
+        "range of the field of view across the longer image side, for views 1..V-1."))
+    max_tilt_deg: float = _field(60.0, meaning="largest angle between a camera's axis and the painting's normal.")
+    min_coverage: float = _field(0.0, meaning=(
+        "least fraction of each view's pixels that see the painting (cameras are redrawn until it holds; see "
+        "``sidar_torch.scene``)."))
+    min_overlap: float = _field(0.0, meaning=(
+        "least fraction of the painting pixels of any view ``i`` that another view ``j`` also sees (every "
+        "ordered pair; cameras are redrawn until it holds)."))
+
+    # Scene content (drawn afresh for every view unless ``scene_per_view`` is false)
+    n_lights: IntRange = _field((2, 4), bounds=(0, 8), meaning="range of the number of lights.")
+    light_types: tuple[str, ...] = _field(LIGHT_TYPES, choices=LIGHT_TYPES, meaning=(
+        "light kinds to draw from (``spot``, ``point``, ``area``)."))
+    light_xy: float = _field(10 / 7, meaning=_LIGHT_BOX)
+    light_height: Range = _field((10 / 7, 15 / 7), bounds=(1e-3, UNBOUNDED), meaning=_LIGHT_BOX)
+    light_irradiance: Range = _field((0.5, 1.75), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
+    spot_irradiance: Range = _field((0.5, 5.0), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
+    area_irradiance: Range = _field((2.0, 4.0), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
+    light_saturation_max: float = _field(0.3, meaning="colour is HSV(U(0, 1), U(0, this), 1).")
+    spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
+    area_light_size: float = _field(0.3, meaning="side of a square area light.")
+    area_light_samples: int = _field(4, meaning="jittered shadow-casting samples an area light is made of.")
+    ambient: Range = _field((0.0, 0.02), bounds=(0.0, UNBOUNDED), meaning=(
+        "range of the ambient light level (linear, 1 reproduces the texture)."))
+    n_occluders: IntRange = _field((0, 3), bounds=(0, 16), meaning="range of the number of occluding objects.")
+    occluder_shapes: tuple[str, ...] = _field(OCCLUDER_SHAPES, choices=OCCLUDER_SHAPES, meaning=_OCCLUDER_KINDS)
+    occluder_materials: tuple[str, ...] = _field(OCCLUDER_MATERIALS, choices=OCCLUDER_MATERIALS,
+                                                 meaning=_OCCLUDER_KINDS)
+    occluder_xy: float = _field(3 / 7, meaning=_OCCLUDER_BOX)
+    occluder_height: Range = _field((1 / 7, 5 / 7), bounds=(0.0, UNBOUNDED), meaning=_OCCLUDER_BOX)
+    occluder_size: Range = _field((0.1 / 7, 1.1 / 7), bounds=(1e-4, UNBOUNDED), meaning=(
+        "range of an occluder's half-extent along each of its axes."))
+    occluders_visible: bool = _field(True, meaning=(
+        "false makes occluders invisible to cameras; they still cast shadows."))
+    mask_min_opacity: float = _field(0.0, meaning=(
+        "occluders whose material opacity (alpha) is below this are left out of the masks: the painting seen "
+        "through them counts as visible. 0 (the paper's choice) masks every occluder, however transparent."))
+    opacity_output: bool = _field(False, meaning=(
+        "also hand out ``opacities``, a soft mask per view: the fraction of the painting hidden at each pixel "
+        "(1 off the painting and behind opaque occluders, 0 where it is seen unobstructed, ``1 - prod(1 - "
+        "a_k)`` through transparent occluders of opacity ``a_k``), whatever ``mask_min_opacity`` is. Costs one "
+        "unlit draw per view."))
+    shadows: bool = _field(True, meaning="whether lights cast shadows.")
+    plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
+    plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
+    plane_specular: Range = _field((0.0, 1.0), bounds=(0.0, 1.0), meaning=(
+        "range of the painting's specular level (dielectric reflectance at normal incidence ``0.08 * level``, "
+        "Blender's convention: 0.5 is 4 %)."))
+    plane_coat: Range = _field((0.0, 1.0), bounds=(0.0, 1.0), meaning=_COAT)
+    plane_coat_roughness: Range = _field((0.03, 0.3), bounds=(0.0, 1.0), meaning=_COAT)
+    plane_diffuse: bool = _field(False, meaning=(
+        "a purely diffuse painting (metallic 0, roughness 1, no specular, no coat), overriding the other "
+        "``plane_*`` ranges."))
+    scene_per_view: bool = _field(True, meaning="draw new lights, occluders and painting material for every view.")
+
+    # Rendering
+    shadow_map_size: int = _field(1024, meaning=(
+        f"side of each shadow map in texels (a power of two from 16 to {MAX_GL_SIZE}, the largest texture "
+        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``)."))
+    shadow_filter: str = _field("tent", choices=SHADOW_FILTERS, meaning=(
+        'how a shadow-map lookup is filtered: ``"tent"``, a 3 x 3 tent-weighted percentage-closer filter from 4 '
+        'bilinear depth-compare taps, or ``"bilinear"``, a 2 x 2 filter from one tap (a quarter of the texture '
+        "reads: shadow edges one texel sharper)."))
+
+    # View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
+    # only, drawn after the scene so switching one on changes no scene, mask, label or homography;
+    # see ``sidar_torch.artifacts``)
+    background: str = _field("black", choices=BACKGROUNDS, meaning=(
+        'what the views show where nothing was drawn: ``"black"`` (the paper\'s), ``"view"`` (a random colour '
+        'per view) or ``"sequence"`` (one random colour per sample).'))
+    background_level: Range = _field((0.0, 1.0), bounds=(0.0, 1.0), meaning=(
+        "range each 8-bit sRGB channel of a background colour is drawn from, as a fraction of 255."))
+    exposure_jitter: bool = _field(False, meaning=(
+        "scale each view's linear intensity by ``2 ** stops`` and raise it to a power ``gamma`` (drawn per "
+        "view)."))
+    exposure_stops: Range = _field((-1.0, 1.0), bounds=(-8.0, 8.0), meaning=(
+        "range of the exposure change, in stops (EV)."))
+    gamma: Range = _field((0.8, 1.25), bounds=(0.1, 10.0), meaning=(
+        "range of the exponent applied to a view's linear intensity (after exposure and noise)."))
+    sensor_noise: bool = _field(False, meaning=(
+        "add Gaussian read noise and signal-dependent shot noise in linear light."))
+    read_noise: Range = _field((0.0, 0.01), bounds=(0.0, 1.0), meaning=(
+        "range of a view's read-noise standard deviation (linear intensity, 1 is white)."))
+    shot_noise: Range = _field((0.0, 0.002), bounds=(0.0, 1.0), meaning=(
+        "range of a view's shot-noise scale ``k``: variance ``k * x`` at linear intensity ``x`` (a Poisson "
+        "count of ``x / k`` photons, times ``k``; Gaussian approximation)."))
+    jpeg: bool = _field(False, meaning="compress each view as JPEG and decode it (Pillow, in memory, 4:2:0 chroma).")
+    jpeg_quality: IntRange = _field((30, 95), bounds=(1, 100), meaning=(
+        "range of a view's JPEG quality (Pillow's scale, 1-100)."))
+    shadow_frustum: str = _field("fitted", choices=SHADOW_FRUSTA, meaning=(
+        'what a spot light\'s shadow map covers: ``"cone"`` (pyrender\'s frustum, 2 x outer cone + pi / 16 wide) '
+        'or ``"fitted"`` (only what the cameras see of the painting and occluders, within the cone: the same '
+        "map size gives finer shadows; the default, as the sweep found it closer to the reference at every map "
+        "size for the same time)."))
+    mesh_detail: str = _field("fixed", choices=MESH_DETAILS, meaning=(
+        '``"fixed"``: every curved occluder (sphere, cylinder, cone, torus, capsule) uses one mesh (icosphere '
+        '3, 48 sections); ``"auto"``: per view, the coarsest of 4 pooled levels whose silhouette and shadow '
+        "stay within ``mesh_error_px`` of the true surface."))
+    mesh_error_px: float = _field(0.25, meaning=(
+        'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level).'))
+    texture_filter: str = _field("trilinear", choices=TEXTURE_FILTERS, meaning=(
+        'the painting texture\'s filter, ``"trilinear"`` (mipmapped) or ``"bilinear"`` (full-size texture only; '
+        "aliases where a view shrinks the painting)."))
+
+    # Input
+    on_bad_image: str = _field("raise", choices=ON_BAD_IMAGE, meaning=(
+        'what a painting source does with an unreadable image: ``"raise"`` (an error naming the file) or '
+        '``"skip"`` (a warning, and the next readable image).'))
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            object.__setattr__(self, f.name, coerce(f, getattr(self, f.name)))
+        validate(self)
+
+    def replace(self, **overrides: Any) -> "SidarConfig":
+        """Return a copy with some fields changed (validated like the constructor)."""
+        check_names(overrides, type(self), "override")
+        return dataclasses.replace(self, **overrides)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data view (lists for tuples), suitable for YAML or JSON."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in dataclasses.asdict(self).items()}
