@@ -418,13 +418,15 @@ BOOTSTRAP = 2000
 class Figure:
     """A statistic over a set of views: ``centre`` (the median over views, or the fraction of views),
     ``low``/``high`` (interquartile range over views, or equal to the interval), ``mean``, and
-    ``interval``, the 5-95 % bootstrap interval of ``centre`` (resampling views)."""
+    ``interval`` and ``mean_interval``, the 5-95 % bootstrap intervals of ``centre`` and ``mean``
+    (resampling views)."""
 
     centre: float
     low: float
     high: float
     mean: float
     interval: tuple[float, float]
+    mean_interval: tuple[float, float]
 
 
 def bootstrap(values: np.ndarray, statistic: Callable[..., np.ndarray]) -> tuple[float, float]:
@@ -439,16 +441,16 @@ def per_view(values: np.ndarray) -> Figure:
     """Median, interquartile range and mean over the views that have a figure (NaN dropped)."""
     v = values[np.isfinite(values)]
     if v.size == 0:
-        return Figure(np.nan, np.nan, np.nan, np.nan, (np.nan, np.nan))
+        return Figure(np.nan, np.nan, np.nan, np.nan, (np.nan, np.nan), (np.nan, np.nan))
     q1, med, q3 = np.percentile(v, [25, 50, 75])
-    return Figure(float(med), float(q1), float(q3), float(v.mean()), bootstrap(v, np.median))
+    return Figure(float(med), float(q1), float(q3), float(v.mean()), bootstrap(v, np.median), bootstrap(v, np.mean))
 
 
 def of_views(flags: np.ndarray) -> Figure:
     """Fraction of views with a property (``flags (N,)`` bool)."""
     f = np.asarray(flags, np.float64)
     interval = bootstrap(f, np.mean)
-    return Figure(float(f.mean()), *interval, float(f.mean()), interval)
+    return Figure(float(f.mean()), *interval, float(f.mean()), interval, interval)
 
 
 STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats], Figure] | None]] = [
@@ -472,12 +474,14 @@ STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats],
 
 
 def verdict(ours: Figure, theirs: Figure) -> tuple[str, str]:
-    """Ratio of the centres (of the means when Blender's centre is 0), and whether ours is within 10 %
-    of Blender's or inside the 5-95 % bootstrap interval of Blender's centre."""
+    """Ratio of the centres (of the means when Blender's centre is 0, as for fractions that most views
+    have none of), and whether ours is within 10 % of Blender's or inside the 5-95 % bootstrap interval
+    of Blender's figure."""
     by_means = theirs.centre == 0
     a, b = (ours.mean, theirs.mean) if by_means else (ours.centre, theirs.centre)
+    low, high = theirs.mean_interval if by_means else theirs.interval
     ratio = a / b if b != 0 and np.isfinite(a) and np.isfinite(b) else np.nan
-    near = bool(np.isfinite(ratio) and abs(ratio - 1) <= 0.10) or theirs.interval[0] <= ours.centre <= theirs.interval[1]
+    near = bool(np.isfinite(ratio) and abs(ratio - 1) <= 0.10) or low <= a <= high
     shown = "n/a" if np.isnan(ratio) else f"{ratio:.2f}" + (" (means)" if by_means else "")
     return shown, "yes" if near else "no"
 
@@ -495,7 +499,8 @@ def table(name: str, ours: ViewStats, theirs: ViewStats) -> str:
         a, b = mine(ours), (other or mine)(theirs)
         ratio, near = verdict(a, b)
         digits = 0 if abs(b.centre) >= 10 else 3
-        interval = f"{b.interval[0]:.{digits}f} - {b.interval[1]:.{digits}f}"
+        low, high = b.mean_interval if b.centre == 0 else b.interval
+        interval = f"{low:.{digits}f} - {high:.{digits}f}" + (" (mean)" if b.centre == 0 else "")
         lines.append(f"| {label} | {show(a)} | {show(b)} | {interval} | {ratio} | {near} |")
     return "\n".join(lines)
 

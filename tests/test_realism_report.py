@@ -132,11 +132,18 @@ def test_occluders_over_painting_counts_what_the_view_sees_above_the_painting():
 
 
 def test_verdict_ratio_and_tolerance():
-    figure = lambda centre, interval=(0.0, 0.0): realism.Figure(centre, centre, centre, centre, interval)  # noqa: E731
+    def figure(centre, interval=(0.0, 0.0), mean=None, mean_interval=(0.0, 0.0)):
+        return realism.Figure(centre, centre, centre, centre if mean is None else mean, interval, mean_interval)
+
     assert realism.verdict(figure(105), figure(100)) == ("1.05", "yes")
     assert realism.verdict(figure(150), figure(100, (90, 120))) == ("1.50", "no")
     assert realism.verdict(figure(115), figure(100, (90, 120))) == ("1.15", "yes")
     assert realism.verdict(figure(0.5), figure(0.0)) == ("n/a", "no")
+    # Blender's median 0 (most views have none): the means are compared, with the mean's interval
+    assert realism.verdict(figure(0.0, mean=0.002), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
+        == ("0.15 (means)", "no")
+    assert realism.verdict(figure(0.0, mean=0.010), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
+        == ("0.77 (means)", "yes")
 
 
 def test_dark_view_fraction_and_median_over_views():
