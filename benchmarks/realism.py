@@ -1,0 +1,537 @@
+"""Realism report: statistics of our views against the paper's Blender renders of the same paintings.
+
+Reads the sequences the paper's own generator made (``--anchors DIR``: one folder per sequence with
+``0.png .. 5.png`` Cycles views, ``J-m.png`` masks, ``gt.png`` label, ``H_0_J.mat`` homographies and
+the ``source.png`` painting), renders ``--samples`` sequences of each ``--config`` preset with those
+paintings as the source (painting ``index % len``, the anchors' image size), and prints one markdown
+table per preset: each statistic per view (median and interquartile range over views) or over the set
+of views, ours beside Blender's, their ratio, and whether ours is within 10 % of Blender's or inside
+the 5-95 % bootstrap interval of Blender's figure (resampling its views).
+
+    python benchmarks/realism.py --anchors DIR --config paper_misaligned misaligned aligned --samples 12
+    python benchmarks/realism.py --anchors DIR --config paper_misaligned --set plane_metallic=[0,1]
+
+Definitions (every threshold is a named constant below):
+
+* *painting pixels*: mask 0 (the painting visible); Blender's antialiased masks are cut at 128.
+* *painting region* of view ``j``: pixels whose centre the homography ``H[j, 0]`` sends inside the
+  label's frame, shrunk by :data:`REGION_MARGIN` pixels; the occluders' part of a mask is the mask
+  within this region (outside it the masks are 1 for the background, with or without an occluder).
+* *luma*: Rec. 709 luma of the 8-bit sRGB values (0..255); *luminance*: the same weights on linear
+  light (0..1), used wherever light is compared as a ratio.
+* *cast shadow* (ours, exact): a painting pixel whose luminance is less than :data:`SHADOW_RATIO`
+  times its luminance in the render of the same scene with ``shadows=False`` (same scene, same
+  draws: only the sequence's ``shadows`` flag differs), among pixels at least :data:`MIN_LIT` bright
+  there. (Blender's and ours, estimated): the label warped into the view is the painting's albedo
+  there; the shading ratio ``view / albedo`` (luminances, both blurred by :data:`SMOOTH_SIGMA` px) is
+  compared with the light level: a quadratic in the view's pixel coordinates fitted to the log ratio,
+  refitted without the pixels well below it (the light normalisation: the unshadowed light varies
+  slowly over the painting, lights being 10-15 Blender units away from a 7-unit painting); a pixel is
+  in shadow when its ratio is below :data:`SHADOW_RATIO` times that level. Pixels blown out (luma >=
+  ``WHITE``) or with a dark albedo (below :data:`MIN_ALBEDO`) are not judged. Spot-cone edges and
+  specular washes also fall below the level, so the estimate is compared only with the estimate;
+  ours by both methods shows how far the estimate is from the truth (``docs/realism.md``).
+* *occluder coverage*: fraction of the painting region covered by the mask.
+* *occluders per view*: ours from the scene: occluders whose bounding sphere, projected into the view,
+  overlaps the painting region; ours and Blender's from the mask: 8-connected components of the mask
+  within the painting region of at least :data:`MIN_COMPONENT` pixels.
+* *edge sharpness*: at each pair of neighbouring pixels across the mask's edge inside the painting
+  region (rows and columns), the largest one-pixel luma step divided by the whole luma step across
+  :data:`EDGE_REACH` pixels each side, where that whole step is at least :data:`EDGE_CONTRAST` levels;
+  the view's figure is the median. 1 is a hard, aliased step; an edge antialiased over two pixels
+  gives about 0.5.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # run from a checkout without installing
+
+from sidar_torch.exposure import LUMA, WHITE, view_exposure  # noqa: E402
+
+DARK_MEDIAN = 50
+"""A view is *dark* when the median luma of its painting pixels is below this."""
+
+BLOWN_VIEW = 0.10
+"""A view is *blown out* when more than this fraction of its painting pixels is near-white."""
+
+BLACK_VIEW = 0.30
+"""A view is *mostly black* when more than this fraction of its painting pixels is near-black."""
+
+SHADOW_RATIO = 0.5
+"""A painting pixel is in cast shadow when its light is less than this fraction of the unshadowed light."""
+
+MIN_LIT = 0.02
+"""Least unshadowed luminance (linear, 0..1) at which a pixel's darkening is judged."""
+
+MIN_ALBEDO = 0.02
+"""Least label luminance (linear) at which the estimator judges a pixel (a ratio to black is noise)."""
+
+SMOOTH_SIGMA = 3.0
+"""Gaussian blur (pixels) of the view's and the warped label's luminance before their ratio is taken:
+the warped label is a resampling of the painting, not the renderer's own texture filtering."""
+
+LEVEL_DEGREE = 2
+"""Degree of the polynomial (in the view's pixel coordinates) fitted to the log shading ratio."""
+
+LEVEL_ITERATIONS = 4
+"""Fits of the light level, each without the pixels well below the previous fit."""
+
+LEVEL_KEEP = 0.7
+"""Pixels whose shading ratio is below this fraction of the fitted level are left out of the next fit."""
+
+MIN_JUDGED = 100
+"""Least judged pixels for a view to have an estimated cast-shadow fraction."""
+
+REGION_MARGIN = 2
+"""Pixels by which the painting region is shrunk (Blender's mask edge is antialiased and the
+renderers' coverage rules differ at the plane's border)."""
+
+MIN_COMPONENT = 30
+"""Least pixels of a mask component counted as an occluder (drops slivers at the region's edge)."""
+
+EDGE_REACH = 2
+"""Pixels each side of a mask edge over which the luma step is measured."""
+
+EDGE_CONTRAST = 24
+"""Least luma step (0..255) across a mask edge for it to be measured."""
+
+MIN_EDGES = 10
+"""Least measured edge pixels for a view to have an edge-sharpness figure."""
+
+
+# --- statistics (pure numpy) -------------------------------------------------------------------
+
+
+def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """8-bit sRGB ``(..., 3)`` uint8 to linear light float64 in [0, 1] (exact piecewise curve)."""
+    c = np.asarray(srgb, np.float64) / 255.0
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def luma(views: np.ndarray) -> np.ndarray:
+    """Rec. 709 luma ``(...)`` in 0..255 of 8-bit sRGB ``(..., 3)``."""
+    return np.asarray(views, np.float64) @ LUMA
+
+
+def luminance(views: np.ndarray) -> np.ndarray:
+    """Rec. 709 luminance ``(...)`` in linear light [0, 1] of 8-bit sRGB ``(..., 3)``."""
+    return srgb_to_linear(views) @ LUMA
+
+
+def inverse_map(H: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel of an ``size = (H, W)`` view comes from in the label frame.
+
+    Args:
+        H: ``(3, 3)`` homography mapping label-frame (view 0) pixels to this view's pixels (Kornia
+            convention: pixel centres at integers, top-left pixel at (0, 0)).
+
+    Returns:
+        ``x, y`` ``(H, W)`` float64 label-frame coordinates (NaN where the ray misses: w <= 0).
+    """
+    h, w = size
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    p = np.linalg.inv(H) @ np.stack([u.ravel(), v.ravel(), np.ones(u.size)])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x, y = np.where(p[2] > 0, p[0] / p[2], np.nan), np.where(p[2] > 0, p[1] / p[2], np.nan)
+    return x.reshape(h, w), y.reshape(h, w)
+
+
+def painting_region(H: np.ndarray, size: tuple[int, int], margin: float = REGION_MARGIN) -> np.ndarray:
+    """``(H, W)`` bool: pixels of a view that see the painting's plane within its borders, the borders
+    moved ``margin`` pixels inwards (in the view; see :func:`inverse_map` for ``H``)."""
+    h, w = size
+    x, y = inverse_map(H, size)
+    with np.errstate(invalid="ignore"):
+        region = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
+    if margin > 0:
+        region = ndimage.binary_erosion(region, iterations=int(np.ceil(margin)), border_value=0)
+    return region
+
+
+def warp_label(label: np.ndarray, H: np.ndarray) -> np.ndarray:
+    """The label ``(H, W, 3)`` uint8 seen in a view through ``H`` (label -> view, Kornia convention),
+    bilinear; ``(H, W, 3)`` float64 0..255, NaN outside the label."""
+    x, y = inverse_map(H, label.shape[:2])
+    inside = np.isfinite(x)
+    coords = np.stack([np.where(inside, y, -10.0), np.where(inside, x, -10.0)])
+    out = np.stack([ndimage.map_coordinates(label[..., c].astype(np.float64), coords, order=1, mode="constant",
+                                            cval=np.nan) for c in range(3)], axis=-1)
+    return out
+
+
+def cast_shadow_fraction(lit: np.ndarray, unshadowed: np.ndarray, painting: np.ndarray) -> float:
+    """Fraction of painting pixels in cast shadow, from a render and its ``shadows=False`` twin.
+
+    Args:
+        lit, unshadowed: ``(H, W, 3)`` uint8 sRGB renders of the same scene with and without shadows.
+        painting: ``(H, W)`` bool, True where the painting is visible (mask 0).
+    """
+    if not painting.any():
+        return float("nan")
+    y_lit, y_free = luminance(lit), luminance(unshadowed)
+    shadow = (y_free >= MIN_LIT) & (y_lit < SHADOW_RATIO * y_free)
+    return float(shadow[painting].mean())
+
+
+def smoothed(values: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Gaussian mean (sigma :data:`SMOOTH_SIGMA` px) of ``values (H, W)`` over ``valid`` pixels, and the
+    weight of valid pixels in it (0..1)."""
+    weight = ndimage.gaussian_filter(valid.astype(np.float64), SMOOTH_SIGMA)
+    total = ndimage.gaussian_filter(np.where(valid, values, 0.0), SMOOTH_SIGMA)
+    return total / np.maximum(weight, 1e-9), weight
+
+
+def light_level(log_ratio: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Unshadowed log light level at pixels ``(xs, ys)`` (in [-0.5, 0.5], fractions of the image): a
+    polynomial of degree :data:`LEVEL_DEGREE` fitted to ``log_ratio`` by least squares, refitted
+    :data:`LEVEL_ITERATIONS` times without the pixels more than :data:`LEVEL_KEEP` times below the fit
+    (shadows pull a plain fit down; highlights above it are kept)."""
+    basis = np.stack([xs**i * ys**j for i in range(LEVEL_DEGREE + 1) for j in range(LEVEL_DEGREE + 1 - i)], axis=1)
+    keep = np.ones(log_ratio.size, bool)
+    for _ in range(LEVEL_ITERATIONS):
+        coefficients = np.linalg.lstsq(basis[keep], log_ratio[keep], rcond=None)[0]
+        fit = basis @ coefficients
+        keep = log_ratio > fit + np.log(LEVEL_KEEP)
+    return fit
+
+
+def estimated_shadow_fraction(view: np.ndarray, albedo: np.ndarray, painting: np.ndarray) -> float:
+    """Fraction of judged painting pixels in cast shadow, estimated from one render and the label.
+
+    Args:
+        view: ``(H, W, 3)`` uint8 sRGB render.
+        albedo: ``(H, W, 3)`` float 0..255 sRGB, the label warped into the view (NaN off it).
+        painting: ``(H, W)`` bool, True where the painting is visible.
+
+    Returns:
+        the fraction, NaN when fewer than :data:`MIN_JUDGED` pixels can be judged.
+    """
+    valid = painting & np.isfinite(albedo).all(-1) & (luma(view) < WHITE)
+    lit, weight = smoothed(luminance(view), valid)
+    reflectance, _ = smoothed(srgb_to_linear(np.nan_to_num(albedo, nan=0.0).round()) @ LUMA, valid)
+    judged = valid & (weight > 0.5) & (reflectance >= MIN_ALBEDO) & (lit > 0)
+    if judged.sum() < MIN_JUDGED:
+        return float("nan")
+    ys, xs = np.nonzero(judged)
+    h, w = judged.shape
+    log_ratio = np.log(lit[judged] / reflectance[judged])
+    level = light_level(log_ratio, xs / w - 0.5, ys / h - 0.5)
+    return float((log_ratio < level + np.log(SHADOW_RATIO)).mean())
+
+
+def occluder_coverage(mask: np.ndarray, region: np.ndarray) -> float:
+    """Fraction of the painting region ``(H, W)`` bool covered by ``mask`` ``(H, W)`` bool (True: hidden)."""
+    return float(mask[region].mean()) if region.any() else float("nan")
+
+
+def occluder_components(mask: np.ndarray, region: np.ndarray, min_pixels: int = MIN_COMPONENT) -> int:
+    """8-connected components of ``mask & region`` with at least ``min_pixels`` pixels."""
+    labels, n = ndimage.label(mask & region, structure=np.ones((3, 3), bool))
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)[1:]
+    return int((sizes >= min_pixels).sum())
+
+
+def edge_sharpness(view: np.ndarray, mask: np.ndarray, region: np.ndarray) -> float:
+    """Median over the mask's edge pixels of the largest one-pixel luma step over the whole step
+    (see the module docstring); NaN with fewer than :data:`MIN_EDGES` measured edges.
+
+    Args:
+        view: ``(H, W, 3)`` uint8 sRGB; mask, region: ``(H, W)`` bool.
+    """
+    values = []
+    lum = luma(view)
+    for image, hidden, inside in ((lum, mask, region), (lum.T, mask.T, region.T)):
+        n = image.shape[1]
+        reach = EDGE_REACH
+        # an edge between columns x and x + 1; the profile runs from x - reach + 1 to x + reach
+        ys, xs = np.nonzero(hidden[:, :-1] != hidden[:, 1:])
+        keep = (xs - reach + 1 >= 0) & (xs + reach < n)
+        ys, xs = ys[keep], xs[keep]
+        offsets = np.arange(-reach + 1, reach + 1)
+        cols = xs[:, None] + offsets[None, :]
+        rows = np.broadcast_to(ys[:, None], cols.shape)
+        whole_region = inside[rows, cols].all(axis=1)
+        profile = image[rows, cols][whole_region]
+        total = np.abs(profile[:, -1] - profile[:, 0])
+        largest = np.abs(np.diff(profile, axis=1)).max(axis=1)
+        measured = total >= EDGE_CONTRAST
+        values.append(np.minimum(largest[measured] / total[measured], 1.0))
+    values = np.concatenate(values)
+    return float(np.median(values)) if values.size >= MIN_EDGES else float("nan")
+
+
+@dataclasses.dataclass
+class ViewStats:
+    """Per-view statistics of a set of views (each array ``(N,)``; NaN where a view has no figure)."""
+
+    median_luma: np.ndarray
+    near_white: np.ndarray
+    near_black: np.ndarray
+    shadow_exact: np.ndarray
+    shadow_estimated: np.ndarray
+    coverage: np.ndarray
+    occluders_scene: np.ndarray
+    occluders_mask: np.ndarray
+    sharpness: np.ndarray
+
+    @staticmethod
+    def concat(parts: list["ViewStats"]) -> "ViewStats":
+        return ViewStats(*(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(ViewStats)))
+
+
+def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: np.ndarray,
+                   unshadowed: np.ndarray | None = None, occluders_scene: np.ndarray | None = None) -> ViewStats:
+    """Statistics of one sequence's ``V`` views.
+
+    Args:
+        views: ``(V, H, W, 3)`` uint8 sRGB; masks: ``(V, H, W)`` bool (True: painting not visible).
+        label: ``(H, W, 3)`` uint8, the painting in view 0's frame.
+        H0: ``(V, 3, 3)`` homographies from view 0 (the label's frame) to each view, Kornia convention.
+        unshadowed: ``(V, H, W, 3)`` uint8 renders with ``shadows=False`` (ours only), else None.
+        occluders_scene: ``(V,)`` occluders over the painting per view from the scene (ours only).
+    """
+    exposure = view_exposure(views, masks)
+    nan = np.full(len(views), np.nan)
+    exact, estimated, coverage, components, sharpness = [], [], [], [], []
+    for j, (view, mask) in enumerate(zip(views, masks)):
+        region = painting_region(H0[j], view.shape[:2])
+        painting = ~mask
+        exact.append(nan[j] if unshadowed is None else cast_shadow_fraction(view, unshadowed[j], painting))
+        estimated.append(estimated_shadow_fraction(view, warp_label(label, H0[j]), painting & region))
+        coverage.append(occluder_coverage(mask, region))
+        components.append(occluder_components(mask, region))
+        sharpness.append(edge_sharpness(view, mask, region))
+    return ViewStats(exposure.median, exposure.white, exposure.black, np.array(exact), np.array(estimated),
+                     np.array(coverage), nan if occluders_scene is None else np.asarray(occluders_scene, float),
+                     np.array(components, float), np.array(sharpness))
+
+
+# --- the paper's sequences -----------------------------------------------------------------------
+
+
+def paper_to_kornia(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """A homography in the paper's pixel convention (image edges at 0 and W - 1) in Kornia's (pixel
+    centres at integers): ``S^-1 H S`` with ``S`` the map from Kornia's pixels to the paper's."""
+    h, w = size
+    S = np.array([[(w - 1) / w, 0, (w - 1) / (2 * w)], [0, (h - 1) / h, (h - 1) / (2 * h)], [0, 0, 1]])
+    return np.linalg.inv(S) @ H @ S
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"))
+
+
+def anchor_sequences(folder: Path) -> list[Path]:
+    """The sequence folders below ``folder`` (those holding a ``gt.png``), sorted by name."""
+    found = sorted(p.parent for p in folder.glob("*/gt.png"))
+    if not found:
+        raise SystemExit(f"--anchors {str(folder)!r}: no sequence folders (with gt.png) in it")
+    return found
+
+
+def anchor_stats(sequence: Path) -> ViewStats:
+    """Statistics of one of the paper generator's sequences (views ``0.png``, ``1.png``, ...)."""
+    count = len(list(sequence.glob("[0-9]*-m.png")))
+    views = np.stack([read_rgb(sequence / f"{j}.png") for j in range(count)])
+    masks = np.stack([read_rgb(sequence / f"{j}-m.png")[..., 0] >= 128 for j in range(count)])
+    size = views.shape[1:3]
+    H0 = np.stack([np.eye(3)] + [paper_to_kornia(np.loadtxt(sequence / f"H_0_{j}.mat"), size)
+                                 for j in range(1, count)])
+    return sequence_stats(views, masks, read_rgb(sequence / "gt.png"), H0)
+
+
+# --- ours ---------------------------------------------------------------------------------------
+
+
+def occluders_over_painting(scene: Any, region: np.ndarray) -> int:
+    """Occluders of one ``ViewScene`` whose bounding sphere, projected, overlaps ``region`` ``(H, W)``."""
+    ys, xs = np.nonzero(region)
+    count = 0
+    for occluder in scene.occluders:
+        centre = scene.camera.R @ occluder.position + scene.camera.t
+        radius = float(np.linalg.norm(occluder.scale))
+        if centre[2] <= radius:  # reaches behind the camera: count it if its centre is ahead
+            count += int(centre[2] > 0)
+            continue
+        u, v, _ = scene.camera.K @ centre / centre[2]
+        focal = max(scene.camera.K[0, 0], scene.camera.K[1, 1])
+        reach = focal * radius / np.sqrt(centre[2] ** 2 - radius**2) + 1
+        count += int(((xs - u) ** 2 + (ys - v) ** 2 <= reach**2).any())
+    return count
+
+
+def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tuple[ViewStats, float]:
+    """Statistics of ``samples`` sequences of ``config`` with the anchors' paintings, and seconds spent."""
+    from sidar_torch import SidarDataset
+    from sidar_torch.dataset import render_sample
+    from sidar_torch.scene import sample_sequence
+
+    dataset = SidarDataset(source=[str(p) for p in sources], config=config, seed=seed)
+    free_config = dataset.config.replace(shadows=False)
+    parts, start = [], time.perf_counter()
+    for index in range(samples):
+        rng = dataset.generator(index)
+        scene = sample_sequence(dataset.config, rng)
+        free_scene = sample_sequence(free_config, dataset.generator(index))
+        if free_scene != dataclasses.replace(scene, shadows=False):
+            raise RuntimeError(f"sample {index}: shadows=False drew a different scene")
+        painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
+        lit = render_sample(scene, painting, dataset.config, index, rng=rng)
+        free = render_sample(free_scene, painting, free_config, index, rng=dataset.generator(index))
+        if not lit["masks"].equal(free["masks"]):
+            raise RuntimeError(f"sample {index}: shadows changed the masks")
+        views, free_views = (to_uint8(s["images"]) for s in (lit, free))
+        masks = lit["masks"][:, 0].numpy() > 0.5
+        H0 = lit["homographies"][0].double().numpy()
+        regions = [painting_region(H0[j], views.shape[1:3]) for j in range(len(views))]
+        counted = [occluders_over_painting(v, r) for v, r in zip(scene.views, regions)]
+        parts.append(sequence_stats(views, masks, to_uint8(lit["label"][None])[0], H0, free_views, np.array(counted)))
+    return ViewStats.concat(parts), time.perf_counter() - start
+
+
+def to_uint8(images: Any) -> np.ndarray:
+    """``(N, 3, H, W)`` float tensors in [0, 1] to ``(N, H, W, 3)`` uint8 (exact for 8-bit renders)."""
+    return (images.permute(0, 2, 3, 1).numpy() * 255).round().astype(np.uint8)
+
+
+# --- the table ----------------------------------------------------------------------------------
+
+
+BOOTSTRAP = 2000
+"""Resamples (of views, with replacement) for the interval of a figure."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Figure:
+    """A statistic over a set of views: ``centre`` (the median over views, or the fraction of views),
+    ``low``/``high`` (interquartile range over views, or equal to the interval), ``mean``, and
+    ``interval`` and ``mean_interval``, the 5-95 % bootstrap intervals of ``centre`` and ``mean``
+    (resampling views)."""
+
+    centre: float
+    low: float
+    high: float
+    mean: float
+    interval: tuple[float, float]
+    mean_interval: tuple[float, float]
+
+
+def bootstrap(values: np.ndarray, statistic: Callable[..., np.ndarray]) -> tuple[float, float]:
+    """5-95 % interval of ``statistic(resamples, axis=1)`` over :data:`BOOTSTRAP` resamples of ``values``."""
+    rng = np.random.default_rng(0)
+    resampled = statistic(rng.choice(values, size=(BOOTSTRAP, values.size)), axis=1)
+    low, high = np.percentile(resampled, [5, 95])
+    return float(low), float(high)
+
+
+def per_view(values: np.ndarray) -> Figure:
+    """Median, interquartile range and mean over the views that have a figure (NaN dropped)."""
+    v = values[np.isfinite(values)]
+    if v.size == 0:
+        return Figure(np.nan, np.nan, np.nan, np.nan, (np.nan, np.nan), (np.nan, np.nan))
+    q1, med, q3 = np.percentile(v, [25, 50, 75])
+    return Figure(float(med), float(q1), float(q3), float(v.mean()), bootstrap(v, np.median), bootstrap(v, np.mean))
+
+
+def of_views(flags: np.ndarray) -> Figure:
+    """Fraction of views with a property (``flags (N,)`` bool)."""
+    f = np.asarray(flags, np.float64)
+    interval = bootstrap(f, np.mean)
+    return Figure(float(f.mean()), *interval, float(f.mean()), interval, interval)
+
+
+STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats], Figure] | None]] = [
+    ("median luma of painting pixels", lambda s: per_view(s.median_luma), None),
+    (f"near-white fraction (luma >= {WHITE})", lambda s: per_view(s.near_white), None),
+    ("near-black fraction (luma <= 5)", lambda s: per_view(s.near_black), None),
+    (f"dark views (median luma < {DARK_MEDIAN})", lambda s: of_views(s.median_luma < DARK_MEDIAN), None),
+    (f"blown-out views (near-white > {BLOWN_VIEW:.0%})", lambda s: of_views(s.near_white > BLOWN_VIEW), None),
+    (f"mostly black views (near-black > {BLACK_VIEW:.0%})", lambda s: of_views(s.near_black > BLACK_VIEW), None),
+    ("cast-shadow fraction (estimated from view / label)", lambda s: per_view(s.shadow_estimated), None),
+    ("cast-shadow fraction (ours exact: vs shadows=False)", lambda s: per_view(s.shadow_exact),
+     lambda s: per_view(s.shadow_estimated)),
+    ("occluder coverage of the painting region", lambda s: per_view(s.coverage), None),
+    ("views with an occluder over the painting", lambda s: of_views(s.occluders_mask > 0), None),
+    ("occluders per view (mask components)", lambda s: per_view(s.occluders_mask), None),
+    ("occluders per view (ours: scene, bounding spheres)", lambda s: per_view(s.occluders_scene),
+     lambda s: per_view(s.occluders_mask)),
+    ("edge sharpness (largest step / whole step)", lambda s: per_view(s.sharpness), None),
+]
+"""Rows: name, our figure, Blender's figure (None: the same function; else what Blender is compared with)."""
+
+
+def verdict(ours: Figure, theirs: Figure) -> tuple[str, str]:
+    """Ratio of the centres (of the means when Blender's centre is 0, as for fractions that most views
+    have none of), and whether ours is within 10 % of Blender's or inside the 5-95 % bootstrap interval
+    of Blender's figure."""
+    by_means = theirs.centre == 0
+    a, b = (ours.mean, theirs.mean) if by_means else (ours.centre, theirs.centre)
+    low, high = theirs.mean_interval if by_means else theirs.interval
+    ratio = a / b if b != 0 and np.isfinite(a) and np.isfinite(b) else np.nan
+    near = bool(np.isfinite(ratio) and abs(ratio - 1) <= 0.10) or low <= a <= high
+    shown = "n/a" if np.isnan(ratio) else f"{ratio:.2f}" + (" (means)" if by_means else "")
+    return shown, "yes" if near else "no"
+
+
+def show(f: Figure) -> str:
+    digits = 0 if abs(f.centre) >= 10 else 3
+    return f"{f.centre:.{digits}f} [{f.low:.{digits}f}, {f.high:.{digits}f}] (mean {f.mean:.{digits}f})"
+
+
+def table(name: str, ours: ViewStats, theirs: ViewStats) -> str:
+    lines = [f"### {name}: {len(ours.median_luma)} views against Blender's {len(theirs.median_luma)}", "",
+             "| statistic | ours: median [IQR] (mean) | Blender: median [IQR] (mean) | Blender's 90 % interval | "
+             "ratio | within |", "|---|---|---|---|---|---|"]
+    for label, mine, other in STATISTICS:
+        a, b = mine(ours), (other or mine)(theirs)
+        ratio, near = verdict(a, b)
+        digits = 0 if abs(b.centre) >= 10 else 3
+        low, high = b.mean_interval if b.centre == 0 else b.interval
+        interval = f"{low:.{digits}f} - {high:.{digits}f}" + (" (mean)" if b.centre == 0 else "")
+        lines.append(f"| {label} | {show(a)} | {show(b)} | {interval} | {ratio} | {near} |")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sidar_torch import load_config
+    from sidar_torch.cli import _parse_set
+
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--anchors", required=True, type=Path,
+                        help="folder of sequences from the paper's generator (one subfolder per sequence)")
+    parser.add_argument("--config", nargs="+", default=["paper_misaligned", "misaligned", "aligned"],
+                        help="presets (or YAML paths) to render")
+    parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE",
+                        help="config overrides applied to every preset (values as YAML)")
+    parser.add_argument("--samples", type=int, default=12, help="sequences rendered per preset")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+    if args.samples < 1:
+        raise SystemExit(f"--samples {args.samples}: expected at least 1")
+    sequences = anchor_sequences(args.anchors)
+    theirs = ViewStats.concat([anchor_stats(s) for s in sequences])
+    size = read_rgb(sequences[0] / "source.png").shape[:2]
+    overrides = _parse_set(args.set)
+    print(f"anchors: {len(sequences)} sequences, {len(theirs.median_luma)} views at {size[1]}x{size[0]}; "
+          f"ours: {args.samples} samples per preset, seed {args.seed}"
+          + (f", overrides {overrides}" if overrides else ""), flush=True)
+    for preset in args.config:
+        config = load_config(preset, image_size=size, **overrides)
+        ours, seconds = our_stats(config, [s / "source.png" for s in sequences], args.samples, args.seed)
+        print(f"\n{table(preset, ours, theirs)}\n\n({seconds:.0f} s for {args.samples} samples with their "
+              "shadows=False twins)", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""The realism report's statistics (``benchmarks/realism.py``), each on an image whose answer is known."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sidar_torch import geometry
+from sidar_torch.scene import Camera, Material, Occluder, ViewScene
+
+SPEC = importlib.util.spec_from_file_location("realism", Path(__file__).resolve().parent.parent / "benchmarks" / "realism.py")
+realism = sys.modules["realism"] = importlib.util.module_from_spec(SPEC)  # dataclasses look their module up
+SPEC.loader.exec_module(realism)
+
+SIZE = (96, 128)
+
+
+def encode(linear):
+    """Linear light in [0, 1] to 8-bit sRGB (exact curve)."""
+    c = np.clip(linear, 0, 1)
+    return np.round(255 * np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)).astype(np.uint8)
+
+
+def grey(level, size=SIZE):
+    return np.full((*size, 3), level, np.uint8)
+
+
+def shift(dx, dy=0.0):
+    return np.array([[1.0, 0, dx], [0, 1, dy], [0, 0, 1]])
+
+
+def test_luma_and_luminance_of_primaries():
+    colours = np.array([[255, 255, 255], [255, 0, 0], [0, 255, 0], [0, 0, 0]], np.uint8)
+    assert np.allclose(realism.luma(colours), [255, 0.2126 * 255, 0.7152 * 255, 0])
+    assert np.allclose(realism.luminance(colours), [1, 0.2126, 0.7152, 0])
+    assert np.isclose(realism.luminance(np.array([188, 188, 188], np.uint8)), 0.5, atol=0.003)  # sRGB 188 ~ half light
+
+
+def test_painting_region_follows_the_homography_and_its_margin():
+    h, w = SIZE
+    assert realism.painting_region(np.eye(3), SIZE, margin=0).all()
+    inner = realism.painting_region(np.eye(3), SIZE, margin=2)
+    assert inner[2:-2, 2:-2].all() and inner.sum() == (h - 4) * (w - 4)
+    moved = realism.painting_region(shift(10), SIZE, margin=0)  # the label lands 10 px to the right
+    assert not moved[:, :10].any() and moved[:, 10:].all()
+
+
+def test_warp_label_moves_the_label_by_the_homography():
+    label = np.random.default_rng(0).integers(0, 256, (*SIZE, 3), dtype=np.uint8)
+    warped = realism.warp_label(label, shift(5, 3))
+    assert np.array_equal(warped[3:, 5:], label[:-3, :-5])
+    assert np.isnan(warped[:3]).all() and np.isnan(warped[:, :5]).all()
+
+
+def test_paper_homographies_are_conjugated_to_pixel_centres():
+    h, w = SIZE
+    S = np.array([[(w - 1) / w, 0, (w - 1) / (2 * w)], [0, (h - 1) / h, (h - 1) / (2 * h)], [0, 0, 1]])
+    H_paper = np.array([[0.9, 0.1, 12.0], [-0.05, 1.1, -4.0], [1e-4, -2e-4, 1.0]])
+    H = realism.paper_to_kornia(H_paper, SIZE)
+    points = np.array([[-0.5, -0.5, 1], [w - 0.5, -0.5, 1], [30.0, 40.0, 1]]).T
+    ours, theirs = S @ (H @ points), H_paper @ (S @ points)
+    assert np.allclose(ours[:2] / ours[2], theirs[:2] / theirs[2])
+    assert np.allclose((S @ points)[:2, :2], [[0, w - 1], [0, 0]])  # the image's edges are 0 and W - 1 there
+
+
+def test_cast_shadow_fraction_counts_pixels_darkened_by_more_than_half():
+    unshadowed = grey(200)
+    lit = unshadowed.copy()
+    h, w = SIZE
+    lit[:, : w // 4] = encode(0.2 * realism.luminance(grey(200))[0, 0])  # to 20 % of the light: shadow
+    lit[:, w // 4: w // 2] = encode(0.6 * realism.luminance(grey(200))[0, 0])  # to 60 %: not a shadow
+    painting = np.ones(SIZE, bool)
+    assert realism.cast_shadow_fraction(lit, unshadowed, painting) == pytest.approx(0.25)
+    painting[:, w // 8: w // 4] = False  # an occluder over half the shadow
+    assert realism.cast_shadow_fraction(lit, unshadowed, painting) == pytest.approx((w // 8) / (w - w // 8))
+    assert realism.cast_shadow_fraction(grey(0), grey(0), np.ones(SIZE, bool)) == 0  # black: nothing judged dark
+
+
+def test_estimated_shadow_fraction_finds_a_shadow_under_uneven_light_on_a_texture():
+    h, w = 192, 256
+    rng = np.random.default_rng(1)
+    albedo = rng.uniform(0.2, 0.8, (h // 8, w // 8, 3)).repeat(8, 0).repeat(8, 1)  # a blocky painting
+    y, x = np.mgrid[0:h, 0:w]
+    light = 0.5 + 0.7 * x / w  # falls off across the painting by a factor 2.4
+    shadow = (x - 80) ** 2 + (y - 100) ** 2 < 40**2
+    view = encode(albedo * (light * np.where(shadow, 0.25, 1.0))[..., None])
+    label = encode(albedo).astype(np.float64)
+    painting = np.ones((h, w), bool)
+    assert realism.estimated_shadow_fraction(view, label, painting) == pytest.approx(shadow.mean(), abs=0.02)
+    no_shadow = encode(albedo * light[..., None])
+    assert realism.estimated_shadow_fraction(no_shadow, label, painting) < 0.005
+
+
+def test_occluder_coverage_and_components():
+    region = np.zeros(SIZE, bool)
+    region[10:90, 10:110] = True
+    mask = ~region  # the background
+    mask[20:40, 20:40] = True  # an occluder of 400 px
+    mask[60:70, 60:70] = True  # and one of 100 px
+    mask[50, 50] = True  # a speck below MIN_COMPONENT
+    assert realism.occluder_coverage(mask, region) == pytest.approx(501 / (80 * 100))
+    assert realism.occluder_components(mask, region) == 2
+    mask[40:60, 39] = True  # joining the first two (8-connected) makes them one
+    mask[59, 40:60] = True
+    assert realism.occluder_components(mask, region) == 1
+
+
+def test_edge_sharpness_is_one_for_a_hard_step_and_a_half_for_a_two_pixel_ramp():
+    h, w = SIZE
+    mask = np.zeros(SIZE, bool)
+    mask[:, 64:] = True
+    region = np.ones(SIZE, bool)
+    hard = grey(200)
+    hard[:, 64:] = 40
+    assert realism.edge_sharpness(hard, mask, region) == pytest.approx(1.0)
+    ramp = hard.copy()
+    ramp[:, 64] = 120  # antialiased: half the step on the edge pixel
+    assert realism.edge_sharpness(ramp, mask, region) == pytest.approx(0.5)
+    assert np.isnan(realism.edge_sharpness(grey(200), mask, region))  # no contrast, no figure
+
+
+def test_occluders_over_painting_counts_what_the_view_sees_above_the_painting():
+    camera = Camera(*geometry.reference_camera(SIZE, 0.9))
+    material = Material(np.ones(4), 0.0, 1.0)
+    above = Occluder("sphere", np.array([0.0, 0.0, 0.3]), np.eye(3), np.full(3, 0.05), material)
+    aside = Occluder("sphere", np.array([3.0, 0.0, 0.3]), np.eye(3), np.full(3, 0.05), material)
+    scene = ViewScene(camera, (), (above, aside), material, 0.0)
+    region = realism.painting_region(np.eye(3), SIZE)
+    assert realism.occluders_over_painting(scene, region) == 1
+
+
+def test_verdict_ratio_and_tolerance():
+    def figure(centre, interval=(0.0, 0.0), mean=None, mean_interval=(0.0, 0.0)):
+        return realism.Figure(centre, centre, centre, centre if mean is None else mean, interval, mean_interval)
+
+    assert realism.verdict(figure(105), figure(100)) == ("1.05", "yes")
+    assert realism.verdict(figure(150), figure(100, (90, 120))) == ("1.50", "no")
+    assert realism.verdict(figure(115), figure(100, (90, 120))) == ("1.15", "yes")
+    assert realism.verdict(figure(0.5), figure(0.0)) == ("n/a", "no")
+    # Blender's median 0 (most views have none): the means are compared, with the mean's interval
+    assert realism.verdict(figure(0.0, mean=0.002), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
+        == ("0.15 (means)", "no")
+    assert realism.verdict(figure(0.0, mean=0.010), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
+        == ("0.77 (means)", "yes")
+
+
+def test_dark_view_fraction_and_median_over_views():
+    medians = np.array([10, 40, 60, 200, np.nan])
+    assert realism.of_views(medians[:4] < realism.DARK_MEDIAN).centre == 0.5
+    figure = realism.per_view(medians)
+    assert (figure.centre, figure.low, figure.high) == (50, 32.5, 95)
