@@ -240,7 +240,8 @@ def _meets_guarantees(camera: Camera, previous: list[Camera], config: SidarConfi
 
 def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: int = 64) -> np.ndarray:
     """A camera centre drawn uniformly from the box ``|x|, |y| <= camera_xy`` (z from
-    ``camera_height``) restricted to tilts of at most ``max_tilt_deg``.
+    ``camera_height``) restricted to tilts of at most ``max_tilt_deg`` (90: no restriction; the config
+    refuses a limit the box cannot reach, so the field always shapes the draw it names).
 
     Rejection from the square ``|x|, |y| <= min(camera_xy, r)``, ``r`` the tilt disc's radius,
     accepts with probability at least pi/4; after ``attempts`` failures (probability below

@@ -32,7 +32,7 @@ def test_keyword_overrides_replace_preset_values():
 
 @pytest.mark.parametrize("field, value", [
     ("image_size", (0, 64)), ("image_size", (64,)), ("n_views", 0), ("n_lights", (3, 1)),
-    ("n_occluders", (-1, 2)), ("fov_deg", (200, 210)), ("fov_deg", (60, "wide")), ("max_tilt_deg", 90),
+    ("n_occluders", (-1, 2)), ("fov_deg", (200, 210)), ("fov_deg", (60, "wide")), ("max_tilt_deg", 90.5),
     ("light_types", ("laser",)), ("light_types", "spot"), ("occluder_shapes", ()),
     ("shadow_map_size", 1000), ("ambient", (float("nan"), 1.0)), ("aligned", "yes"),
     ("n_views", 2.5), ("plane_roughness", (0.5, 2.0)), ("light_types", {"spot", "point"}),

@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import pytest
 
 from sidar_torch import geometry
 from sidar_torch.scene import sample_sequence
@@ -36,6 +37,24 @@ def test_cameras_respect_tilt_and_fov_and_see_the_centre():
             assert 40 - 1e-9 <= fov <= 50 + 1e-9
             centre = geometry.project(c.K, c.R, c.t, np.zeros((1, 3)))[0]
             np.testing.assert_allclose(centre, [(cfg.image_size[1] - 1) / 2, (cfg.image_size[0] - 1) / 2])
+
+
+def _tilts(config, sequences=150):
+    """Tilts, in degrees, of the cameras of views 1.. of ``sequences`` sampled sequences."""
+    return np.array([math.degrees(math.acos(-view.camera.R[2][2]))
+                     for seed in range(sequences)
+                     for view in sample_sequence(config, np.random.default_rng(seed)).views[1:]])
+
+
+def test_max_tilt_deg_moves_the_tilt_distribution_or_says_which_fields_to_move():
+    wide = small_config(camera_xy=5.0, camera_height=(0.5, 1.0), n_occluders=(0, 0), n_lights=(0, 0))
+    highest = {cap: _tilts(wide.replace(max_tilt_deg=cap), 40).max() for cap in (30, 60, 85)}
+    assert 25 < highest[30] <= 30 and 55 < highest[60] <= 60 and 80 < highest[85] <= 85
+    # The default box tilts at most atan(sqrt(2)) = 54.7 deg: a larger limit would change nothing, so it is
+    # refused naming the fields that reach it; the default (90) limits nothing, as the box alone decides.
+    with pytest.raises(ValueError, match=r"max_tilt_deg.*54\.74 deg.*raise camera_xy or lower camera_height"):
+        small_config(max_tilt_deg=89.9)
+    assert 45 < _tilts(small_config(), 60).max() <= math.degrees(math.atan(math.sqrt(2)))
 
 
 def test_point_and_area_lights_cover_the_whole_painting():

@@ -83,7 +83,11 @@ class SidarConfig:
         "range of camera z (distance above the painting's plane)."))
     fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
         "range of the field of view across the longer image side, for views 1..V-1."))
-    max_tilt_deg: float = _field(60.0, meaning="largest angle between a camera's axis and the painting's normal.")
+    max_tilt_deg: float = _field(90.0, meaning=(
+        "largest angle between a camera's axis and the painting's normal: cameras are drawn from the "
+        "``camera_xy`` x ``camera_height`` box, then limited to this tilt (90: no limit). The box itself "
+        "tilts at most ``atan(sqrt(2) camera_xy / camera_height[0])`` (54.7 deg by default), so a larger "
+        "value is refused: for grazing views raise ``camera_xy`` or lower ``camera_height``."))
     min_coverage: float = _field(0.0, meaning=(
         "least fraction of each view's pixels that see the painting (cameras are redrawn until it holds; see "
         "``sidar_torch.scene``)."))

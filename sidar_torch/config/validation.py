@@ -17,6 +17,12 @@ from .numbers import as_float, as_int
 __all__ = ["check_names", "coerce", "validate"]
 
 
+def box_tilt_limit_deg(camera_xy: float, lowest_height: float) -> float:
+    """The steepest tilt, in degrees, of a camera drawn from the box ``|x|, |y| <= camera_xy`` at heights
+    ``>= lowest_height``: at a corner of the square at the lowest height, ``atan(sqrt(2) camera_xy / z)``."""
+    return math.degrees(math.atan2(math.sqrt(2) * camera_xy, lowest_height))
+
+
 def coerce(f: dataclasses.Field, value: Any) -> Any:
     """``value`` in the type of field ``f``: lists become tuples, numbers (Python, NumPy, 0-d torch)
     plain ``int`` or ``float`` as the field's type asks.
@@ -67,7 +73,12 @@ def validate(config: Any) -> None:
          f"(H, W) with H, W <= {MAX_GL_SIZE} (the largest renderbuffer side of Mesa's llvmpipe)")
     need(c.n_views >= 1, "n_views", "at least 1")
     need(c.camera_xy >= 0, "camera_xy", ">= 0")
-    need(c.max_tilt_deg >= 0 and c.max_tilt_deg < 90, "max_tilt_deg", "0 <= max_tilt_deg < 90")
+    need(0 <= c.max_tilt_deg <= 90, "max_tilt_deg", "0 <= max_tilt_deg <= 90 (90: no limit)")
+    reach = box_tilt_limit_deg(c.camera_xy, c.camera_height[0])
+    need(c.max_tilt_deg == 90 or c.max_tilt_deg <= reach, "max_tilt_deg",
+         f"at most {reach:.4g} deg, the steepest tilt of the camera box (x, y within camera_xy={c.camera_xy:.4g} "
+         f"at heights from camera_height[0]={c.camera_height[0]:.4g}); raise camera_xy or lower camera_height "
+         f"for grazing views, or set 90 for no limit")
     need(c.light_xy >= 0, "light_xy", ">= 0")
     need(c.occluder_xy >= 0, "occluder_xy", ">= 0")
     need(0 <= c.min_coverage <= 1, "min_coverage", "a fraction in [0, 1]")
