@@ -1,6 +1,7 @@
 """Export and its reader: byte-identical round trips, both layouts, resuming after a crash or a kill,
 refusing to mix settings, the command line."""
 
+import json
 import os
 import signal
 import subprocess
@@ -19,6 +20,9 @@ from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_conf
 from sidar_torch import cli
 from sidar_torch import export as export_module
 from sidar_torch.dataset import sequence_homographies
+
+import export_digests
+from stored_digests import gl_renderer
 
 TINY = {"image_size": (24, 32), "n_views": 2, "shadow_map_size": 256}
 SEQUENCE_FILES = {"0.png", "1.png", "0-m.png", "1-m.png", "gt.png", "H_0_1.mat", "H_1_0.mat", "cameras.json"}
@@ -261,3 +265,19 @@ def test_every_command_line_option_has_help():
     with pytest.raises(SystemExit) as exit_info:
         cli.main(["export", "--help"])
     assert exit_info.value.code == 0
+
+
+def test_exported_files_match_the_digests_recorded_on_main():
+    """Every file of a folder and a shard export (opacities on) is byte-identical to what the
+    export of ``main`` wrote before the writers moved into ``sidar_torch/io/`` (see
+    ``export_digests.py``); pixel files only where the rasteriser is the recorded one."""
+    stored = json.loads(export_digests.STORE.read_text())
+    now = export_digests.current_digests()
+    same_rasteriser = gl_renderer() == stored["gl_renderer"]  # after rendering: it asks the current context
+    for layout, expected in stored["exports"].items():
+        assert sorted(now[layout]) == sorted(expected), f"{layout}: other files or entries than on main"
+        for name, digest in expected.items():
+            if same_rasteriser or not export_digests.is_pixel_file(name):
+                assert now[layout][name] == digest, f"{layout}: {name} differs from main's"
+    if not same_rasteriser:
+        pytest.skip(f"pixel files not compared: recorded on {stored['gl_renderer']!r}, this is {gl_renderer()!r}")
