@@ -9,7 +9,7 @@
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .dataset import SidarDataset
-from .export import ExportedDataset, export_dataset
+from .io import ExportedDataset, export_dataset
 from .pairs import homography_pairs
 
 __all__ = [
