@@ -24,6 +24,7 @@ import yaml
 
 __all__ = [
     "BACKGROUNDS",
+    "GEOMETRY_DTYPES",
     "LIGHT_TYPES",
     "OCCLUDER_MATERIALS",
     "MESH_DETAILS",
@@ -52,6 +53,7 @@ BACKGROUNDS = ("black", "view", "sequence")
 SHADOW_FRUSTA = ("cone", "fitted")
 MESH_DETAILS = ("fixed", "auto")
 TEXTURE_FILTERS = ("trilinear", "bilinear")
+GEOMETRY_DTYPES = ("float32", "float64")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -64,6 +66,9 @@ class SidarConfig:
     Output
         image_size: ``(H, W)`` of every view, mask and label, in pixels.
         n_views: number of views ``V`` per sample; view 0 is the fronto-parallel reference.
+        geometry_dtype: dtype of the handed-out ``homographies``, ``K``, ``R`` and ``t``: ``"float32"``
+            or ``"float64"`` (computed in float64 either way; chaining homographies, e.g. ``H[k, j] @ H[i, k]``
+            at grazing views, needs float64).
 
     Cameras
         aligned: every view through the reference camera (all homographies identity).
@@ -155,6 +160,7 @@ class SidarConfig:
 
     image_size: tuple[int, int] = (384, 512)
     n_views: int = 6
+    geometry_dtype: str = "float32"
 
     aligned: bool = False
     camera_xy: float = 5 / 7
@@ -285,6 +291,7 @@ def _validate(c: SidarConfig) -> None:
 
     need(all(s >= 1 for s in c.image_size), "image_size", "(H, W) with H, W >= 1")
     need(c.n_views >= 1, "n_views", "at least 1")
+    need(c.geometry_dtype in GEOMETRY_DTYPES, "geometry_dtype", f"one of {GEOMETRY_DTYPES}")
     need(c.camera_xy >= 0, "camera_xy", ">= 0")
     need(c.max_tilt_deg >= 0 and c.max_tilt_deg < 90, "max_tilt_deg", "0 <= max_tilt_deg < 90")
     need(c.light_xy >= 0, "light_xy", ">= 0")
