@@ -97,7 +97,7 @@ class SidarDataset(IterableDataset):
     def sample(self, index: int) -> dict[str, Any]:
         """Render sample ``index`` (a pure function of ``(seed, index)``): the dict of
         :data:`sidar_torch.sample.KEYS`."""
-        return self.sample_arrays(index).to_tensors()
+        return self.sample_arrays(index).to_tensors(self.config.geometry_dtype)
 
     def sample_arrays(self, index: int) -> SampleArrays:
         """Render sample ``index`` as the arrays :meth:`sample` converts to tensors (8-bit pixels,

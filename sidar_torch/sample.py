@@ -242,4 +242,4 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     (timed as ``"tensors"``): the sample dict of :data:`KEYS`."""
     arrays = render_arrays(sequence, painting, config, index, timings, rng)
     with timed(timings, "tensors"):
-        return arrays.to_tensors()
+        return arrays.to_tensors(config.geometry_dtype)

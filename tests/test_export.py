@@ -279,3 +279,15 @@ def test_reader_names_the_field_a_damaged_file_breaks(tmp_path):
     Image.new("RGB", (32, 24)).save(tmp_path / "000000" / "0-m.png")
     with pytest.raises(ValueError, match=r"SampleArrays\.masks: expected shape \(2, 24, 32\) uint8, got \(2, 24, 32"):
         ExportedDataset(tmp_path)[0]
+
+
+@pytest.mark.parametrize("shards", [None, 2])
+def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, shards):
+    ds = tiny_dataset(seed=6, geometry_dtype="float64")
+    export_dataset(ds, tmp_path, count=2, shards=shards, progress=False)
+    read = ExportedDataset(tmp_path)
+    assert read.config["geometry_dtype"] == "float64"
+    for k in range(2):
+        sample = read[k]
+        assert sample["homographies"].dtype == torch.float64 and sample["K"].dtype == torch.float64
+        assert_same_sample(sample, ds.sample(k))

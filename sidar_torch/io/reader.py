@@ -29,8 +29,9 @@ class ExportedDataset(Dataset):
     is its dataset index). Each item is rebuilt as the :class:`sidar_torch.sample.SampleArrays`
     the export wrote and converted by the same :meth:`~sidar_torch.sample.SampleArrays.to_tensors`
     as :meth:`SidarDataset.sample`, so for the same seed, config and source it is that sample bit
-    for bit (keys, shapes, dtypes: the table :data:`sidar_torch.sample.KEYS`). Reads both layouts;
-    works in DataLoader workers.
+    for bit (keys, shapes, dtypes: the table :data:`sidar_torch.sample.KEYS`; geometry in the
+    recorded config's ``geometry_dtype``, from the float64 files). Reads both layouts; works in
+    DataLoader workers.
 
     Args:
         path: the export folder.
@@ -73,4 +74,4 @@ class ExportedDataset(Dataset):
         else:
             read, layout = partial(_read_entry, where), shards
         arrays = sample_from_entries(read, index, self.config, partial(layout.read_homographies, read))
-        return arrays.to_tensors()
+        return arrays.to_tensors(self.config.get("geometry_dtype", "float32"))
