@@ -13,7 +13,7 @@ from . import render  # noqa: F401  (sets PYOPENGL_PLATFORM, LP_NUM_THREADS befo
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .dataset import SidarDataset
-from .export import ExportedDataset, export_dataset
+from .io import ExportedDataset, export_dataset
 from .pairs import homography_pairs
 
 __all__ = [

@@ -25,7 +25,7 @@ import torch
 import torch.nn.functional as F
 
 from . import geometry
-from .dataset import sequence_homographies
+from .sample import sequence_homographies
 from .scene import SceneSequence
 
 __all__ = [
@@ -239,7 +239,7 @@ class HomographyError:
 
 
 def homography_errors(sequence: SceneSequence, grid: int = 17) -> HomographyError:
-    """Compare a sequence's homographies (as :func:`sidar_torch.dataset.sequence_homographies`
+    """Compare a sequence's homographies (as :func:`sidar_torch.sample.sequence_homographies`
     computes them) with the analytic plane-induced ones at the painting points of a
     ``grid x grid`` lattice that both views of a pair see."""
     H64, _ = sequence_homographies(sequence)

@@ -2,7 +2,7 @@
 
 An ``nn.Module`` in the style of ``kornia.augmentation``: each image of a batch becomes the
 painting of its own random scene, rendered exactly as :class:`sidar_torch.SidarDataset` renders
-a sample (both call :func:`sidar_torch.dataset.render_sample`), and the samples come back batched
+a sample (both assemble it with :mod:`sidar_torch.sample`), and the samples come back batched
 on the input's device.
 
 >>> aug = SidarAugment("misaligned", n_views=3, image_size=(96, 128), seed=0)
@@ -21,17 +21,14 @@ import torch
 from torch import nn
 
 from .config import SidarConfig, load_config
-from .dataset import _check_int, render_sample
+from .dataset import _check_int
+from .sample import render_sample, stack_samples
 from .scene import SceneSequence, sample_sequence
 from .sources import CROP_MODES, TensorPaintings
 
 __all__ = ["SidarAugment"]
 
 Generator = torch.Generator | np.random.Generator
-
-_TENSOR_KEYS = ("images", "masks", "opacities", "label", "homographies", "K", "R", "t")
-"""Keys batched by stacking (``opacities`` only when the config asks for them)."""
-
 
 class SidarAugment(nn.Module):
     """Render every image of a batch as the painting of a random SIDAR scene.
@@ -72,20 +69,12 @@ class SidarAugment(nn.Module):
     this process's shared renderer; no gradient flows back to ``images``. For throughput on
     fixed data, :class:`sidar_torch.SidarDataset` in DataLoader workers renders in parallel.
 
-    Output. A dict with the keys of a :class:`sidar_torch.SidarDataset` sample, batched, on the
-    input's device (``V = n_views``, ``H x W = image_size``):
-
-    - ``images`` ``(B, V, 3, H, W)`` float32 in [0, 1]; view 0 is the reference camera.
-    - ``masks`` ``(B, V, 1, H, W)`` float32 in {0, 1}: 1 where the painting is not visible.
-    - ``opacities`` ``(B, V, 1, H, W)`` float32 in [0, 1], only with ``opacity_output=True``: the
-      fraction of the painting hidden at each pixel (see ``SidarDataset``).
-    - ``label`` ``(B, 3, H, W)`` float32: the painting in view 0's frame, unlit, unoccluded.
-    - ``homographies`` ``(B, V, V, 3, 3)`` float32: ``[b, i, j]`` maps view-i pixels to view-j
-      pixels (Kornia convention, det = 1).
-    - ``K``, ``R`` ``(B, V, 3, 3)`` and ``t`` ``(B, V, 3)`` float32: the cameras (OpenCV frame).
-    - ``homography_error`` ``(B,)`` float32 (not float64 as a DataLoader would collate the
-      dataset's floats, so that every device can hold it): pixels, see ``SidarDataset``.
-    - ``index`` ``(B,)`` int64: each image's position in the batch.
+    Output. A dict with the keys of a :class:`sidar_torch.SidarDataset` sample (the table
+    :data:`sidar_torch.sample.KEYS`), batched by :func:`sidar_torch.sample.stack_samples`, on the
+    input's device: every tensor with a leading ``B`` (``images`` ``(B, V, 3, H, W)``, ...),
+    ``homography_error`` ``(B,)`` float32 (not float64 as a DataLoader would collate the dataset's
+    floats, so that every device can hold it) and ``index`` ``(B,)`` int64, each image's position
+    in the batch.
     """
 
     def __init__(self, config: SidarConfig | str | os.PathLike | None = "misaligned", *,
@@ -136,10 +125,7 @@ class SidarAugment(nn.Module):
             render_sample(sample_sequence(self.config, rng), paintings.painting(b, size), self.config, b, rng=rng)
             for b, rng in enumerate(self._scene_rngs(len(cpu), generator))
         ]
-        batch = {key: torch.stack([s[key] for s in samples]) for key in _TENSOR_KEYS if key in samples[0]}
-        batch["homography_error"] = torch.tensor([s["homography_error"] for s in samples], dtype=torch.float32)
-        batch["index"] = torch.arange(len(samples), dtype=torch.int64)
-        return {key: value.to(images.device) for key, value in batch.items()}
+        return {key: value.to(images.device) for key, value in stack_samples(samples).items()}
 
     def _scene_rngs(self, batch_size: int, generator: Generator | None) -> list[np.random.Generator]:
         if generator is None and self.seed is not None:

@@ -5,7 +5,7 @@ In one process and one run, for every preset and output size it measures:
 * **main process**: seconds per sequence (median over the measured samples; one warm-up sample
   before them, which compiles shaders, is reported on its own), sequences/s, views/s, and where
   the time goes: the median seconds of each step (:data:`STEPS`), from the ``timings``
-  instrumentation of :func:`sidar_torch.dataset.render_sample` and the renderer;
+  instrumentation of :func:`sidar_torch.sample.render_sample` and the renderer;
 * **DataLoader** with ``w`` workers (default fork start method): steady-state sequences/s over
   the same samples as the main process. Worker ``k`` first makes a warm-up sample (start-up,
   shader compilation), then samples ``k, k + w, ...``, and stamps each with its clock when made.
@@ -44,7 +44,8 @@ import torch
 from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
 from .config import SidarConfig, available_presets, load_config
-from .dataset import SidarDataset, render_sample
+from .dataset import SidarDataset
+from .sample import render_sample
 from .render import renderer_options, shared_renderer
 from .scene import sample_sequence
 from .timing import timed

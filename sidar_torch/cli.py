@@ -15,6 +15,7 @@ from PIL import Image
 
 from .config import available_presets, load_config
 from .dataset import SidarDataset
+from .io.layout import pixel_entries_text
 from .preview import contact_sheet
 
 __all__ = ["main"]
@@ -104,7 +105,7 @@ def _bench(args: argparse.Namespace) -> None:
 
 
 def _export(args: argparse.Namespace) -> None:
-    from .export import export_dataset
+    from .io import export_dataset
 
     try:
         config = load_config(args.config, **_parse_set(args.set))
@@ -206,8 +207,8 @@ def _parser() -> argparse.ArgumentParser:
     export = commands.add_parser(
         "export", help="write a frozen dataset: the paper's files per sequence, or tar shards (resumable)",
         description="Render sequences START .. START+COUNT-1 and write them to OUT in the SIDAR paper's "
-                    "layout: a folder per sequence with <i>.png (views), <i>-m.png (masks, 255 = painting "
-                    "not visible), <i>-o.png (opacities, with opacity_output), gt.png (label), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
+                    f"layout: a folder per sequence with the 8-bit PNGs {pixel_entries_text()} (masks: 255 = "
+                    "painting not visible), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
                     "variable H) and cameras.json (K, R, t, image size, homography error); export.json and "
                     "config.yaml at the top. Each sequence appears at once (written to a temporary folder, "
                     "then renamed); rerunning the same command resumes where an interrupted run stopped. "
@@ -218,8 +219,8 @@ def _parser() -> argparse.ArgumentParser:
     _dataset_options(export)
     export.add_argument("--shards", type=int, default=None, metavar="PER_SHARD",
                         help="write WebDataset-style tar shards shard-00000.tar, ... of PER_SHARD sequences "
-                             "each (entries <i>.0.png, <i>.0-m.png, <i>.gt.png, <i>.homographies.npy, "
-                             "<i>.cameras.json) instead of one folder per sequence")
+                             "each (entries <i>.<file> for the PNGs and cameras.json of a sequence folder, and "
+                             "<i>.homographies.npy) instead of one folder per sequence")
     export.add_argument("--workers", type=int, default=0,
                         help="render in this many DataLoader worker processes (default 0: in this process)")
     export.add_argument("--no-progress", action="store_true", help="do not print the progress line on stderr")

@@ -15,87 +15,12 @@ import numpy as np
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
-from . import geometry
-from .artifacts import apply_effects, draw_effects
 from .config import SidarConfig, load_config
-from .render import renderer_options, shared_renderer
+from .sample import SampleArrays, render_arrays
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
-from .timing import timed
 
-__all__ = ["SidarDataset", "render_sample", "sequence_homographies"]
-
-
-def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
-    """Every pairwise homography of a sequence and a bound on its error.
-
-    Four points of the painting's plane in front of every camera (:func:`sidar_torch.geometry.fit_points`)
-    are projected with each camera in float64 and Kornia's DLT fits every ordered pair (see
-    :func:`sidar_torch.geometry.homographies_from_points`).
-
-    Returns:
-        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in view-j pixels
-        between where they and the analytic plane-induced homographies send the painting points
-        both views of a pair see (a 17 x 17 lattice, :func:`sidar_torch.geometry.visible_plane_points`):
-        the DLT is exact at its own four points, so the error shows elsewhere.
-    """
-    K, R, t = sequence.cameras()
-    centres = np.stack([view.camera.position for view in sequence.views])
-    H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.fit_points(centres)))
-    pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
-    truth = geometry.plane_induced_homographies(K, R, t)
-    return H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))
-
-
-def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> dict[str, Any]:
-    """Render ``sequence`` with ``painting`` and assemble one sample dict (see :class:`SidarDataset`).
-
-    The one place where a sample is put together: :meth:`SidarDataset.sample` and
-    :class:`sidar_torch.SidarAugment` both call it.
-
-    Args:
-        sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
-        painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer's settings (image size, shadow-map size and filter,
-            ``opacity_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
-            exposure, noise, JPEG; off by default).
-        index: stored as the sample's ``index``.
-        timings: if given, seconds spent are added to its keys: the renderer's steps (see
-            :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on), ``"homographies"`` and ``"tensors"`` (conversion of the pixels to float tensors).
-        rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
-            when ``config`` switches an effect on (``ValueError`` otherwise).
-
-    Returns:
-        The sample dict of CPU tensors (``images``, ``masks``, ``opacities`` if
-        ``config.opacity_output``, ``label``, ``homographies``, ``K``, ``R``, ``t`` float32),
-        ``homography_error`` (float) and ``index`` (int).
-    """
-    effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
-    rendered = renderer.render(sequence, painting, timings, opacities=config.opacity_output)
-    K, R, t = sequence.cameras()
-    views = rendered.views
-    if effects is not None:
-        with timed(timings, "effects"):
-            views = apply_effects(views, rendered.background, effects)
-    with timed(timings, "homographies"):
-        homographies, homography_error = sequence_homographies(sequence)
-    with timed(timings, "tensors"):
-        return {
-            "images": torch.from_numpy(views).permute(0, 3, 1, 2).float().div_(255),
-            "masks": torch.from_numpy(rendered.masks).unsqueeze(1).float(),
-            **({} if rendered.opacities is None else
-               {"opacities": torch.from_numpy(rendered.opacities).unsqueeze(1).float().div_(255)}),
-            "label": torch.from_numpy(rendered.label).permute(2, 0, 1).float().div_(255),
-            "homographies": homographies.float(),
-            "homography_error": homography_error,
-            "K": torch.from_numpy(K).float(),
-            "R": torch.from_numpy(R).float(),
-            "t": torch.from_numpy(t).float(),
-            "index": index,
-        }
+__all__ = ["SidarDataset"]
 
 
 def _check_int(name: str, value: Any, low: int) -> int:
@@ -125,25 +50,9 @@ class SidarDataset(IterableDataset):
             across all DataLoader workers and distributed ranks.
         crop: how paintings are fitted to the output aspect, ``"center"`` or ``"none"``.
 
-    Each sample is a dict (``V`` views of ``H x W`` pixels):
-
-    - ``images`` ``(V, 3, H, W)`` float32 in [0, 1]: the views; view 0 is the reference camera.
-    - ``masks`` ``(V, 1, H, W)`` float32 in {0, 1}: 1 where the painting is not visible.
-    - ``opacities`` ``(V, 1, H, W)`` float32 in [0, 1], only with ``config.opacity_output``: the
-      fraction of the painting hidden at each pixel, a soft ``masks``: 1 off the painting and
-      behind opaque occluders, 0 where the painting is seen unobstructed, and
-      ``1 - prod_k (1 - a_k)`` where transparent occluders ``k`` cover it, ``a_k`` the opacity
-      the view blends them with (material alpha raised by Fresnel towards grazing views; their
-      highlights, which also hide the painting in ``images``, are left out). Every visible
-      occluder counts, whatever ``mask_min_opacity`` is; values are multiples of 1/255.
-    - ``label`` ``(3, H, W)`` float32 in [0, 1]: the painting in view 0's frame, unlit, unoccluded.
-    - ``homographies`` ``(V, V, 3, 3)`` float32: ``H[i, j]`` maps view-i pixels to view-j pixels
-      (Kornia convention, det = 1).
-    - ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float32: intrinsics in pixels and
-      world-to-camera pose (OpenCV frame); world point ``X`` lands at ``K (R X + t)``.
-    - ``homography_error`` float: largest disagreement, in pixels at the four fitted points, between
-      the float64 homographies (Kornia DLT) and the analytic plane-induced ones.
-    - ``index`` int: the sample's index.
+    Each sample is a dict of CPU tensors and numbers: the views, their occlusion masks, the label,
+    every pairwise homography and the cameras. Its keys, with their shapes, dtypes, meanings and
+    when each is present, are the table :data:`sidar_torch.sample.KEYS`.
 
     Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
     created at the first sample: each DataLoader worker makes its own and reuses it.
@@ -186,11 +95,17 @@ class SidarDataset(IterableDataset):
         return sample_sequence(self.config, self.generator(index))
 
     def sample(self, index: int) -> dict[str, Any]:
-        """Render sample ``index`` (a pure function of ``(seed, index)``); see the class docstring."""
+        """Render sample ``index`` (a pure function of ``(seed, index)``): the dict of
+        :data:`sidar_torch.sample.KEYS`."""
+        return self.sample_arrays(index).to_tensors(self.config.geometry_dtype)
+
+    def sample_arrays(self, index: int) -> SampleArrays:
+        """Render sample ``index`` as the arrays :meth:`sample` converts to tensors (8-bit pixels,
+        float64 geometry; what export writes)."""
         rng = self.generator(index)
         sequence = sample_sequence(self.config, rng)
         painting = self.source.painting(index % len(self.source), self.config.image_size)
-        return render_sample(sequence, painting, self.config, index, rng=rng)
+        return render_arrays(sequence, painting, self.config, index, rng=rng)
 
     def indices(self) -> Iterator[int]:
         """The indices this process draws: ``k, k + n, k + 2n, ...`` (below ``length`` if finite)

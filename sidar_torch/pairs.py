@@ -194,13 +194,9 @@ def _crop(images: torch.Tensor, u0: torch.Tensor, v0: torch.Tensor, patch: tuple
 def _check_batch(batch: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, bool]:
     if not isinstance(batch, Mapping):
         raise TypeError(f"batch: expected a dict with images, masks and homographies, got {type(batch).__name__}")
-    for key in ("images", "masks", "homographies"):
-        if key not in batch:
-            raise KeyError(f"batch: missing key {key!r} (needs images, masks, homographies)")
-        if not isinstance(batch[key], torch.Tensor) or not batch[key].is_floating_point():
-            raise ValueError(f"batch[{key!r}]: expected a float tensor, got {type(batch[key]).__name__}"
-                             f"{'' if not isinstance(batch[key], torch.Tensor) else ' of ' + str(batch[key].dtype)}")
-    images, masks, homographies = batch["images"], batch["masks"], batch["homographies"]
+    images = _float_tensor(batch, "images")
+    masks = _float_tensor(batch, "masks")
+    homographies = _float_tensor(batch, "homographies")
     single = images.ndim == 4
     if single:
         images, masks, homographies = images[None], masks[None], homographies[None]
@@ -221,6 +217,17 @@ def _check_batch(batch: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, 
         raise ValueError("batch: images, masks and homographies must be on one device, got "
                          f"{images.device}, {masks.device}, {homographies.device}")
     return images, masks, homographies, single
+
+
+def _float_tensor(batch: Mapping[str, Any], key: str) -> torch.Tensor:
+    """``batch[key]``, checked to be a float tensor (a sample key: see :data:`sidar_torch.sample.KEYS`)."""
+    if key not in batch:
+        raise KeyError(f"batch: missing key {key!r} (needs images, masks, homographies)")
+    value = batch[key]
+    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
+        raise ValueError(f"batch[{key!r}]: expected a float tensor, got {type(value).__name__}"
+                         f"{'' if not isinstance(value, torch.Tensor) else ' of ' + str(value.dtype)}")
+    return value
 
 
 def _check_count(name: str, value: Any) -> int:

@@ -14,7 +14,8 @@ def contact_sheet(samples: Sequence[dict[str, Any]], thumb_width: int = 256, gap
     """Lay out samples, two rows each: ``label, view 0 .. V-1`` above ``-, mask 0 .. V-1``.
 
     Args:
-        samples: sample dicts as ``SidarDataset.sample`` returns them (same size and ``V``).
+        samples: sample dicts (:data:`sidar_torch.sample.KEYS`; ``label``, ``images`` and ``masks``
+            are shown), all of one size and ``V``.
         thumb_width: width of each tile in pixels (height keeps the aspect ratio).
         gap: white space between tiles, pixels.
 

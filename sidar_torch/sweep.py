@@ -62,7 +62,8 @@ from .accuracy_report import label_row
 from .artifacts import linear_to_srgb, srgb_to_linear
 from .bench import DEFAULT_PRESET, check_sizes
 from .config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
-from .dataset import SidarDataset, sequence_homographies
+from .dataset import SidarDataset
+from .sample import sequence_homographies
 from .render import SceneRenderer
 from .scene import SceneSequence
 

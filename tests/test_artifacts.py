@@ -13,7 +13,7 @@ from PIL import Image
 
 from sidar_torch import SidarAugment, SidarDataset, geometry
 from sidar_torch.artifacts import ViewEffects, apply_effects, draw_effects, linear_to_srgb, srgb_to_linear
-from sidar_torch.dataset import render_sample
+from sidar_torch.sample import render_sample
 from sidar_torch.render import shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 

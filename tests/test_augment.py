@@ -7,7 +7,7 @@ import torch
 from kornia.geometry.transform import get_perspective_transform, warp_perspective
 
 from sidar_torch import SidarAugment, SidarDataset, homography_pairs
-from sidar_torch.dataset import sequence_homographies
+from sidar_torch.sample import sequence_homographies
 from sidar_torch.sources import ProceduralPaintings
 
 from conftest import small_config

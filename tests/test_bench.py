@@ -10,7 +10,7 @@ import torch
 
 from sidar_torch import bench, load_config
 from sidar_torch.cli import main
-from sidar_torch.dataset import render_sample
+from sidar_torch.sample import render_sample
 from sidar_torch.scene import sample_sequence
 from sidar_torch.timing import timed
 

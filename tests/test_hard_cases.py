@@ -4,7 +4,7 @@ Every homography is checked where it matters: at painting points that both views
 of both cameras, inside both images), in pixels of the target view, against where the two
 cameras project the same 3-D point (``geometry.project``), and against the analytic
 plane-induced homography ``K_j (R - t n^T / d) K_i^{-1}``. It is computed the way the dataset
-computes it (``dataset.sequence_homographies`` on a ``SceneSequence``: Kornia's DLT on four
+computes it (``sample.sequence_homographies`` on a ``SceneSequence``: Kornia's DLT on four
 projected plane points, det = 1).
 
 Targets and what was measured (``python tests/test_hard_cases.py`` prints the figures):
@@ -33,7 +33,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sidar_torch import geometry, load_config
-from sidar_torch.dataset import sequence_homographies
+from sidar_torch.sample import sequence_homographies
 from sidar_torch.scene import Camera, Material, SceneSequence, ViewScene, sample_sequence
 
 TARGET_PX = 1e-6
@@ -187,7 +187,7 @@ def check_pairs(cams, size, relative: bool = False, n: int = 15) -> dict:
             worst["analytic"] = max(worst["analytic"], float(analytic.max()))
             worst["floor"] = max(worst["floor"], float(floor.max()))
             worst["points"] += len(X)
-    if not relative:  # the dataset's own figure, at the four fit points
+    if not relative:  # the dataset's own figure, on a 17 x 17 lattice of shared points
         assert dataset_error <= TARGET_PX
     return worst
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 __all__ = [
-    "BACKGROUNDS", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
+    "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
 ]
 
@@ -16,6 +16,7 @@ BACKGROUNDS = ("black", "view", "sequence")
 SHADOW_FRUSTA = ("cone", "fitted")
 MESH_DETAILS = ("fixed", "auto")
 TEXTURE_FILTERS = ("trilinear", "bilinear")
+GEOMETRY_DTYPES = ("float32", "float64")
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""

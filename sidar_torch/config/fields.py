@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .allowed import (BACKGROUNDS, LIGHT_TYPES, MAX_GL_SIZE, MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES,
-                      ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
+                      ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, GEOMETRY_DTYPES)
 from .validation import check_names, coerce, validate
 
 __all__ = ["SidarConfig", "field_meaning"]
@@ -75,6 +75,10 @@ class SidarConfig:
         f"``(H, W)`` of every view, mask and label, in pixels; each at most {MAX_GL_SIZE} (the largest "
         "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``)."))
     n_views: int = _field(6, meaning="number of views ``V`` per sample; view 0 is the fronto-parallel reference.")
+    geometry_dtype: str = _field("float32", choices=GEOMETRY_DTYPES, meaning=(
+        "dtype of the handed-out ``homographies``, ``K``, ``R`` and ``t``: ``\"float32\"`` or ``\"float64\"`` "
+        "(computed in float64 either way; chaining homographies, e.g. ``H[k, j] @ H[i, k]`` at grazing views, "
+        "needs float64)."))
 
     # Cameras
     aligned: bool = _field(False, meaning="every view through the reference camera (all homographies identity).")

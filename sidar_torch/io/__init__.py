@@ -1,0 +1,40 @@
+"""Export: freeze a :class:`~sidar_torch.SidarDataset` to disk, and read it back.
+
+:func:`export_dataset` writes sequences ``start .. start + count - 1`` of a dataset in the SIDAR
+paper's file layout (the default, :mod:`.folders`) or in WebDataset-style tar shards
+(:mod:`.shards`); :class:`ExportedDataset` (:mod:`.reader`) loads either back into the dict
+:meth:`SidarDataset.sample` returns, tensor for tensor byte-identical (the views are 8-bit
+renders, so 8-bit PNGs hold them exactly). What the layouts share (names, manifest, codecs,
+atomic writes, the lock) is :mod:`.layout`.
+
+Folder layout (``shards=None``)::
+
+    out/
+      export.json        format, package version, layout, seed, painting source, config
+      config.yaml        the config (``load_config("out/config.yaml")`` gives it back)
+      000000/            one folder per sequence (see :mod:`.folders`)
+
+Shard layout (``shards=N``): ``shard-00000.tar``, ``shard-00001.tar``, ... beside
+``export.json`` and ``config.yaml`` (see :mod:`.shards`).
+
+Homography convention: the package's (Kornia's): pixel ``(u, v)`` is column ``u``, row ``v``, the
+centre of the top-left pixel is ``(0, 0)``, and ``H[i, j]`` maps view-i pixels to view-j pixels.
+The paper's Blender files use coordinates in which the image's outer edges are ``0`` and
+``W - 1`` (``x = (u + 1/2) (W - 1) / W``, likewise for rows), up to half a pixel off the rendered
+pixel grid; to compare with them, conjugate: ``H_paper = S H S^-1`` with
+``S = [[(W-1)/W, 0, (W-1)/(2W)], [0, (H-1)/H, (H-1)/(2H)], [0, 0, 1]]``.
+
+Safety. Each sequence (or shard) is written into ``out/.tmp-<name>`` and moved into place by one
+``os.replace``, so a folder ``000007/`` or a ``shard-*.tar`` is either complete or absent. A
+rerun with the same arguments skips what exists, deletes stale ``.tmp-*`` left by a killed run
+and renders only what is missing; samples are pure functions of ``(seed, index)``, so the result
+is byte for byte an uninterrupted export's. Files are not ``fsync``-ed: this protects against
+the process dying (exception, Ctrl-C, ``kill -9``), not against losing power. One export at a
+time may write to a folder (an ``flock`` on ``out/.export.lock``), and a rerun must keep the
+seed, source, config and layout recorded in ``export.json`` (else ``ValueError``).
+"""
+
+from .export import ExportSummary, export_dataset
+from .reader import ExportedDataset
+
+__all__ = ["ExportSummary", "ExportedDataset", "export_dataset"]

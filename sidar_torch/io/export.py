@@ -1,0 +1,153 @@
+"""``export_dataset``: freeze sequences of a :class:`~sidar_torch.SidarDataset` to disk.
+
+Sequences are rendered (here, or in DataLoader workers) as :class:`sidar_torch.sample.SampleArrays`
+and written by the layout's writer: :mod:`.folders` (the paper's, the default) or :mod:`.shards`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any, Iterator, TextIO
+
+from torch.utils.data import DataLoader, Dataset
+
+from ..dataset import SidarDataset, _check_int
+from ..sample import SampleArrays
+from . import folders
+from . import shards as tar_shards  # the name "shards" is export_dataset's argument
+from .layout import locked, remove_stale, write_manifest
+
+
+@dataclasses.dataclass(frozen=True)
+class ExportSummary:
+    """What :func:`export_dataset` did.
+
+    Attributes:
+        out: the export folder.
+        written: dataset indices rendered and written by this call, ascending.
+        present: how many of the requested indices an earlier run had already written.
+        seconds: wall-clock time of the call.
+    """
+
+    out: Path
+    written: tuple[int, ...]
+    present: int
+    seconds: float
+
+
+def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
+                   shards: int | None = None, workers: int = 0, progress: bool = True) -> ExportSummary:
+    """Write sequences ``start .. start + count - 1`` of ``dataset`` to ``out_dir`` (see :mod:`sidar_torch.io`).
+
+    Args:
+        dataset: the :class:`SidarDataset` to freeze (its config, seed and painting source are
+            recorded in ``export.json``).
+        out_dir: the export folder; created if missing. Rerunning into it resumes.
+        count: number of sequences, ``>= 1``.
+        start: first dataset index, ``>= 0``.
+        shards: ``None`` for the folder layout, or ``N >= 1``: tar shards of (at most) ``N``
+            sequences each.
+        workers: ``0`` renders in this process; ``n >= 1`` renders in ``n`` DataLoader workers
+            while this process writes.
+        progress: print a progress line on stderr (redrawn in place on a terminal, else every 10 s).
+
+    Returns:
+        An :class:`ExportSummary`.
+
+    Raises:
+        TypeError: ``dataset`` is not a :class:`SidarDataset`.
+        ValueError: a bad ``count``, ``start``, ``shards`` or ``workers``; ``out_dir`` holds an
+            export whose seed, source, config, layout or version differ.
+        RuntimeError: another export holds the lock on ``out_dir``.
+    """
+    begin = time.perf_counter()
+    if not isinstance(dataset, SidarDataset):
+        raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
+    count, start = _check_int("count", count, 1), _check_int("start", start, 0)
+    shard_size = None if shards is None else _check_int("shards", shards, 1)
+    workers = _check_int("workers", workers, 0)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)
+    with locked(out):
+        write_manifest(out, dataset.seed, dataset.source, dataset.config.to_dict(), shard_size)
+        remove_stale(out)
+        wanted = range(start, start + count)
+        present = folders.present(out, wanted) if shard_size is None else tar_shards.present(out, wanted, shard_size)
+        missing = [i for i in wanted if i not in present]
+        bar = _Progress(len(missing), sys.stderr if progress else None)
+        samples = _render(dataset, missing, workers)
+        if shard_size is None:
+            for arrays in samples:
+                folders.write_sequence(out, arrays)
+                bar.advance()
+        else:
+            for shard, new in itertools.groupby(missing, key=lambda i: i // shard_size):
+                tar_shards.write_shard(out, shard, list(new), samples, bar.advance)
+        bar.close()
+    return ExportSummary(out, tuple(missing), len(present), time.perf_counter() - begin)
+
+
+class _Renders(Dataset):
+    """Map-style view of the indices to render: item ``k`` is the :class:`SampleArrays` of ``indices[k]``."""
+
+    def __init__(self, dataset: SidarDataset, indices: list[int]):
+        self.dataset, self.indices = dataset, indices
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, k: int) -> SampleArrays:
+        return self.dataset.sample_arrays(self.indices[k])
+
+
+def _keep(item: Any) -> Any:
+    """DataLoader ``collate_fn`` that hands items over unchanged (picklable, unlike a lambda)."""
+    return item
+
+
+def _render(dataset: SidarDataset, indices: list[int], workers: int) -> Iterator[SampleArrays]:
+    """The samples of ``indices``, in order, rendered here (``workers=0``) or in DataLoader workers."""
+    if workers == 0 or not indices:
+        return (dataset.sample_arrays(index) for index in indices)
+    return iter(DataLoader(_Renders(dataset, indices), batch_size=None, num_workers=workers, collate_fn=_keep))
+
+
+class _Progress:
+    """``export: 12/100 sequences, 0.41 s each, 36 s left`` on ``stream``: redrawn in place on a
+    terminal, else printed every 10 s and at the end; ``stream=None`` prints nothing."""
+
+    def __init__(self, total: int, stream: TextIO | None):
+        self.total, self.stream, self.done = total, stream, 0
+        self.start = self.last = time.perf_counter()
+        self.live = stream is not None and stream.isatty()
+        self._show(force=True)
+
+    def advance(self) -> None:
+        self.done += 1
+        self._show(force=False)
+
+    def close(self) -> None:
+        self._show(force=True)
+        if self.live:
+            self.stream.write("\n")
+
+    def _show(self, force: bool) -> None:
+        if self.stream is None:
+            return
+        now = time.perf_counter()
+        if not (force or self.live or now - self.last >= 10):
+            return
+        self.last = now
+        line = f"export: {self.done}/{self.total} sequences"
+        if self.done:
+            each = (now - self.start) / self.done
+            line += f", {each:.2f} s each, {each * (self.total - self.done):.0f} s left"
+        self.stream.write(("\r" + line + "\033[K") if self.live else line + "\n")
+        self.stream.flush()

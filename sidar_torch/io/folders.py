@@ -1,0 +1,65 @@
+"""The SIDAR paper's layout: one folder per sequence, PNGs and one MATLAB file per homography.
+
+::
+
+    000007/            the sequence of dataset index 7 (at least 6 digits)
+      0.png .. <V-1>.png   the views, 8-bit RGB; view 0 is the reference camera
+      0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
+      0-o.png ..           only with ``opacity_output``: 255 times the fraction of the painting hidden
+      gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
+      H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: variable ``H``, 3 x 3 float64
+      cameras.json         index, image_size [H, W], K, R, t per view (float64), homography_error
+
+The paper writes one file per unordered pair; both directions are written here so that
+``H[j, i]`` is the dataset's own fit (within float64 round-off of ``inv(H[i, j])``, not equal to
+it bit for bit). ``H[i, i]`` is the identity and not written.
+"""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+from ..sample import SampleArrays
+from .layout import SEQUENCE_NAME, encode, replace_folder, sample_entries, sequence_name
+
+
+def homography_entry(i: int, j: int) -> str:
+    return f"H_{i}_{j}.mat"
+
+
+def entries(arrays: SampleArrays) -> dict[str, Any]:
+    """A sequence's files by name: the shared entries, then ``H_<i>_<j>.mat`` for every ordered pair."""
+    files = sample_entries(arrays)
+    for i, j in itertools.permutations(range(len(arrays.images)), 2):
+        files[homography_entry(i, j)] = arrays.homographies[i, j]
+    return files
+
+
+def write_sequence(out: Path, arrays: SampleArrays) -> None:
+    """Write sequence ``arrays.index`` as folder ``out/<index>``: complete or absent."""
+    replace_folder(out / sequence_name(arrays.index), encode(entries(arrays)))
+
+
+def present(out: Path, wanted: Iterable[int]) -> set[int]:
+    """The indices of ``wanted`` whose sequence folder exists in ``out``."""
+    wanted = set(wanted)
+    return {int(p.name) for p in out.iterdir() if SEQUENCE_NAME.match(p.name) and int(p.name) in wanted}
+
+
+def sequences(out: Path) -> list[tuple[int, Path]]:
+    """``(index, folder)`` of every sequence folder in ``out``, ascending."""
+    names = [p.name for p in out.iterdir() if p.is_dir() and SEQUENCE_NAME.match(p.name)]
+    return [(int(name), out / name) for name in sorted(names, key=int)]
+
+
+def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
+    """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
+    homographies = np.zeros((n_views, n_views, 3, 3))
+    homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
+    for i, j in itertools.permutations(range(n_views), 2):
+        homographies[i, j] = read(homography_entry(i, j))
+    return homographies

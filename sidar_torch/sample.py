@@ -1,0 +1,245 @@
+"""The sample contract: every key of a sample with its shape, dtype, meaning and when it is present
+(:data:`KEYS`), the arrays a sample is made of (:class:`SampleArrays`), and the one path that
+assembles them from the renderer's output (:func:`render_arrays`).
+
+Every consumer goes through this module: :class:`sidar_torch.SidarDataset` and
+:class:`sidar_torch.SidarAugment` hand out :meth:`SampleArrays.to_tensors`, export writes a
+:class:`SampleArrays` and :class:`sidar_torch.ExportedDataset` rebuilds one from the files and
+calls the same :meth:`SampleArrays.to_tensors`, so a set read back equals the rendered samples by
+construction. Adding an output means a row of :data:`KEYS`, a field of :class:`SampleArrays`, a
+line of :meth:`~SampleArrays.to_tensors` and of :func:`render_arrays` (and the renderer's pass).
+
+Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) adds a leading ``B``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import torch
+
+from . import geometry
+from .artifacts import apply_effects, draw_effects
+from .config import SidarConfig
+from .render import renderer_options, shared_renderer
+from .scene import SceneSequence
+from .timing import timed
+
+__all__ = ["KEYS", "SampleArrays", "SampleKey", "render_arrays", "render_sample", "sequence_homographies",
+           "stack_samples"]
+
+
+@dataclass(frozen=True)
+class SampleKey:
+    """One key of a sample dict.
+
+    Attributes:
+        name: the key (also the :class:`SampleArrays` field holding its values).
+        shape: its shape in one sample.
+        dtype: its dtype and range in a sample; ``geometry_dtype`` is the config field of that name
+            (float32 by default, or float64).
+        meaning: what the values are, with units and frames.
+        switch: the config field that must be true for the key to be present (None: always).
+        entry: for the 8-bit pixel keys, the name of its export file (``{v}`` is the view's
+            number); None for the others (see :mod:`sidar_torch.io`).
+    """
+
+    name: str
+    shape: str
+    dtype: str
+    meaning: str
+    switch: str | None = None
+    entry: str | None = None
+
+
+KEYS: tuple[SampleKey, ...] = (
+    SampleKey("images", "(V, 3, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "the views (sRGB); view 0 is the reference camera, fronto-parallel", entry="{v}.png"),
+    SampleKey("masks", "(V, 1, H, W)", "float32 in {0, 1}",
+              "1 where the painting is not visible (an occluder, or off the painting), 0 where it is",
+              entry="{v}-m.png"),
+    SampleKey("opacities", "(V, 1, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "the fraction of the painting hidden at each pixel, a soft mask: 1 off the painting and behind "
+              "opaque occluders, 0 where the painting is seen unobstructed, 1 - prod_k (1 - a_k) where "
+              "transparent occluders k cover it, a_k the opacity the view blends them with (material alpha "
+              "raised by Fresnel towards grazing views; their highlights are left out). Every visible occluder "
+              "counts, whatever mask_min_opacity is", switch="opacity_output", entry="{v}-o.png"),
+    SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
+    SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
+              "H[i, j] maps view-i pixels to view-j pixels (Kornia pixels: pixel (u, v) is column u, row v, "
+              "the centre of the top-left pixel is (0, 0)); det = 1; fitted in float64"),
+    SampleKey("homography_error", "()", "float (Python)",
+              "largest distance, in view-j pixels, between where the float64 homographies and the analytic "
+              "plane-induced ones send the painting points both views of a pair see, on a 17 x 17 lattice "
+              "(the fit is exact at its own four points, so its error shows elsewhere)"),
+    SampleKey("K", "(V, 3, 3)", "geometry_dtype", "intrinsics, pixels (Kornia pixel centres)"),
+    SampleKey("R", "(V, 3, 3)", "geometry_dtype",
+              "world-to-camera rotation, OpenCV camera frame (x right, y down, z forward): world point X "
+              "lands at K (R X + t)"),
+    SampleKey("t", "(V, 3)", "geometry_dtype", "world-to-camera translation, painting units"),
+    SampleKey("index", "()", "int (Python)", "the sample's dataset index (SidarAugment: its position in the batch)"),
+)
+"""The sample's keys, in the order of a sample dict."""
+
+GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
+"""``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
+
+
+def present_keys(config: SidarConfig | Mapping[str, Any]) -> tuple[SampleKey, ...]:
+    """The keys a sample rendered with ``config`` (a config or its ``to_dict()``) holds."""
+    fields = config.to_dict() if isinstance(config, SidarConfig) else config
+    return tuple(key for key in KEYS if key.switch is None or fields.get(key.switch, False))
+
+
+@dataclass(frozen=True)
+class SampleArrays:
+    """One sample as NumPy arrays: what the renderer made and export writes, exactly.
+
+    Attributes (``V`` views of ``H x W`` pixels; see :data:`KEYS` for the meanings):
+        images: ``(V, H, W, 3)`` uint8 sRGB.
+        masks: ``(V, H, W)`` uint8, 255 where the painting is not visible, else 0.
+        label: ``(H, W, 3)`` uint8 sRGB.
+        homographies: ``(V, V, 3, 3)`` float64.
+        homography_error: pixels.
+        K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
+        index: the dataset index.
+        opacities: ``(V, H, W)`` uint8, 255 times the fraction of the painting hidden, or None
+            (not rendered).
+
+    Raises:
+        ValueError: a field of another dtype or shape (named in the message).
+    """
+
+    images: np.ndarray
+    masks: np.ndarray
+    label: np.ndarray
+    homographies: np.ndarray
+    homography_error: float
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    index: int
+    opacities: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
+            raise ValueError(f"SampleArrays.images: expected a (V, H, W, 3) uint8 array, got "
+                             f"{getattr(self.images, 'shape', type(self.images).__name__)}")
+        V, H, W = self.images.shape[:3]
+        expected = {"images": ((V, H, W, 3), np.uint8), "masks": ((V, H, W), np.uint8),
+                    "label": ((H, W, 3), np.uint8), "homographies": ((V, V, 3, 3), np.float64),
+                    "K": ((V, 3, 3), np.float64), "R": ((V, 3, 3), np.float64), "t": ((V, 3), np.float64)}
+        if self.opacities is not None:
+            expected["opacities"] = ((V, H, W), np.uint8)
+        for name, (shape, dtype) in expected.items():
+            value = getattr(self, name)
+            if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
+                got = f"{value.shape} {value.dtype}" if isinstance(value, np.ndarray) else type(value).__name__
+                raise ValueError(f"SampleArrays.{name}: expected shape {shape} {np.dtype(dtype)}, got {got}")
+        object.__setattr__(self, "homography_error", float(self.homography_error))
+        object.__setattr__(self, "index", int(self.index))
+
+    def to_tensors(self, geometry_dtype: str = "float32") -> dict[str, Any]:
+        """The sample dict (keys, shapes and dtypes of :data:`KEYS`), CPU tensors.
+
+        Args:
+            geometry_dtype: ``"float32"`` or ``"float64"``, the dtype of ``homographies``, ``K``,
+                ``R`` and ``t`` (the config field of that name).
+        """
+        if geometry_dtype not in GEOMETRY_DTYPES:
+            raise ValueError(f"geometry_dtype: expected one of {tuple(GEOMETRY_DTYPES)}, got {geometry_dtype!r}")
+        dtype = GEOMETRY_DTYPES[geometry_dtype]
+        return {
+            "images": _unit(self.images).permute(0, 3, 1, 2),
+            "masks": _unit(self.masks).unsqueeze(1),
+            **({} if self.opacities is None else {"opacities": _unit(self.opacities).unsqueeze(1)}),
+            "label": _unit(self.label).permute(2, 0, 1),
+            "homographies": torch.from_numpy(self.homographies).to(dtype),
+            "homography_error": self.homography_error,
+            "K": torch.from_numpy(self.K).to(dtype),
+            "R": torch.from_numpy(self.R).to(dtype),
+            "t": torch.from_numpy(self.t).to(dtype),
+            "index": self.index,
+        }
+
+
+def _unit(values: np.ndarray) -> torch.Tensor:
+    """uint8 ``k`` -> float32 ``k / 255`` (exact for 0 and 255)."""
+    return torch.from_numpy(values).float().div_(255)
+
+
+def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, torch.Tensor]:
+    """Batch sample dicts of one config: every tensor key stacked (a leading ``B``),
+    ``homography_error`` as ``(B,)`` float32 (every device holds it) and ``index`` as ``(B,)`` int64."""
+    batch = {}
+    for key in samples[0]:
+        values = [s[key] for s in samples]
+        if isinstance(values[0], torch.Tensor):
+            batch[key] = torch.stack(values)
+        else:
+            batch[key] = torch.tensor(values, dtype=torch.int64 if isinstance(values[0], int) else torch.float32)
+    return batch
+
+
+def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
+    """Every pairwise homography of a sequence and a bound on its error.
+
+    Four points of the painting's plane in front of every camera (:func:`sidar_torch.geometry.fit_points`)
+    are projected with each camera in float64 and Kornia's DLT fits every ordered pair (see
+    :func:`sidar_torch.geometry.homographies_from_points`).
+
+    Returns:
+        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in view-j pixels
+        between where they and the analytic plane-induced homographies send the painting points
+        both views of a pair see (a 17 x 17 lattice, :func:`sidar_torch.geometry.visible_plane_points`):
+        the DLT is exact at its own four points, so the error shows elsewhere.
+    """
+    K, R, t = sequence.cameras()
+    centres = np.stack([view.camera.position for view in sequence.views])
+    H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.fit_points(centres)))
+    pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
+    truth = geometry.plane_induced_homographies(K, R, t)
+    return H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))
+
+
+def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
+                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> SampleArrays:
+    """Render ``sequence`` with ``painting`` and assemble one sample's arrays: the one place a sample is made.
+
+    Args:
+        sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
+        painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
+        config: gives the renderer's settings (image size, shadow-map size and filter,
+            ``opacity_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
+            exposure, noise, JPEG; off by default).
+        index: stored as the sample's ``index``.
+        timings: if given, seconds spent are added to its keys: the renderer's steps (see
+            :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
+            any is on) and ``"homographies"``.
+        rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
+            when ``config`` switches an effect on (``ValueError`` otherwise).
+    """
+    effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
+    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
+    rendered = renderer.render(sequence, painting, timings, opacities=config.opacity_output)
+    views = rendered.views
+    if effects is not None:
+        with timed(timings, "effects"):
+            views = apply_effects(views, rendered.background, effects)
+    with timed(timings, "homographies"):
+        homographies, homography_error = sequence_homographies(sequence)
+    K, R, t = sequence.cameras()
+    return SampleArrays(views, rendered.masks.astype(np.uint8) * np.uint8(255), rendered.label,
+                        homographies.numpy(), homography_error, K, R, t, index, rendered.opacities)
+
+
+def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
+                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> dict[str, Any]:
+    """:func:`render_arrays`, then :meth:`SampleArrays.to_tensors` in ``config.geometry_dtype``
+    (timed as ``"tensors"``): the sample dict of :data:`KEYS`."""
+    arrays = render_arrays(sequence, painting, config, index, timings, rng)
+    with timed(timings, "tensors"):
+        return arrays.to_tensors(config.geometry_dtype)
