@@ -1,6 +1,6 @@
 """Stored SHA-256 digests of every file of a folder export and a shard export, recorded with the
-code of ``main`` before the export was split into ``sidar_torch/io/``: a guard that the writers
-change no byte.
+code of ``main`` before the export was split into ``sidar_torch/io/`` (re-recorded when a config default
+changed, which changes the manifests): a guard that the writers change no byte.
 
 ``python tests/export_digests.py --write`` records them (only in a commit whose purpose is to
 change exported files, saying so); ``tests/test_export_digests.py`` compares. As in
@@ -17,43 +17,18 @@ import tarfile
 import tempfile
 from pathlib import Path
 
-import yaml
 
 HERE = Path(__file__).resolve().parent
 STORE = HERE / "data" / "export_digests.json"
 CONFIG = dict(image_size=(24, 32), n_views=3, shadow_map_size=256, opacity_output=True, n_occluders=(2, 2))
 SEED, START, COUNT, SHARD_SIZE = 5, 1, 3, 2
 LOCK = ".export.lock"
-NEW_CONFIG_FIELDS = {"geometry_dtype": "float32"}
-"""Config fields added since the digests were recorded, with the value this export must record:
-checked, then removed from ``export.json`` and ``config.yaml`` (re-serialised as the writer does)
-before digesting, so the rest of both files is compared byte for byte."""
-
-
 def digest(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()
 
 
-def without_new_fields(name: str, data: bytes) -> bytes:
-    """``export.json`` or ``config.yaml`` as the export of ``main`` wrote it: :data:`NEW_CONFIG_FIELDS` removed."""
-    if name == "config.yaml":
-        config = yaml.safe_load(data)
-        _remove_new_fields(config)
-        return yaml.safe_dump(config, sort_keys=False).encode()
-    manifest = json.loads(data)
-    _remove_new_fields(manifest["config"])
-    return (json.dumps(manifest, indent=2) + "\n").encode()
-
-
-def _remove_new_fields(config: dict) -> None:
-    for field, value in NEW_CONFIG_FIELDS.items():
-        if field in config:
-            assert config.pop(field) == value, f"config.{field}: expected {value!r}"
-
-
 def tree_digests(root: Path) -> dict[str, str]:
-    """``{path: sha256}`` of every file under ``root`` (the lock file aside; the manifests without
-    :data:`NEW_CONFIG_FIELDS`) and, for a tar, ``{"<tar>:<entry>": sha256}`` of each entry, so
+    """``{path: sha256}`` of every file under ``root`` (the lock file aside) and, for a tar, ``{"<tar>:<entry>": sha256}`` of each entry, so
     that a mismatch names the entry."""
     digests = {}
     for path in sorted(root.rglob("*")):
@@ -61,7 +36,7 @@ def tree_digests(root: Path) -> dict[str, str]:
             continue
         name = str(path.relative_to(root))
         data = path.read_bytes()
-        digests[name] = digest(without_new_fields(name, data) if name in ("export.json", "config.yaml") else data)
+        digests[name] = digest(data)
         if path.suffix == ".tar":
             with tarfile.open(path) as tar:
                 for member in tar.getmembers():
