@@ -8,8 +8,8 @@ table per preset: each statistic per view (median and interquartile range over v
 of views, ours beside Blender's, their ratio, and whether ours is within 10 % of Blender's or inside
 the 5-95 % bootstrap interval of Blender's figure (resampling its views).
 
-    python benchmarks/realism.py --anchors DIR --config paper_misaligned misaligned aligned --samples 12
-    python benchmarks/realism.py --anchors DIR --config paper_misaligned --set plane_metallic=[0,1]
+    python -m benchmarks.realism --anchors DIR --config paper_misaligned misaligned aligned --samples 12
+    python -m benchmarks.realism --anchors DIR --config paper_misaligned --set plane_metallic=[0,1]
 
 Definitions (every threshold is a named constant below):
 
@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 import time
 from pathlib import Path
 from typing import Any, Callable
@@ -55,9 +54,8 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # run from a checkout without installing
-
-from sidar_torch.exposure import LUMA, WHITE, view_exposure  # noqa: E402
+from benchmarks.common import parse_set
+from benchmarks.exposure import LUMA, WHITE, view_exposure
 
 DARK_MEDIAN = 50
 """A view is *dark* when the median luma of its painting pixels is below this."""
@@ -374,7 +372,7 @@ def occluders_over_painting(scene: Any, region: np.ndarray) -> int:
 def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tuple[ViewStats, float]:
     """Statistics of ``samples`` sequences of ``config`` with the anchors' paintings, and seconds spent."""
     from sidar_torch import SidarDataset
-    from sidar_torch.dataset import render_sample
+    from sidar_torch.sample import render_sample
     from sidar_torch.scene import sample_sequence
 
     dataset = SidarDataset(source=[str(p) for p in sources], config=config, seed=seed)
@@ -505,7 +503,6 @@ def table(name: str, ours: ViewStats, theirs: ViewStats) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     from sidar_torch import load_config
-    from sidar_torch.cli import _parse_set
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--anchors", required=True, type=Path,
@@ -522,7 +519,7 @@ def main(argv: list[str] | None = None) -> None:
     sequences = anchor_sequences(args.anchors)
     theirs = ViewStats.concat([anchor_stats(s) for s in sequences])
     size = read_rgb(sequences[0] / "source.png").shape[:2]
-    overrides = _parse_set(args.set)
+    overrides = parse_set(args.set)
     print(f"anchors: {len(sequences)} sequences, {len(theirs.median_luma)} views at {size[1]}x{size[0]}; "
           f"ours: {args.samples} samples per preset, seed {args.seed}"
           + (f", overrides {overrides}" if overrides else ""), flush=True)

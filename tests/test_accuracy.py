@@ -7,8 +7,7 @@ import pytest
 import torch
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.accuracy import homography_errors, speckle_paintings, warp_residuals
-from sidar_torch.accuracy_report import AccuracySettings, format_report, run_report
+from sidar_torch.metrics import homography_errors, speckle_paintings, warp_residuals
 from sidar_torch.scene import sample_sequence
 
 
@@ -105,16 +104,6 @@ def test_impossible_guarantees_raise_instead_of_looping():
         sample_sequence(config, np.random.default_rng(0))
 
 
-def test_accuracy_report_runs_and_meets_its_targets():
-    settings = AccuracySettings(sizes=((131, 257),), samples=1, n_views=4, scenes=50)
-    report = run_report(settings, log=lambda line: None)
-    row = report["alignment"][0]
-    assert row["pairs"] >= 3 and row["max_px"] <= 0.2
-    assert report["homography"]["float64_px"] <= 1e-6
-    assert report["label"][0]["min_psnr_db"] >= 45
-    assert "257x131" in format_report(report) and "float64" in format_report(report)
-
-
 @pytest.mark.parametrize("overrides", [
     dict(camera_xy=3.0),                              # grazing views (up to 80.5 deg)
     dict(fov_deg=(10, 20)),                           # narrow lenses
@@ -127,29 +116,3 @@ def test_hard_views_still_agree_with_their_homographies_when_rendered(overrides)
                             for index in range(3)])
     assert len(found) >= 5
     assert np.median(found) <= 0.05 and found.max() <= 0.2, (np.median(found), found.max())
-
-
-def test_accuracy_overrides_reach_every_configuration_the_report_loads(monkeypatch):
-    from sidar_torch import accuracy_report
-
-    loaded = []
-
-    def recording_load_config(preset, **fields):
-        loaded.append((preset, fields))
-        return load_config(preset, **fields)
-
-    monkeypatch.setattr(accuracy_report, "load_config", recording_load_config)
-    settings = AccuracySettings(sizes=((131, 257),), samples=1, n_views=2, scenes=2,
-                                overrides={"fov_deg": (30, 31)})
-    run_report(settings, log=lambda line: None)
-    assert {preset for preset, _ in loaded} == {"ambient", "misaligned"}
-    assert all(fields.get("fov_deg") == (30, 31) for _, fields in loaded)
-
-
-def test_accuracy_command_rejects_bad_overrides_before_measuring():
-    from sidar_torch import cli
-
-    with pytest.raises(SystemExit, match="n_veiws"):
-        cli.main(["accuracy", "--quick", "--set", "n_veiws=2"])
-    with pytest.raises(SystemExit, match="n_views"):
-        cli.main(["accuracy", "--quick", "--set", "n_views=2"])

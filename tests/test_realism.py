@@ -12,7 +12,7 @@ import torch
 from sidar_torch import SidarDataset, geometry, load_config
 from sidar_torch.artifacts import srgb_to_linear
 from sidar_torch.config import OCCLUDER_SHAPES
-from sidar_torch.exposure import view_exposure
+from benchmarks.exposure import view_exposure
 from sidar_torch.render import shared_renderer
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.scene import SHAPE_VARIANTS, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence

@@ -48,7 +48,7 @@ _IRRADIANCE = (
     "ranges of a point, spot and area light's irradiance at the painting's centre (an area light's summed "
     "over its emitters). The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area 1-2 "
     "kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen so that the fraction "
-    "of blown-out painting pixels matches the paper's renders (``scripts/exposure.py``).")
+    "of blown-out painting pixels matches the paper's renders (``python -m benchmarks.exposure``).")
 _OCCLUDER_KINDS = "kinds to draw from."
 _OCCLUDER_BOX = "box of occluder centres."
 _PLANE_MATERIAL = "ranges of the painting's material."

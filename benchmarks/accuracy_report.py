@@ -1,9 +1,9 @@
-"""The accuracy report: ``python -m sidar_torch accuracy [--quick]``.
+"""The accuracy report: ``python -m benchmarks.accuracy_report [--quick]`` from the repository root.
 
-Runs the measurements of :mod:`sidar_torch.accuracy` on fresh samples and prints one table:
+Runs the measurements of :mod:`sidar_torch.metrics` on fresh samples and prints one table:
 
 * geometric residual of the warp ``H[i, j]`` (pixels) and its photometric error, on ambient,
-  occluder-free scenes of :func:`~sidar_torch.accuracy.speckle_paintings` at several output sizes;
+  occluder-free scenes of :func:`~sidar_torch.metrics.speckle_paintings` at several output sizes;
 * homography error against the analytic plane-induced homographies over many random scenes of
   the default preset, in float64 and in the float32 handed out;
 * label PSNR against the painting.
@@ -11,7 +11,10 @@ Runs the measurements of :mod:`sidar_torch.accuracy` on fresh samples and prints
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -19,12 +22,14 @@ from typing import Any, Callable
 import numpy as np
 import torch
 
-from .accuracy import homography_errors, psnr, speckle_paintings, warp_residuals
-from .config import load_config
-from .dataset import SidarDataset
-from .scene import sample_sequence
+from sidar_torch.config import load_config
+from sidar_torch.dataset import SidarDataset
+from sidar_torch.metrics import homography_errors, psnr, speckle_paintings, warp_residuals
+from sidar_torch.scene import sample_sequence
 
-__all__ = ["AccuracySettings", "run_report", "format_report"]
+from .common import DEFAULT_PRESET, one_thread, parse_set, size_label
+
+__all__ = ["AccuracySettings", "format_report", "main", "run_report"]
 
 
 @dataclass(frozen=True)
@@ -47,7 +52,7 @@ class AccuracySettings:
     samples: int = 8
     n_views: int = 4
     scenes: int = 100_000
-    preset: str = "misaligned"
+    preset: str = DEFAULT_PRESET
     seed: int = 0
     overrides: dict[str, Any] = field(default_factory=dict)
 
@@ -80,7 +85,7 @@ def alignment_row(size: tuple[int, int], samples: int, n_views: int, seed: int,
     if not lengths:
         raise ValueError(f"size {size}: no view pair had a textured patch seen by both views; use a larger size")
     lengths = np.concatenate(lengths)
-    return {"size": f"{size[1]}x{size[0]}", "pairs": pairs, "patches": len(lengths),
+    return {"size": size_label(size), "pairs": pairs, "patches": len(lengths),
             "median_px": float(np.median(lengths)), "p99_px": float(np.percentile(lengths, 99)),
             "max_px": float(lengths.max()), "photometric_mae_levels": 255 * float(np.mean(maes))}
 
@@ -108,7 +113,7 @@ def label_row(size: tuple[int, int], samples: int, seed: int, overrides: dict[st
         painting = dataset.source.painting(index, size)
         label = dataset.sample(index)["label"]
         values.append(psnr(label, torch.from_numpy(painting).permute(2, 0, 1).float() / 255))
-    return {"size": f"{size[1]}x{size[0]}", "samples": samples, "min_psnr_db": min(values)}
+    return {"size": size_label(size), "samples": samples, "min_psnr_db": min(values)}
 
 
 def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -> dict[str, Any]:
@@ -117,7 +122,7 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
     alignment = []
     for size in settings.sizes:
         alignment.append(alignment_row(size, settings.samples, settings.n_views, settings.seed, settings.overrides))
-        log(f"warp residual at {size[1]}x{size[0]}: done ({time.perf_counter() - start:.0f} s)")
+        log(f"warp residual at {size_label(size)}: done ({time.perf_counter() - start:.0f} s)")
     step = max(settings.scenes // 10, 1)
 
     def progress(done: int) -> None:
@@ -133,7 +138,7 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
 def format_report(report: dict[str, Any]) -> str:
     """The report as markdown tables, with the targets of the accuracy issue beside the figures."""
     lines = ["Warp residual: view i warped by H[i, j] against view j (ambient, no occluders, speckle paintings)",
-             "", "| size | pairs | patches | median px | p99 px | max px | photometric MAE (levels) |",
+             "", "| size (H x W) | pairs | patches | median px | p99 px | max px | photometric MAE (levels) |",
              "|---|---|---|---|---|---|---|"]
     for r in report["alignment"]:
         lines.append(f"| {r['size']} | {r['pairs']} | {r['patches']} | {r['median_px']:.4f} | {r['p99_px']:.4f} "
@@ -146,9 +151,51 @@ def format_report(report: dict[str, Any]) -> str:
               "|---|---|---|",
               f"| {h['float64_px']:.2e} | {h['float32_px']:.2e} | {h['cycle32']:.2e} |",
               "", "Target: float64 <= 1e-6 px.", "",
-              "| label size | samples | worst label PSNR (dB) |", "|---|---|---|"]
+              "| label size (H x W) | samples | worst label PSNR (dB) |", "|---|---|---|"]
     for r in report["label"]:
         value = "inf (identical)" if math.isinf(r["min_psnr_db"]) else f"{r['min_psnr_db']:.1f}"
         lines.append(f"| {r['size']} | {r['samples']} | {value} |")
     lines += ["", "Target: >= 45 dB.", "", f"Measured in {report['seconds']:.0f} s."]
     return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.accuracy_report",
+        description="Warp residual of H[i, j] on rendered views at 131x257 to 768x1024 (H x W), homography error "
+                    "against the analytic plane-induced homographies over 100,000 scenes, label PSNR; prints a "
+                    "table. About 45 minutes on 2 cores (the homography sweep); --quick about a minute.")
+    parser.add_argument("--quick", action="store_true", help="two small sizes and 2,000 scenes (about a minute)")
+    parser.add_argument("--scenes", type=int, default=None, help="scenes in the homography sweep")
+    parser.add_argument("--config", default=DEFAULT_PRESET,
+                        help=f"preset name or YAML path whose cameras the homography sweep draws (default {DEFAULT_PRESET})")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config field of every configuration the report loads (repeatable), e.g. "
+                             "--set fov_deg=[20,40]; image_size and n_views come from the report's sizes")
+    parser.add_argument("--json", default=None, help="also write the figures as JSON to this path")
+    parser.add_argument("--markdown", default=None, help="also write the table as markdown to this path")
+    args = parser.parse_args(argv)
+    if args.scenes is not None and args.scenes < 1:
+        parser.error(f"--scenes {args.scenes}: expected at least 1")
+    try:
+        changes = {"preset": args.config, "overrides": parse_set(args.set),
+                   **({"scenes": args.scenes} if args.scenes is not None else {})}
+        settings = (AccuracySettings.quick if args.quick else AccuracySettings)(**changes)
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"accuracy_report: {error}") from error
+    # One thread: the sweep is a long run of tiny tensor operations, which torch's thread pool
+    # slows down (a batched 3 x 3 determinant took 16 ms with 2 threads, 15 us with 1).
+    with one_thread():
+        report = run_report(settings, log=lambda line: print(line, file=sys.stderr))
+    text = format_report(report)
+    print(text)
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(report, out, indent=2)
+    if args.markdown:
+        with open(args.markdown, "w") as out:
+            out.write(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,4 +1,5 @@
 """Soak test: render many samples in one process and watch memory and GL objects.
+``python -m benchmarks.soak [--samples N] [--size HxW]`` from the repository root.
 
 Renders ``SidarDataset(config=<preset at --size>, seed=--seed).sample(i)`` for ``i = 0..N-1``
 (the built-in procedural source, so every sample has a new painting and new lights, occluders
@@ -18,7 +19,7 @@ per report ``rss_mb``, ``programs``, ``gl_textures``, ``gl_buffers``). The exit 
 memory grew by more than ``--max-growth-mb`` after the warm-up, or the program count changed
 after it, or (with ``--distinct``) the texture or buffer count did; else 0.
 
-    .venv/bin/python scripts/soak.py --samples 10000 --size 96 128 --every 500
+    python -m benchmarks.soak --samples 10000 --size 96x128 --every 500
 
 Linux only (reads ``/proc/self/statm``).
 """
@@ -27,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import time
 
@@ -36,15 +36,10 @@ from sidar_torch.render import renderer_options, shared_renderer
 
 from OpenGL import GL
 
-PAGE_MB = os.sysconf("SC_PAGE_SIZE") / 2**20
+from .common import DEFAULT_PRESET, parse_size, rss_mb, size_label
+
 NAME_WINDOW = 1024
 """GL names scanned above the next free one (see :func:`count_gl_names`)."""
-
-
-def rss_mb() -> float:
-    """Resident memory of this process now, MiB (``/proc/self/statm``, second field)."""
-    with open("/proc/self/statm") as statm:
-        return int(statm.read().split()[1]) * PAGE_MB
 
 
 def count_gl_names(is_name, gen_names, delete_names) -> int:
@@ -72,11 +67,11 @@ def report(samples: int, renderer, started: float) -> dict:
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n\n")[0])
     parser.add_argument("--samples", type=int, default=10_000, help="samples to render (default 10000)")
-    parser.add_argument("--size", type=int, nargs=2, default=(384, 512), metavar=("H", "W"),
-                        help="image size in pixels (default 384 512)")
-    parser.add_argument("--config", default="misaligned", help="preset name or YAML path (default misaligned)")
+    parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW",
+                        help="image size, height x width in pixels (default 384x512)")
+    parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
     parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
     parser.add_argument("--every", type=int, default=500, help="report every N samples (default 500)")
     parser.add_argument("--warmup", type=int, default=None,
@@ -98,9 +93,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
-    dataset = SidarDataset(config=load_config(args.config, image_size=tuple(args.size)), seed=args.seed)
+    dataset = SidarDataset(config=load_config(args.config, image_size=args.size), seed=args.seed)
     config = dataset.config
-    print(f"soak: {args.samples} samples of {args.config!r} at {config.image_size[0]}x{config.image_size[1]}, "
+    print(f"soak: {args.samples} samples of {args.config!r} at {size_label(config.image_size)} (H x W), "
           f"{config.n_views} views, seed {args.seed}; warm-up {args.warmup}", flush=True)
     print(f"{'samples':>8} {'rss_mb':>8} {'programs':>8} {'gl_textures':>11} {'gl_buffers':>10} {'seconds':>8}")
     started = time.perf_counter()

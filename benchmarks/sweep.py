@@ -1,4 +1,4 @@
-"""Speed against error: ``python -m sidar_torch sweep [--quick] [--out-dir DIR]``.
+"""Speed against error: ``python -m benchmarks.sweep [--quick] [--out-dir DIR]`` from the repository root.
 
 Sweeps the renderer's quality knobs and reports, for every setting, the time per view against
 the error it leaves:
@@ -14,7 +14,7 @@ the error it leaves:
   process (one untimed warm-up sequence per setting first), of the renderer's whole call
   (views, masks and label; for ``s > 1`` the larger draw and the downsampling) divided by the
   number of views. Torch runs one thread, llvmpipe rasterises in the calling thread (as in
-  ``bench``), so figures are per core. The time is this process's CPU time
+  ``benchmarks.bench``), so figures are per core. The time is this process's CPU time
   (``time.process_time``), not wall time: other jobs sharing the cores would otherwise dominate
   the differences between settings (in a quick sweep at load 7, wall times of settings doing
   nearly the same work differed up to 3x);
@@ -24,9 +24,9 @@ the error it leaves:
   One PSNR per setting, from the mean squared error over every pixel of every view of every
   scene (occluders and background included);
 * **warp residual** (median / max Lucas-Kanade displacement, pixels; see
-  :func:`sidar_torch.accuracy.warp_residuals`) per resolution and supersampling, on ambient,
+  :func:`sidar_torch.metrics.warp_residuals`) per resolution and supersampling, on ambient,
   occluder-free speckle scenes (no lights, so the shadow-map size cannot change them);
-* **label PSNR** (:func:`sidar_torch.accuracy_report.label_row`) per resolution. The label is an
+* **label PSNR** (:func:`benchmarks.accuracy_report.label_row`) per resolution. The label is an
   unlit, fronto-parallel, occluder-free draw that shows the texture exactly; it does not depend
   on the shadow maps, and a supersampled preset would still draw it at the output size.
 
@@ -44,10 +44,12 @@ reference itself is left out of the front (its PSNR against itself is infinite).
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import os
 import statistics
+import sys
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -57,18 +59,19 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from .accuracy import psnr, speckle_paintings, warp_residuals
-from .accuracy_report import label_row
-from .artifacts import linear_to_srgb, srgb_to_linear
-from .bench import DEFAULT_PRESET, check_sizes
-from .config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
-from .dataset import SidarDataset
-from .sample import sequence_homographies
-from .render import SceneRenderer
-from .scene import SceneSequence
+from sidar_torch.artifacts import linear_to_srgb, srgb_to_linear
+from sidar_torch.config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
+from sidar_torch.dataset import SidarDataset
+from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals
+from sidar_torch.render import SceneRenderer
+from sidar_torch.sample import sequence_homographies
+from sidar_torch.scene import SceneSequence
 
-__all__ = ["Setting", "SweepSettings", "format_report", "pareto_front", "plot_front", "render_views", "run_sweep",
-           "supersampled_sequence", "write_outputs"]
+from .accuracy_report import label_row
+from .common import DEFAULT_PRESET, one_thread, parse_set, size_label
+
+__all__ = ["Setting", "SweepSettings", "format_report", "main", "pareto_front", "plot_front", "render_views",
+           "run_sweep", "supersampled_sequence", "write_outputs"]
 
 _WARMUP_INDEX = 1_000_000
 """Index of each setting's untimed warm-up sequence, apart from the measured ``0 .. scenes - 1``."""
@@ -160,7 +163,8 @@ class SweepSettings:
         load_config(self.preset, **self.overrides)  # unknown or invalid fields fail before measuring
         if not self.sizes or not self.shadow_map_sizes or not self.supersampling:
             raise ValueError("sizes, shadow_map_sizes and supersampling: expected at least one each")
-        check_sizes(self.sizes)
+        if any(len(size) != 2 or min(size) < 1 for size in self.sizes):
+            raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {self.sizes}")
         if any(s < 16 or s & (s - 1) for s in (*self.shadow_map_sizes, self.reference[0], self.base_shadow_map_size)):
             raise ValueError(f"shadow_map_sizes, reference, base_shadow_map_size: expected powers of two >= 16, got "
                              f"{self.shadow_map_sizes}, {self.reference}, {self.base_shadow_map_size}")
@@ -300,12 +304,11 @@ def pareto_front(rows: list[dict[str, Any]]) -> list[int]:
 
 def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> dict[str, Any]:
     """Every measurement, as plain data (see :func:`format_report`); ``log`` gets progress lines."""
-    start, load_start, threads = time.perf_counter(), os.getloadavg()[0], torch.get_num_threads()
-    torch.set_num_threads(1)
+    start, load_start = time.perf_counter(), os.getloadavg()[0]
     rows, residuals, labels = [], [], []
-    try:
+    with one_thread():
         for size in settings.sizes:
-            label = f"{size[1]}x{size[0]}"
+            label = size_label(size)
             dataset = _dataset(settings, size)
             measured = {}
             ref = settings.reference_setting
@@ -331,8 +334,6 @@ def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> di
                                   **residual_row(size, factor, settings.residual_samples, settings.seed)})
             labels.append(label_row(size, settings.label_samples, settings.seed))
             log(f"{label}: residuals and label done ({time.perf_counter() - start:.0f} s)")
-    finally:
-        torch.set_num_threads(threads)
     return {"settings": asdict(settings), "views_per_scene": dataset.config.n_views, "rows": rows,
             "residuals": residuals, "labels": labels, "load_start": load_start, "load_end": os.getloadavg()[0],
             "cpus": os.cpu_count(), "seconds": time.perf_counter() - start}
@@ -350,7 +351,7 @@ def format_report(report: dict[str, Any]) -> str:
     lines = [f"Speed against error: '{s['preset']}' preset, {s['scenes']} scenes of {report['views_per_scene']} "
              f"views per setting; image PSNR against the reference render ({ref}) at the same size. "
              "* = Pareto-optimal at its size.", "",
-             "| size | shadow map | frustum | shadow filter | supersampling | meshes | texture | ms per view "
+             "| size (H x W) | shadow map | frustum | shadow filter | supersampling | meshes | texture | ms per view "
              "| image PSNR (dB) | Pareto |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
@@ -359,11 +360,11 @@ def format_report(report: dict[str, Any]) -> str:
                      f"| {r['mesh_detail']} | {r['texture_filter']} | {r['ms_per_view']:.1f} "
                      f"| {_db(r['image_psnr_db'])} | {'*' if r['pareto'] else ''} |")
     lines += ["", "Warp residual (ambient speckle scenes, 4 views; shadow maps play no part):", "",
-              "| size | supersampling | patches | median px | max px |", "|---|---|---|---|---|"]
+              "| size (H x W) | supersampling | patches | median px | max px |", "|---|---|---|---|---|"]
     for r in report["residuals"]:
         lines.append(f"| {r['size']} | {r['supersampling']}x | {r['patches']} | {r['median_px']:.4f} "
                      f"| {r['max_px']:.4f} |")
-    lines += ["", "| label size | samples | worst label PSNR (dB) |", "|---|---|---|"]
+    lines += ["", "| label size (H x W) | samples | worst label PSNR (dB) |", "|---|---|---|"]
     for r in report["labels"]:
         value = "inf (identical)" if math.isinf(r["min_psnr_db"]) else f"{r['min_psnr_db']:.1f}"
         lines.append(f"| {r['size']} | {r['samples']} | {value} |")
@@ -436,3 +437,38 @@ def write_outputs(report: dict[str, Any], out_dir: str | os.PathLike) -> dict[st
     paths["json"].write_text(json.dumps(report, indent=2, default=lambda v: str(v)) + "\n")
     plot_front(report, paths["png"])
     return paths
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="python -m benchmarks.sweep",
+        description="For output sizes 192x256 and 384x512 (H x W), shadow maps of 256 to 4096 texels, cone and fitted "
+                    "shadow frusta and 1x / 2x supersampling, and from a base setting mesh detail, texture filter and "
+                    "shadow filter: time per view (median CPU time over the same scenes of the preset, this process) "
+                    "against image PSNR versus a reference render (4096 shadow maps, fitted frusta, 2x supersampling, "
+                    "finest meshes); warp residual and label PSNR per size. Prints the table and writes sweep.md, "
+                    "sweep.json and sweep.png (Pareto front) into --out-dir. About ten minutes on 2 cores.")
+    parser.add_argument("--quick", action="store_true",
+                        help="192x256, shadow maps 256 and 1024 against a 2048 reference, 3 scenes of 3 views")
+    parser.add_argument("--scenes", type=int, default=None, help="scenes per setting (default 6, quick 3)")
+    parser.add_argument("--config", default=DEFAULT_PRESET,
+                        help=f"preset name or YAML path the scenes come from (default {DEFAULT_PRESET})")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a config field of the scenes (repeatable, value read as YAML), e.g. "
+                             "--set n_occluders=[1,3]; image_size and the swept knobs come from the sweep")
+    parser.add_argument("--out-dir", default="out", help="output folder (default out)")
+    args = parser.parse_args(argv)
+    try:
+        changes = {"preset": args.config, "overrides": parse_set(args.set),
+                   **({"scenes": args.scenes} if args.scenes is not None else {})}
+        settings = (SweepSettings.quick if args.quick else SweepSettings)(**changes)
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"sweep: {error}") from error
+    report = run_sweep(settings, log=lambda line: print(line, file=sys.stderr))
+    print(format_report(report))
+    paths = write_outputs(report, args.out_dir)
+    print(f"wrote {paths['md']}, {paths['json']} and {paths['png']}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()

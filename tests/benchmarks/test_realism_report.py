@@ -1,18 +1,12 @@
 """The realism report's statistics (``benchmarks/realism.py``), each on an image whose answer is known."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from sidar_torch import geometry
 from sidar_torch.scene import Camera, Material, Occluder, ViewScene
 
-SPEC = importlib.util.spec_from_file_location("realism", Path(__file__).resolve().parent.parent / "benchmarks" / "realism.py")
-realism = sys.modules["realism"] = importlib.util.module_from_spec(SPEC)  # dataclasses look their module up
-SPEC.loader.exec_module(realism)
+from benchmarks import realism
 
 SIZE = (96, 128)
 

@@ -1,5 +1,5 @@
-"""How true the samples are: rendered pixels against homographies, homographies against the
-analytic ones, and the label against the painting.
+"""How true the samples are: rendered pixels against homographies, and homographies against the
+analytic ones.
 
 * :func:`warp_residuals` warps view ``i`` into view ``j`` with the sample's ``H[i, j]``
   (``kornia.geometry.transform.warp_perspective``) and measures what is left: the sub-pixel
@@ -9,9 +9,10 @@ analytic ones, and the label against the painting.
 * :func:`homography_errors` compares every sample's float64 homographies (Kornia DLT) with
   the analytic plane-induced ones on a grid of painting points, and measures what the
   float32 tensors handed out add.
-* :func:`label_psnr` compares the label with the source painting.
+* :func:`psnr` compares two images (e.g. the label with the source painting).
+* :func:`speckle_paintings` makes paintings on which the warp residual measures geometry.
 
-``python -m sidar_torch accuracy`` prints them as a table (:mod:`sidar_torch.accuracy_report`).
+``python -m benchmarks.accuracy_report`` (from a clone) prints them as a table.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
 """Cost of the opacity draw: median time per view with and without ``opacity_output``, same run.
+``python -m benchmarks.opacity_cost [--size HxW] [--samples N]`` from the repository root.
 
 Renders the same scenes and paintings both ways, alternating which goes first, in this process's
 shared renderer, after warm-up samples (shader variants compile at first use). Prints, per view
@@ -8,7 +9,7 @@ wall-clock and in this process's CPU time (llvmpipe draws in this thread with
 ``LP_NUM_THREADS=0``, so CPU time is what other jobs on the machine disturb least), and the
 median time of the opacity draw itself (its ``"opacity"`` step; swapping materials is ``"graph"``).
 
-    .venv/bin/python scripts/opacity_cost.py --config misaligned --size 384 512 --samples 60
+    python -m benchmarks.opacity_cost --config misaligned --size 384x512 --samples 60
 """
 
 from __future__ import annotations
@@ -20,16 +21,18 @@ import time
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.render import shared_renderer
 
+from .common import DEFAULT_PRESET, parse_size, size_label
+
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default="misaligned", help="preset name or YAML path")
-    parser.add_argument("--size", type=int, nargs=2, default=(384, 512), metavar=("H", "W"))
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.opacity_cost", description=__doc__.splitlines()[0])
+    parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
+    parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
     parser.add_argument("--samples", type=int, default=60, help="measured sequences (after 3 warm-up ones)")
-    args = parser.parse_args()
-    config = load_config(args.config, image_size=tuple(args.size))
+    args = parser.parse_args(argv)
+    config = load_config(args.config, image_size=args.size)
     dataset = SidarDataset(config=config, seed=0)
     renderer = shared_renderer(config.image_size, config.shadow_map_size)
     ms_per_view = {(clock, on): [] for clock in CLOCKS for on in (False, True)}
@@ -48,7 +51,7 @@ def main() -> None:
                 ms_per_view[clock, on].append(1e3 * (read() - start[clock]) / len(sequence.views))
             if on:
                 draw_ms.append(1e3 * timings.get("opacity", 0.0) / len(sequence.views))
-    print(f"{args.config} {args.size[1]}x{args.size[0]}, {args.samples} sequences x {config.n_views} views")
+    print(f"{args.config} {size_label(args.size)} (H x W), {args.samples} sequences x {config.n_views} views")
     for clock in CLOCKS:
         without, with_ = (statistics.median(ms_per_view[clock, on]) for on in (False, True))
         paired = statistics.median(b - a for a, b in zip(ms_per_view[clock, False], ms_per_view[clock, True]))

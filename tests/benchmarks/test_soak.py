@@ -1,4 +1,4 @@
-"""Long runs, shortened for CI: ``scripts/soak.py`` over 150 samples must keep memory, shader
+"""Long runs, shortened for CI: ``python -m benchmarks.soak`` over 150 samples must keep memory, shader
 programs and GL objects flat once warm (the full 10,000-sample soak is in the README)."""
 
 import json
@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-SOAK = Path(__file__).resolve().parents[1] / "scripts" / "soak.py"
+ROOT = Path(__file__).resolve().parents[2]
 
 MAX_GROWTH_MB = 10
 """Allowed resident-memory growth over the 100 samples after the warm-up (measured: under 1 MiB;
@@ -20,9 +20,9 @@ def test_short_soak_keeps_memory_programs_and_gl_objects_flat(tmp_path):
     config = tmp_path / "soak.yaml"
     config.write_text("base: misaligned\nn_views: 3\nshadow_map_size: 256\n")
     done = subprocess.run(
-        [sys.executable, str(SOAK), "--config", str(config), "--size", "48", "64", "--samples", "150",
+        [sys.executable, "-m", "benchmarks.soak", "--config", str(config), "--size", "48x64", "--samples", "150",
          "--every", "25", "--warmup", "50", "--distinct", "50", "--max-growth-mb", str(MAX_GROWTH_MB)],
-        capture_output=True, text=True, timeout=600)
+        capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert done.returncode in (0, 1), done.stderr
     summary = json.loads(done.stdout.splitlines()[-1])
     after = [r for r in summary["reports"] if r["samples"] >= 50]

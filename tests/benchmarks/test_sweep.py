@@ -1,6 +1,6 @@
 """The speed-against-error sweep on tiny settings: structure, pixel alignment of supersampling and
 that larger shadow maps come closer to the reference; never speed (that is what
-``python -m sidar_torch sweep`` prints)."""
+``python -m benchmarks.sweep`` prints)."""
 
 import json
 import math
@@ -10,10 +10,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from sidar_torch import load_config, sweep
-from sidar_torch.accuracy import speckle_paintings
-from sidar_torch.cli import main
+from benchmarks import sweep
+from benchmarks.sweep import main
+from sidar_torch import load_config
 from sidar_torch.dataset import SidarDataset
+from sidar_torch.metrics import speckle_paintings
 from sidar_torch.render import SceneRenderer
 
 from conftest import SMALL
@@ -38,7 +39,7 @@ def test_report_structure_and_outputs(report, tmp_path):
         (128, "fitted", "fixed", "trilinear", "tent"), (512, "fitted", "fixed", "trilinear", "tent"),
         (128, "fitted", "<= 1 px", "trilinear", "tent"), (128, "fitted", "fixed", "bilinear", "tent"),
         (128, "fitted", "fixed", "trilinear", "bilinear"), (2048, "fitted", "finest", "trilinear", "tent")]
-    assert all(r["size"] == "128x96" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
+    assert all(r["size"] == "96x128" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
     assert [r["reference"] for r in rows] == [False] * 9 + [True]
     assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
     assert any(r["pareto"] for r in rows[:-1])
@@ -46,7 +47,7 @@ def test_report_structure_and_outputs(report, tmp_path):
     assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
     assert report["labels"][0]["min_psnr_db"] >= 45
     paths = sweep.write_outputs(report, tmp_path / "out")
-    assert "| 128x96 | 512 | fitted | tent | 1x | fixed | trilinear |" in paths["md"].read_text()
+    assert "| 96x128 | 512 | fitted | tent | 1x | fixed | trilinear |" in paths["md"].read_text()
     assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
     with Image.open(paths["png"]) as image:
         assert image.size == (900, 600)
@@ -106,8 +107,8 @@ def test_cli_writes_the_three_files(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(sweep.SweepSettings, "quick", classmethod(
         lambda cls, **changes: replace(TINY, shadow_map_sizes=(64,), shadow_frusta=("cone",), mesh_errors=(),
                                        shadow_filters=(), scenes=1, **changes)))
-    main(["sweep", "--quick", "--config", "shadows_only", "--set", "n_occluders=[1,1]", "--out-dir", str(tmp_path)])
-    assert "| 128x96 | 64 | cone | tent | 1x | fixed | trilinear |" in capsys.readouterr().out
+    main(["--quick", "--config", "shadows_only", "--set", "n_occluders=[1,1]", "--out-dir", str(tmp_path)])
+    assert "| 96x128 | 64 | cone | tent | 1x | fixed | trilinear |" in capsys.readouterr().out
     assert {p.name for p in tmp_path.iterdir()} == {"sweep.md", "sweep.json", "sweep.png"}
     settings = json.loads((tmp_path / "sweep.json").read_text())["settings"]
     assert settings["preset"] == "shadows_only" and settings["overrides"] == {"n_occluders": [1, 1]}
@@ -117,9 +118,9 @@ def test_cli_overrides_reach_the_scenes_and_bad_ones_are_named():
     settings = sweep.SweepSettings(sizes=(SMALL,), preset="shadows_only", overrides={"n_occluders": (2, 2)})
     assert all(len(view.occluders) == 2 for view in sweep._dataset(settings, SMALL).scene(0).views)
     with pytest.raises(SystemExit, match="n_veiws"):
-        main(["sweep", "--quick", "--set", "n_veiws=2"])
+        main(["--quick", "--set", "n_veiws=2"])
     with pytest.raises(SystemExit, match="image_size"):
-        main(["sweep", "--quick", "--set", "image_size=[8,8]"])
+        main(["--quick", "--set", "image_size=[8,8]"])
 
 
 def test_shadow_filter_is_swept_at_the_base_setting(report):

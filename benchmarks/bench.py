@@ -1,0 +1,321 @@
+"""The speed benchmark of issue 14: ``python -m benchmarks.bench [--quick]`` from the repository root.
+
+In one process and one run (torch on one thread, llvmpipe in the calling thread), it measures:
+
+* **views**: for each size (default 192x256, 384x512, 768x1024, ``HxW``) and preset (default
+  ``misaligned``: 6 views with masks, label and every homography), the median process CPU time of
+  ``SidarDataset.sample(i)`` over ``--samples`` samples after one warm-up sample (shader
+  compilation, reported on its own), per sequence and per view; and kornia's 2-D pipeline
+  (:func:`benchmarks.common.kornia_pipeline`, batch 1) per image at the same size, median CPU
+  time; the ratio of the two;
+* **augment**: ``SidarAugment(preset, n_views=2, image_size=192x256)`` on a batch of 8 images,
+  median CPU time per call after a warm-up call, per image, against kornia's pipeline on the same
+  batch per image; with a render pool (``num_workers=2``, when ``SidarAugment`` has one), the
+  wall-clock throughput of the pool over the single-process one;
+* **workers**: steady-state sequences/s of the preset at 384x512 through a DataLoader with 1 and
+  2 workers (wall clock; see :func:`loader_rate`) and their ratio;
+* **targets**: each target of issue 14, met or not, with its figure.
+
+The figures are printed as markdown (and written as JSON with ``--json PATH``); nothing is asserted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import itertools
+import json
+import sys
+import time
+from collections import defaultdict
+from dataclasses import asdict, dataclass
+from typing import Any, Callable, Iterator
+
+import torch
+from torch.utils.data import DataLoader, IterableDataset, get_worker_info
+
+from sidar_torch import SidarAugment, SidarDataset, load_config
+
+from .common import (DEFAULT_PRESET, cpu_seconds, kornia_cpu_seconds, machine, machine_line, median, one_thread,
+                     parse_size, size_label)
+
+__all__ = ["BenchSettings", "format_report", "loader_rate", "main", "run_bench", "targets"]
+
+_WARMUP_INDEX = 1_000_000
+"""Index of warm-up samples, apart from the measured indices ``0 .. samples - 1``."""
+
+TARGET_SIZES = {"small": (192, 256), "default": (384, 512), "large": (768, 1024)}
+"""The sizes issue 14's targets name, ``(H, W)``."""
+
+TARGETS = {"seconds_per_sequence": 0.2, "kornia_ratio": {"small": 1.5, "default": 1.0, "large": 1.0},
+           "augment_ratio": 3.0, "pool_speedup": 1.7, "worker_scaling": 1.8}
+"""Issue 14's targets: the default preset at 384x512 (6 views) in 0.2 s of CPU per sequence; per-view
+cost at most 1.5x kornia's per image at 192x256 and 1.0x at 384x512 and 768x1024; ``SidarAugment``
+(batch 8, 2 views, 192x256) at most 3x kornia per image on one core, and a pool of 2 render
+processes at least 1.7x its single-process throughput; 2 DataLoader workers at least 1.8x one."""
+
+
+@dataclass(frozen=True)
+class BenchSettings:
+    """What the benchmark measures.
+
+    Attributes:
+        presets: preset names or YAML paths for the per-view rows (targets: :data:`DEFAULT_PRESET`).
+        sizes: output sizes ``(H, W)`` of the per-view rows.
+        samples: measured samples per per-view row, after one warm-up sample.
+        kornia_calls: measured kornia calls per size and for the batch.
+        augment_batch, augment_views, augment_size: the ``SidarAugment`` batch, views and ``(H, W)``.
+        augment_calls: measured ``SidarAugment`` calls, after one warm-up call.
+        loader_size: ``(H, W)`` of the DataLoader rows.
+        loader_samples: measured samples per worker of a DataLoader row.
+        views: views per sequence (``None``: each preset's own).
+        seed: dataset and module seed.
+    """
+
+    presets: tuple[str, ...] = (DEFAULT_PRESET,)
+    sizes: tuple[tuple[int, int], ...] = tuple(TARGET_SIZES.values())
+    samples: int = 8
+    kornia_calls: int = 20
+    augment_batch: int = 8
+    augment_views: int = 2
+    augment_size: tuple[int, int] = TARGET_SIZES["small"]
+    augment_calls: int = 3
+    loader_size: tuple[int, int] = TARGET_SIZES["default"]
+    loader_samples: int = 6
+    views: int | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.presets or not self.sizes:
+            raise ValueError("presets, sizes: expected at least one each")
+        for size in (*self.sizes, self.augment_size, self.loader_size):
+            if len(size) != 2 or min(size) < 1:
+                raise ValueError(f"sizes: expected (H, W) pairs of positive integers, got {size}")
+        counts = {"samples": self.samples, "kornia_calls": self.kornia_calls, "augment_batch": self.augment_batch,
+                  "augment_views": self.augment_views, "augment_calls": self.augment_calls,
+                  "loader_samples": self.loader_samples}
+        bad = {k: v for k, v in counts.items() if v < 1}
+        if bad or (self.views is not None and self.views < 1):
+            raise ValueError(f"{', '.join(bad) or 'views'}: expected >= 1, got {bad or self.views}")
+        for preset in self.presets:  # unknown presets fail before measuring anything
+            load_config(preset)
+
+    @classmethod
+    def quick(cls, **changes: Any) -> "BenchSettings":
+        """Seconds, for tests: one 48x64 size, 2 views, 2 samples, a batch of 2, 2 loader samples."""
+        tiny = (48, 64)
+        return cls(**{"sizes": (tiny,), "samples": 2, "kornia_calls": 2, "augment_batch": 2, "augment_size": tiny,
+                      "augment_calls": 1, "loader_size": tiny, "loader_samples": 2, "views": 2, **changes})
+
+
+def _config(preset: str, size: tuple[int, int], views: int | None) -> Any:
+    return load_config(preset, image_size=size, **({} if views is None else {"n_views": views}))
+
+
+def view_row(preset: str, size: tuple[int, int], settings: BenchSettings, kornia_s: float) -> dict[str, Any]:
+    """Median CPU seconds per sequence and per view of ``preset`` at ``size``, against kornia."""
+    config = _config(preset, size, settings.views)
+    dataset = SidarDataset(config=config, seed=settings.seed)
+    warmup = cpu_seconds(lambda: dataset.sample(_WARMUP_INDEX))
+    per_sequence = median(cpu_seconds(lambda: dataset.sample(i)) for i in range(settings.samples))
+    per_view = per_sequence / config.n_views
+    return {"preset": preset, "size": size_label(size), "views": config.n_views, "samples": settings.samples,
+            "s_per_sequence": per_sequence, "ms_per_view": 1e3 * per_view, "warmup_s": warmup,
+            "kornia_ms_per_image": 1e3 * kornia_s, "kornia_ratio": per_view / kornia_s}
+
+
+def augment_row(settings: BenchSettings) -> dict[str, Any]:
+    """``SidarAugment`` per image (median CPU time per call over the batch) against kornia on the same
+    batch; with a render pool, its wall-clock throughput over the single-process one."""
+    preset, batch, size = settings.presets[0], settings.augment_batch, settings.augment_size
+    images = torch.rand(batch, 3, *size, generator=torch.Generator().manual_seed(settings.seed))
+    serial = SidarAugment(preset, seed=settings.seed, n_views=settings.augment_views, image_size=size)
+    serial(images)  # warm-up: shaders
+    per_image = median(cpu_seconds(lambda: serial(images)) for _ in range(settings.augment_calls)) / batch
+    kornia_s = kornia_cpu_seconds(batch, size, settings.kornia_calls, settings.seed) / batch
+    row = {"preset": preset, "batch": batch, "views": settings.augment_views, "size": size_label(size),
+           "ms_per_image": 1e3 * per_image, "kornia_ms_per_image": 1e3 * kornia_s, "kornia_ratio": per_image / kornia_s,
+           "pool_speedup": None}
+    if "num_workers" in inspect.signature(SidarAugment).parameters:
+        pooled = SidarAugment(preset, seed=settings.seed, n_views=settings.augment_views, image_size=size,
+                              num_workers=2)
+        pooled(images)  # warm-up: starts the pool, shaders in every process
+        wall = {name: median(_wall_seconds(lambda: module(images)) for _ in range(settings.augment_calls))
+                for name, module in (("serial", serial), ("pool", pooled))}
+        row["pool_speedup"] = wall["serial"] / wall["pool"]
+        del pooled
+    return row
+
+
+def _wall_seconds(call: Callable[[], object]) -> float:
+    start = time.perf_counter()
+    call()
+    return time.perf_counter() - start
+
+
+class _Stamped(IterableDataset):
+    """Worker ``k`` of ``w``: a warm-up sample, then samples ``k, k + w, k + 2w, ...`` of ``dataset``
+    (endless), each with ``"worker"`` (``k``) and ``"done"`` (the worker's ``perf_counter`` when the
+    sample was made, seconds) added."""
+
+    def __init__(self, dataset: SidarDataset):
+        super().__init__()
+        self.dataset = dataset
+
+    def __iter__(self) -> Iterator[dict[str, Any]]:
+        info = get_worker_info()
+        k, w = (info.id, info.num_workers) if info is not None else (0, 1)
+        for index in itertools.chain([_WARMUP_INDEX + k], itertools.count(k, w)):
+            yield {**self.dataset.sample(index), "worker": k, "done": time.perf_counter()}
+
+
+def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> float:
+    """Steady-state sequences/s through a DataLoader with ``workers`` (default start method) workers.
+
+    Each worker makes a warm-up sample (start-up, shaders), then ``per_worker`` measured samples
+    (samples ``0 .. workers * per_worker - 1`` in all, round robin), stamping each with its clock.
+    The rate is ``workers`` times the measured samples over the summed time each worker spent on
+    its share (warm-up stamp to last stamp: making, handing over, any wait for this process), so a
+    worker that drew cheaper samples does not inflate it.
+    """
+    loader = iter(DataLoader(_Stamped(SidarDataset(config=config, seed=seed)), batch_size=None,
+                             num_workers=workers))
+    stamps: dict[int, list[float]] = defaultdict(list)
+    indices = []
+    for n in range(workers * (1 + per_worker)):  # in-order delivery: round robin over the workers
+        sample = next(loader)
+        stamps[sample["worker"]].append(sample["done"])
+        if n >= workers:
+            indices.append(sample["index"])
+    del loader  # shuts the workers down
+    if indices != list(range(workers * per_worker)):
+        raise RuntimeError(f"DataLoader delivered samples {indices}, not round robin over its workers")
+    busy = sum(s[-1] - s[0] for s in stamps.values())
+    return workers * workers * per_worker / busy
+
+
+def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> dict[str, Any]:
+    """Every measurement, as plain data (see :func:`format_report`); ``log`` gets progress lines."""
+    start, before = time.perf_counter(), machine()
+    rows = []
+    with one_thread():
+        for size in settings.sizes:
+            kornia_s = kornia_cpu_seconds(1, size, settings.kornia_calls, settings.seed)
+            for preset in settings.presets:
+                rows.append(view_row(preset, size, settings, kornia_s))
+                log(f"{preset} at {size_label(size)}: done ({time.perf_counter() - start:.0f} s)")
+        augment = augment_row(settings)
+        log(f"SidarAugment: done ({time.perf_counter() - start:.0f} s)")
+        config = _config(settings.presets[0], settings.loader_size, settings.views)
+        rates = {w: loader_rate(config, w, settings.loader_samples, settings.seed) for w in (1, 2)}
+        log(f"DataLoader 1 and 2 workers: done ({time.perf_counter() - start:.0f} s)")
+    loaders = {"preset": settings.presets[0], "size": size_label(settings.loader_size), "views": config.n_views,
+               "samples_per_worker": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
+               "scaling": rates[2] / rates[1]}
+    report = {"settings": asdict(settings), "machine": {"before": before, "after": machine()}, "views": rows,
+              "augment": augment, "loaders": loaders, "seconds": time.perf_counter() - start}
+    report["targets"] = targets(report)
+    return report
+
+
+def targets(report: dict[str, Any]) -> list[dict[str, Any]]:
+    """Issue 14's targets against the report: ``{"target", "measured", "met"}`` each; ``met`` is
+    ``None`` (and ``measured`` says why) where the run did not measure what the target names."""
+    rows = []
+
+    def add(target: str, measured: str | None, met: bool | None) -> None:
+        rows.append({"target": target, "measured": measured or "not measured in this run", "met": met})
+
+    views = {(r["preset"], r["size"]): r for r in report["views"]}
+    default = views.get((DEFAULT_PRESET, size_label(TARGET_SIZES["default"])))
+    ok = default is not None and default["views"] == 6
+    limit = TARGETS["seconds_per_sequence"]
+    add(f"{DEFAULT_PRESET} {size_label(TARGET_SIZES['default'])}, 6 views: <= {limit} s CPU per sequence",
+        f"{default['s_per_sequence']:.3f} s" if ok else None, default["s_per_sequence"] <= limit if ok else None)
+    for name, size in TARGET_SIZES.items():
+        row, limit = views.get((DEFAULT_PRESET, size_label(size))), TARGETS["kornia_ratio"][name]
+        add(f"{DEFAULT_PRESET} {size_label(size)}: per view <= {limit}x kornia per image",
+            row and f"{row['kornia_ratio']:.2f}x ({row['ms_per_view']:.1f} ms against {row['kornia_ms_per_image']:.1f} ms)",
+            row["kornia_ratio"] <= limit if row else None)
+    a = report["augment"]
+    ok = (a["preset"], a["batch"], a["views"], a["size"]) == (DEFAULT_PRESET, 8, 2, size_label(TARGET_SIZES["small"]))
+    limit = TARGETS["augment_ratio"]
+    add(f"SidarAugment {DEFAULT_PRESET}, batch 8, 2 views, {size_label(TARGET_SIZES['small'])}: per image <= "
+        f"{limit}x kornia on the same batch (one core)",
+        ok and f"{a['kornia_ratio']:.2f}x ({a['ms_per_image']:.1f} ms against {a['kornia_ms_per_image']:.1f} ms)",
+        a["kornia_ratio"] <= limit if ok else None)
+    limit = TARGETS["pool_speedup"]
+    pool = a["pool_speedup"]
+    add(f"SidarAugment with a pool of 2 render processes: >= {limit}x its single-process throughput",
+        "no pool: SidarAugment has no num_workers" if pool is None else f"{pool:.2f}x (wall clock)",
+        False if pool is None else pool >= limit)
+    loaders, limit = report["loaders"], TARGETS["worker_scaling"]
+    load = max(m["load"] for m in report["machine"].values())
+    add(f"2 DataLoader workers >= {limit}x one worker (on an idle machine)",
+        f"{loaders['scaling']:.2f}x ({loaders['preset']} {loaders['size']}, load average up to {load:.1f} "
+        f"on {report['machine']['before']['cpus']} cores)", loaders["scaling"] >= limit)
+    return rows
+
+
+def format_report(report: dict[str, Any]) -> str:
+    """The report as markdown: per-view table, SidarAugment, DataLoader workers, targets."""
+    m, s = report["machine"], report["settings"]
+    lines = ["# sidar_torch speed (python -m benchmarks.bench)", "", machine_line(m["before"], m["after"]) +
+             f"; {report['seconds']:.0f} s.", "",
+             "## Per view against kornia's 2-D pipeline (batch 1), process CPU time, one core", "",
+             "| preset | size (H x W) | views | s / sequence | ms / view | kornia ms / image | ratio | warm-up s |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in report["views"]:
+        lines.append(f"| {r['preset']} | {r['size']} | {r['views']} | {r['s_per_sequence']:.3f} | {r['ms_per_view']:.1f} "
+                     f"| {r['kornia_ms_per_image']:.1f} | {r['kornia_ratio']:.2f}x | {r['warmup_s']:.2f} |")
+    a = report["augment"]
+    pool = "-" if a["pool_speedup"] is None else f"{a['pool_speedup']:.2f}x"
+    lines += ["", f"Medians over {s['samples']} samples after a warm-up sample (the warm-up compiles shaders). "
+              "Ratio: ms per view over kornia's ms per image at that size. Kornia's pipeline: RandomPerspective "
+              "+ ColorJitter + RandomPlasmaShadow + RandomGaussianNoise.", "",
+              "## SidarAugment against kornia on the same batch, process CPU time, one core", "",
+              "| preset | batch | views | size (H x W) | ms / image | kornia ms / image | ratio | pool of 2 (wall) |",
+              "|---|---|---|---|---|---|---|---|",
+              f"| {a['preset']} | {a['batch']} | {a['views']} | {a['size']} | {a['ms_per_image']:.1f} "
+              f"| {a['kornia_ms_per_image']:.1f} | {a['kornia_ratio']:.2f}x | {pool} |"]
+    w = report["loaders"]
+    rates = w["sequences_per_s"]
+    lines += ["", "## DataLoader workers (wall clock, steady state after each worker's first sample)", "",
+              "| preset | size (H x W) | views | 1 worker seq/s | 2 workers seq/s | scaling |", "|---|---|---|---|---|---|",
+              f"| {w['preset']} | {w['size']} | {w['views']} | {rates['1']:.2f} | {rates['2']:.2f} "
+              f"| {w['scaling']:.2f}x |",
+              "", "## Targets of issue 14 (reported, never asserted)", "", "| target | measured | met |",
+              "|---|---|---|"]
+    verdict = {True: "met", False: "not met", None: "-"}
+    lines += [f"| {t['target']} | {t['measured']} | {verdict[t['met']]} |" for t in report["targets"]]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="seconds: one 48x64 size, 2 views, tiny batches (for tests; no target is measured)")
+    parser.add_argument("--presets", nargs="+", default=None, metavar="PRESET",
+                        help=f"presets or YAML paths of the per-view rows; the first also runs SidarAugment and "
+                             f"the DataLoader rows (default {DEFAULT_PRESET})")
+    parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
+                        help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
+    parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 8)")
+    parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
+    args = parser.parse_args(argv)
+    changes = {k: tuple(v) if isinstance(v, list) else v
+               for k, v in {"presets": args.presets, "sizes": args.sizes, "samples": args.samples}.items()
+               if v is not None}
+    try:
+        settings = (BenchSettings.quick if args.quick else BenchSettings)(**changes)
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"bench: {error}") from error
+    report = run_bench(settings, log=lambda line: print(line, file=sys.stderr))
+    print(format_report(report))
+    if args.json:
+        with open(args.json, "w") as out:
+            json.dump(report, out, indent=2)
+
+
+if __name__ == "__main__":
+    main()

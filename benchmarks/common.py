@@ -1,0 +1,125 @@
+"""What every measurement shares: the clock, medians, sizes, one thread, the machine, the kornia baseline.
+
+* Per-core figures are **process CPU time** (:func:`cpu_seconds`, ``time.process_time``): with torch
+  on one thread (:func:`one_thread`) and llvmpipe rasterising in the calling thread
+  (``LP_NUM_THREADS=0``, which ``import sidar_torch`` sets unless the environment says otherwise),
+  this process uses one core, and other jobs sharing the machine change its CPU time far less than
+  its wall time. Throughput across processes (DataLoader workers) is wall time.
+* Sizes are ``(H, W)`` pixels everywhere, written ``HxW`` on the command line and in tables
+  (``384x512`` is 384 rows by 512 columns); :func:`parse_size` reads them, :func:`size_label`
+  writes them.
+* Ratios to kornia are always to a baseline run in the same process (:func:`kornia_cpu_seconds`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import platform
+import statistics
+import time
+from typing import Callable, Iterable, Iterator
+
+import torch
+
+from sidar_torch.cli import parse_overrides as parse_set
+
+__all__ = ["DEFAULT_PRESET", "cpu_seconds", "kornia_cpu_seconds", "kornia_pipeline", "machine", "machine_line",
+           "median", "one_thread", "parse_set", "parse_size", "rss_mb", "size_label"]
+
+DEFAULT_PRESET = "misaligned"
+"""The preset ``SidarDataset`` uses when given none; the speed targets refer to it."""
+
+
+def cpu_seconds(call: Callable[[], object]) -> float:
+    """Process CPU time of one ``call()``, seconds (every thread of this process, no child)."""
+    start = time.process_time()
+    call()
+    return time.process_time() - start
+
+
+def median(values: Iterable[float]) -> float:
+    """Median of ``values`` (at least one)."""
+    return statistics.median(list(values))
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[None]:
+    """Torch on one thread inside the block (as in DataLoader workers), restored after it.
+
+    The only place the measurements change torch's process-wide thread count."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``HEIGHTxWIDTH`` (``384x512``) -> ``(384, 512)``; raises ``argparse.ArgumentTypeError`` otherwise."""
+    h, sep, w = str(text).lower().partition("x")
+    try:
+        size = (int(h), int(w)) if sep else (0, 0)
+    except ValueError:
+        size = (0, 0)
+    if min(size) < 1:
+        raise argparse.ArgumentTypeError(f"size {text!r}: expected HEIGHTxWIDTH in pixels, e.g. 384x512")
+    return size
+
+
+def size_label(size: tuple[int, int]) -> str:
+    """``(H, W)`` -> ``"HxW"``, e.g. ``"384x512"``."""
+    return f"{size[0]}x{size[1]}"
+
+
+def rss_mb() -> float:
+    """Resident memory of this process now, MiB (``/proc/self/statm``; ``nan`` without it)."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError):
+        return float("nan")
+
+
+def machine() -> dict[str, object]:
+    """Cores, load average (1 minute), versions, GL platform and llvmpipe threads of this machine now."""
+    import kornia
+
+    from sidar_torch.render.context import GL_PLATFORM
+
+    return {"cpus": os.cpu_count(), "load": os.getloadavg()[0], "python": platform.python_version(),
+            "torch": torch.__version__, "kornia": kornia.__version__, "gl_platform": GL_PLATFORM,
+            "lp_num_threads": os.environ.get("LP_NUM_THREADS")}
+
+
+def machine_line(before: dict[str, object], after: dict[str, object]) -> str:
+    """One line describing the machine, with the load average before and after a run."""
+    loaded = max(before["load"], after["load"]) > 0.5 * (before["cpus"] or 1)
+    return (f"{before['cpus']} cores, load average {before['load']:.2f} at start, {after['load']:.2f} at end"
+            f"{' (other jobs ran: wall-clock figures are pessimistic, CPU-time figures less so)' if loaded else ''}; "
+            f"Python {before['python']}, torch {before['torch']} (1 thread), kornia {before['kornia']}, "
+            f"GL {before['gl_platform']}, LP_NUM_THREADS={before['lp_num_threads']}")
+
+
+def kornia_pipeline() -> torch.nn.Module:
+    """Kornia's 2-D augmentation pipeline the speed targets compare with: RandomPerspective(0.5) +
+    ColorJitter(0.2, 0.2, 0.2, 0.05) + RandomPlasmaShadow + RandomGaussianNoise(std 0.05), each
+    applied with probability 1."""
+    import kornia.augmentation as KA
+
+    return torch.nn.Sequential(
+        KA.RandomPerspective(0.5, p=1.0), KA.ColorJitter(0.2, 0.2, 0.2, 0.05, p=1.0),
+        KA.RandomPlasmaShadow(p=1.0), KA.RandomGaussianNoise(std=0.05, p=1.0))
+
+
+def kornia_cpu_seconds(batch: int, size: tuple[int, int], calls: int, seed: int = 0) -> float:
+    """Median process CPU seconds of one call of :func:`kornia_pipeline` on a ``(batch, 3, H, W)``
+    float32 batch (one untimed call first), in the calling thread setting."""
+    torch.manual_seed(seed)
+    pipeline = kornia_pipeline()
+    images = torch.rand(batch, 3, *size)
+    with torch.no_grad():
+        pipeline(images)
+        return median(cpu_seconds(lambda: pipeline(images)) for _ in range(calls))

@@ -1,0 +1,102 @@
+"""The speed benchmark (``benchmarks/bench.py``) on tiny settings: structure and consistency of the
+figures and the target verdicts, never speed (speed is what ``python -m benchmarks.bench`` prints)."""
+
+import json
+import math
+
+import pytest
+
+from benchmarks import bench
+from benchmarks.common import parse_size, size_label
+
+
+@pytest.fixture(scope="module")
+def report():
+    return bench.run_bench(bench.BenchSettings.quick(), log=lambda line: None)
+
+
+def test_report_structure_and_consistency(report):
+    json.dumps(report)  # plain data
+    (row,) = report["views"]
+    assert (row["preset"], row["size"], row["views"], row["samples"]) == ("misaligned", "48x64", 2, 2)
+    assert 0 < row["s_per_sequence"] < math.inf and row["warmup_s"] > 0 and row["kornia_ms_per_image"] > 0
+    assert row["ms_per_view"] == pytest.approx(1e3 * row["s_per_sequence"] / 2)
+    assert row["kornia_ratio"] == pytest.approx(row["ms_per_view"] / row["kornia_ms_per_image"])
+    a = report["augment"]
+    assert (a["batch"], a["views"], a["size"]) == (2, 2, "48x64")
+    assert a["ms_per_image"] > 0 and a["kornia_ratio"] == pytest.approx(a["ms_per_image"] / a["kornia_ms_per_image"])
+    w = report["loaders"]
+    assert w["scaling"] == pytest.approx(w["sequences_per_s"]["2"] / w["sequences_per_s"]["1"]) and w["scaling"] > 0
+    m = report["machine"]["before"]
+    assert m["cpus"] >= 1 and m["load"] >= 0 and report["seconds"] > 0
+
+
+def test_quick_run_measures_no_target_size_and_says_so(report):
+    verdicts = {t["target"].split(":")[0]: t for t in report["targets"]}
+    assert len(report["targets"]) == 7
+    for t in report["targets"][:5]:  # 48x64 is none of the targets' sizes
+        assert t["met"] is None and t["measured"] == "not measured in this run", t
+    assert all(t["met"] in (True, False) for t in report["targets"][5:])
+    assert "2 DataLoader workers >= 1.8x one worker (on an idle machine)" in verdicts
+
+
+def fake_report(ms_per_view, kornia_ms, s_per_sequence, augment_ratio, pool, scaling):
+    views = [{"preset": "misaligned", "size": size_label(size), "views": 6, "s_per_sequence": s_per_sequence,
+              "ms_per_view": ms_per_view, "kornia_ms_per_image": kornia_ms, "kornia_ratio": ms_per_view / kornia_ms}
+             for size in bench.TARGET_SIZES.values()]
+    return {"views": views, "machine": {"before": {"load": 0.1, "cpus": 2}, "after": {"load": 0.2, "cpus": 2}},
+            "augment": {"preset": "misaligned", "batch": 8, "views": 2, "size": "192x256", "ms_per_image": 1.0,
+                        "kornia_ms_per_image": 1 / augment_ratio, "kornia_ratio": augment_ratio, "pool_speedup": pool},
+            "loaders": {"preset": "misaligned", "size": "384x512", "scaling": scaling}}
+
+
+def test_targets_are_judged_on_the_figures_of_the_target_sizes():
+    met = bench.targets(fake_report(10.0, 10.0, 0.2, 3.0, 1.7, 1.8))  # every figure exactly at its limit
+    assert [t["met"] for t in met] == [True] * 7
+    missed = bench.targets(fake_report(12.0, 10.0, 0.25, 3.1, None, 1.79))
+    # 1.2x kornia: within 256x192's 1.5x, over the 1.0x of the others; no pool: not met, saying why
+    assert [t["met"] for t in missed] == [False, True, False, False, False, False, False]
+    assert missed[0]["measured"] == "0.250 s" and missed[5]["measured"].startswith("no pool")
+    assert "1.20x" in missed[2]["measured"] and "1.79x" in missed[6]["measured"]
+
+
+def test_five_views_do_not_count_for_the_sequence_target():
+    report = fake_report(10.0, 10.0, 0.1, 1.0, 2.0, 2.0)
+    for row in report["views"]:
+        row["views"] = 5
+    assert bench.targets(report)[0]["met"] is None
+
+
+def test_format_report_prints_every_table_and_verdict(report):
+    text = bench.format_report(report)
+    assert "| misaligned | 48x64 | 2 |" in text and "size (H x W)" in text
+    assert text.count("| - |") >= 5 and "## Targets" in text and "load average" in text
+
+
+def test_settings_reject_bad_values():
+    with pytest.raises(ValueError, match="samples"):
+        bench.BenchSettings(samples=0)
+    with pytest.raises(ValueError, match="sizes"):
+        bench.BenchSettings(sizes=((0, 64),))
+    with pytest.raises(ValueError, match="augment_batch"):
+        bench.BenchSettings(augment_batch=0)
+    with pytest.raises(ValueError, match="nope"):
+        bench.BenchSettings(presets=("nope",))
+
+
+def test_sizes_are_height_by_width():
+    assert parse_size("384x512") == (384, 512) and size_label((384, 512)) == "384x512"
+    for bad in ("512", "0x4", "axb", "384 512"):
+        with pytest.raises(Exception, match="HEIGHTxWIDTH"):
+            parse_size(bad)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--sizes", "64by48"], "HEIGHTxWIDTH"),
+    (["--presets", "nope"], "nope"),
+    (["--samples", "0"], "samples"),
+])
+def test_command_rejects_bad_arguments(argv, message, capsys):
+    with pytest.raises(SystemExit) as error:
+        bench.main(argv)
+    assert message in str(error.value) + capsys.readouterr().err
