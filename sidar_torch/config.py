@@ -22,6 +22,8 @@ from typing import Any, Mapping
 
 import yaml
 
+from .render_choices import MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
+
 __all__ = [
     "BACKGROUNDS",
     "LIGHT_TYPES",
@@ -40,18 +42,12 @@ __all__ = [
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs"
 """Folder of the YAML presets (``configs/`` at the top of the repository)."""
 
-MAX_SHADOWED_LIGHTS = 24
-"""Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
-
 LIGHT_TYPES = ("spot", "point", "area")
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull", "prism")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
-SHADOW_FILTERS = ("tent", "bilinear")
 BACKGROUNDS = ("black", "view", "sequence")
-SHADOW_FRUSTA = ("cone", "fitted")
 MESH_DETAILS = ("fixed", "auto")
-TEXTURE_FILTERS = ("trilinear", "bilinear")
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
