@@ -20,7 +20,7 @@ import torch
 
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.artifacts import apply_effects, draw_effects
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 
 EFFECTS = {
     "background=view": {"background": "view"},
@@ -42,7 +42,7 @@ def main() -> None:
     torch.set_num_threads(1)
     base = load_config(args.config, image_size=tuple(args.size), n_views=args.views)
     dataset = SidarDataset(None, base, seed=0)
-    renderer = shared_renderer(base.image_size, base.shadow_map_size)
+    renderer = shared_renderer(RenderSettings.from_config(base))
     renderer.render(dataset.scene(args.samples), dataset.source.painting(args.samples, base.image_size))  # warm-up
     rendered, render_s = [], []
     for i in range(args.samples):

@@ -45,7 +45,7 @@ from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
 from .config import SidarConfig, available_presets, load_config
 from .dataset import SidarDataset, render_sample
-from .render import renderer_options, shared_renderer
+from .render import RenderSettings, shared_renderer
 from .scene import sample_sequence
 from .timing import timed
 
@@ -159,7 +159,7 @@ def measure_main(config: SidarConfig, samples: int, seed: int) -> dict[str, Any]
     """Samples in this process: median seconds per sequence and per step, warm-up, memory."""
     dataset = SidarDataset(config=config, seed=seed)
     warmup = timed_sample(dataset, _WARMUP_INDEX)["total"]
-    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
+    renderer = shared_renderer(RenderSettings.from_config(config))
     rss_before, maps_before = _rss_mb(), renderer.shadow_map_count
     runs = [timed_sample(dataset, index) for index in range(samples)]
     new_maps_mb = (renderer.shadow_map_count - maps_before) * config.shadow_map_size**2 * 4 / 2**20

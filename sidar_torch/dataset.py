@@ -18,7 +18,7 @@ from torch.utils.data import IterableDataset, get_worker_info
 from . import geometry
 from .artifacts import apply_effects, draw_effects
 from .config import SidarConfig, load_config
-from .render import renderer_options, shared_renderer
+from .render import RenderSettings, shared_renderer
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
 from .timing import timed
@@ -73,8 +73,7 @@ def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         ``homography_error`` (float) and ``index`` (int).
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
-    rendered = renderer.render(sequence, painting, timings, opacities=config.opacity_output)
+    rendered = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting, timings)
     K, R, t = sequence.cameras()
     views = rendered.views
     if effects is not None:

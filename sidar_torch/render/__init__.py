@@ -21,6 +21,7 @@ from .context import check_platform_libraries  # noqa: E402  (after the environm
 
 check_platform_libraries()  # before pyrender's import, which fails obscurely without them
 
-from .renderer import RenderedSequence, SceneRenderer, renderer_options, shared_renderer  # noqa: E402
+from .renderer import RenderedSequence, SceneRenderer, shared_renderer  # noqa: E402
+from .settings import RenderSettings  # noqa: E402
 
-__all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
+__all__ = ["RenderSettings", "RenderedSequence", "SceneRenderer", "shared_renderer"]

@@ -10,11 +10,11 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   shadows; 8-bit sRGB (the shader's output encoding is exact sRGB, see ``programs``);
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
   (black) with depth testing, so occluder parts behind the painting never count; background
-  and occluders are 1. Occluders less opaque than ``sequence.mask_min_opacity`` are left out
+  and occluders are 1. Occluders less opaque than ``settings.mask_min_opacity`` are left out
   of this draw, so the painting seen through them counts as visible. With no such occluder in
   view the mask is the painting's outline, computed without a draw
   (:func:`~sidar_torch.geometry.painting_mask`);
-* the **opacity** (only when asked): an unlit draw of the painting (white, opaque) and every
+* the **opacity** (only with ``settings.opacities``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
   through (see :meth:`SceneRenderer._render_opacity`).
@@ -48,7 +48,7 @@ import pyrender
 from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
-from ..config import MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, SidarConfig
+from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..geometry import (ball_may_be_seen, ball_pixel_radius, ball_shadow_pixel_radius, clip_polygon, cube_corners,
                         light_frustum, look_at, painting_mask, plane_corners, visible_halfplanes)
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, Occluder, SceneSequence, ViewScene
@@ -58,20 +58,21 @@ from .framebuffer import FLIP_Y, Framebuffer
 from .meshes import FIXED_LEVEL, MeshPool, detail_level, plane_mesh
 from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
+from .settings import RenderSettings
 from .transmittance import TransmittanceMaps, vertex_defines
 
-__all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
+__all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
 
 GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
 
-PAINTING_SAMPLERS = {  # keys: config.TEXTURE_FILTERS
+PAINTING_SAMPLERS = {  # keys: render_choices.TEXTURE_FILTERS
     "trilinear": pyrender.Sampler(magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR_MIPMAP_LINEAR,
                                   wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE),
     "bilinear": pyrender.Sampler(magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR,
                                  wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE),
 }
-"""The painting's texture filters (``SidarConfig.texture_filter``): trilinear blends mipmap levels
+"""The painting's texture filters (``RenderSettings.texture_filter``): trilinear blends mipmap levels
 where a view shrinks the painting; bilinear reads the full-size texture only (aliases there).
 Clamping keeps texels of the opposite edge out of the border pixels."""
 
@@ -403,56 +404,33 @@ class _GLRenderer(pyrender.Renderer):
 
 
 class SceneRenderer:
-    """Renders scene sequences of one output size in one offscreen GL context.
+    """Renders scene sequences in one offscreen GL context, as ``settings`` say.
 
     Args:
-        image_size: ``(H, W)`` of every view, in pixels.
-        shadow_map_size: side of each shadow map, texels (power of two).
-        skip_idle_shadows: leave out the shadow pass and lookup of an emitter that cannot shadow
-            what the camera sees (see ``plan``; also an attribute, for tests).
-        shadow_filter: ``"tent"`` (3 x 3 percentage-closer filter, 4 taps) or ``"bilinear"``
-            (2 x 2, one tap); see ``SidarConfig.shadow_filter``.
-        shadow_frustum: what each shadow map covers, ``"cone"`` or ``"fitted"``
-            (``SidarConfig.shadow_frustum``; see :meth:`_shadow_frusta`).
-        mesh_error_px: ``None``: every curved occluder uses its fixed mesh; a number: the coarsest
-            pooled level whose silhouette (and shadow) stays within that many pixels of the
-            true surface (0: the finest level) (``SidarConfig.mesh_detail``; see :meth:`_mesh_level`).
-        texture_filter: the painting's filter, a key of :data:`PAINTING_SAMPLERS`.
+        settings: image size, shadow maps, filters, mesh detail, outputs and skips
+            (:class:`~.settings.RenderSettings`).
 
     Attributes:
-        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: switches of the
-            skips that cannot change a pixel (see ``plan`` and :meth:`_render_view`), all on;
-            the tests turn each off to compare.
+        settings: as given.
         skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
             ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes).
+
+    Raises:
+        ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context.
     """
 
-    def __init__(self, image_size: tuple[int, int], shadow_map_size: int = 1024, skip_idle_shadows: bool = True,
-                 shadow_filter: str = "tent", shadow_frustum: str = "fitted", mesh_error_px: float | None = None,
-                 texture_filter: str = "trilinear"):
-        if shadow_filter not in SHADOW_FILTERS:
-            raise ValueError(f"shadow_filter: expected one of {SHADOW_FILTERS}, got {shadow_filter!r}")
-        if shadow_frustum not in SHADOW_FRUSTA:
-            raise ValueError(f"shadow_frustum: expected one of {SHADOW_FRUSTA}, got {shadow_frustum!r}")
-        if mesh_error_px is not None and not mesh_error_px >= 0:
-            raise ValueError(f"mesh_error_px: expected None or a number >= 0, got {mesh_error_px!r}")
-        if texture_filter not in PAINTING_SAMPLERS:
-            raise ValueError(f"texture_filter: expected one of {tuple(PAINTING_SAMPLERS)}, got {texture_filter!r}")
-        self.image_size = tuple(image_size)
-        self.skip_idle_shadows = skip_idle_shadows
-        self.cull_occluders = True
-        self.masks_from_outline = True
-        self.reuse_shadow_maps = True
+    def __init__(self, settings: RenderSettings):
+        if not isinstance(settings, RenderSettings):
+            raise TypeError(f"settings: expected a RenderSettings, got {type(settings).__name__}")
+        self.settings = settings
+        self.image_size = settings.image_size
         self.skipped: Counter[str] = Counter()
-        self.shadow_frustum = shadow_frustum
-        self.mesh_error_px = mesh_error_px
-        self.texture_filter = texture_filter
         h, w = self.image_size
         self._platform = open_context(w, h)
         # Destroying the context frees every GL object in it; it needs no current context, so a
         # collected renderer cannot disturb another one mid-render. Runs at exit too.
         self._release = weakref.finalize(self, self._platform.delete_context)
-        self._gl = _GLRenderer(w, h, shadow_map_size, 1 if shadow_filter == "bilinear" else 4)
+        self._gl = _GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
@@ -473,7 +451,7 @@ class SceneRenderer:
         return len(self._lights)
 
     def render(self, sequence: SceneSequence, painting: np.ndarray,
-               timings: dict[str, float] | None = None, opacities: bool = False) -> RenderedSequence:
+               timings: dict[str, float] | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
@@ -483,8 +461,6 @@ class SceneRenderer:
                 texture and meshes), ``"graph"`` (building pyrender scenes), ``"shadow"``,
                 ``"colour"``, ``"mask"``, ``"opacity"`` and ``"label"`` (draw passes) and
                 ``"readback"``; the pixels are the same either way.
-            opacities: also render each view's opacity (``RenderedSequence.opacities``); the
-                other outputs are the same either way.
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
@@ -496,17 +472,17 @@ class SceneRenderer:
         with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
             texture = self._painting_texture(painting)
         with timed(timings, "graph"):
-            plans = plan_views(sequence, self._gl.shadow_map_size, self.skip_idle_shadows, self.cull_occluders)
+            plans = plan_views(sequence, self.settings)
         views, masks, hidden = [], [], []
         for view, plan in zip(sequence.views, plans):
-            image, mask, opacity = self._render_view(view, plan, sequence, texture, timings, opacities)
+            image, mask, opacity = self._render_view(view, plan, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
             hidden.append(opacity)
         label = self._render_label(sequence.views[0].camera, texture, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
-                                np.stack(hidden) if opacities else None)
+                                np.stack(hidden) if self.settings.opacities else None)
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
@@ -528,7 +504,7 @@ class SceneRenderer:
         if self._texture is None or not np.array_equal(painting, self._painting):
             rgba = np.concatenate([painting, np.full((*painting.shape[:2], 1), 255, np.uint8)], axis=2)
             self._texture = pyrender.Texture(source=rgba, source_channels="RGBA",
-                                             sampler=PAINTING_SAMPLERS[self.texture_filter])
+                                             sampler=PAINTING_SAMPLERS[self.settings.texture_filter])
             self._painting = painting.copy()
         return self._texture
 
@@ -542,10 +518,9 @@ class SceneRenderer:
         return scene, plane
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
-                     timings: dict[str, float] | None = None,
-                     opacity: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and, if
-        ``opacity``, its opacity ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
+                     timings: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and, with
+        ``settings.opacities``, its opacity ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = self._new_scene(view.camera, view.ambient, texture, view.plane_material)
             # Every occluder is added, culled or not: the scene's bounds set the depth range of the
@@ -553,7 +528,7 @@ class SceneRenderer:
             nodes = []
             counts: dict[tuple[str, int], int] = {}
             for occ in view.occluders:
-                key = (occ.shape, occ.variant, self._mesh_level(occ, view, sequence))
+                key = (occ.shape, occ.variant, self._mesh_level(occ, view))
                 mesh = self._meshes.take(*key[:2], counts.setdefault(key, 0), key[2])
                 counts[key] += 1
                 mesh.primitives[0].material = _gl_material(occ.material)
@@ -564,7 +539,7 @@ class SceneRenderer:
             self._gl.shadow_frusta = self._shadow_frusta(shadowed, view, sequence)
             map_keys = self._shadow_map_keys(scene, shadowed, casters)
             stale = {node for node, (k, key) in map_keys.items()
-                     if self._map_keys.get(k) != key or not self.reuse_shadow_maps}
+                     if self._map_keys.get(k) != key or not self.settings.reuse_shadow_maps}
             self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
         drawn = {nodes[i] for i in plan.drawn}
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
@@ -574,8 +549,8 @@ class SceneRenderer:
                               timings=timings, step="colour", stale=stale)
         self._map_keys.update(map_keys.values())
         masked = {nodes[i] for i in plan.drawn
-                  if view.occluders[i].material.base_color[3] >= sequence.mask_min_opacity}
-        if not masked and self.masks_from_outline:
+                  if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}
+        if not masked and self.settings.masks_from_outline:
             # Only the painting would be drawn: its pixels are those whose centre sees it, which is
             # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
             self.skipped["masks_from_outline"] += 1
@@ -586,11 +561,12 @@ class SceneRenderer:
             seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
                                 timings=timings, step="mask")
             mask = seg[..., 0] < 128
-        return image, mask, self._render_opacity(scene, plane, drawn, mask, timings) if opacity else None
+        opacity = self._render_opacity(scene, plane, drawn, mask, timings) if self.settings.opacities else None
+        return image, mask, opacity
 
-    def _mesh_level(self, occ: Occluder, view: ViewScene, sequence: SceneSequence) -> int:
+    def _mesh_level(self, occ: Occluder, view: ViewScene) -> int:
         """The level of detail of ``occ``'s mesh in this view (:data:`~.meshes.FIXED_LEVEL` unless
-        :attr:`mesh_error_px` is set).
+        ``settings.mesh_error_px`` is set).
 
         One unit of the unit primitive is ``max(scale)`` world units at most; on screen a world
         unit near the occluder spans about ``ball_pixel_radius / r`` pixels, ``r`` its bounding
@@ -599,14 +575,15 @@ class SceneRenderer:
         larger of the two, over every emitter, sets the level: a silhouette gap of ``g`` units
         moves the outline and the shadow's edge by at most ``g`` times it, in pixels.
         """
-        if self.mesh_error_px is None:
+        error_px = self.settings.mesh_error_px
+        if error_px is None:
             return FIXED_LEVEL
         cam, radius = view.camera, float(np.linalg.norm(occ.scale))
-        spans = [ball_pixel_radius(cam.K, cam.R, cam.t, occ.position, radius)] if sequence.occluders_visible else []
-        if sequence.shadows:
+        spans = [ball_pixel_radius(cam.K, cam.R, cam.t, occ.position, radius)] if self.settings.occluders_visible else []
+        if self.settings.shadows:
             spans += [ball_shadow_pixel_radius(cam.K, cam.R, cam.t, e, occ.position, radius)
                       for light in view.lights for e in light.emitters]
-        return detail_level(occ.shape, max(spans, default=0.0) * float(occ.scale.max()) / radius, self.mesh_error_px)
+        return detail_level(occ.shape, max(spans, default=0.0) * float(occ.scale.max()) / radius, error_px)
 
     def _shadow_frusta(self, shadowed: set[pyrender.Node], view: ViewScene,
                        sequence: SceneSequence) -> dict[pyrender.Node, np.ndarray]:
@@ -622,23 +599,23 @@ class SceneRenderer:
         window gets :data:`SHADOW_MARGIN_TEXELS` of margin. A light with no receiver in front
         of it keeps pyrender's frustum.
         """
-        if self.shadow_frustum == "cone" or not shadowed:
+        if self.settings.shadow_frustum == "cone" or not shadowed:
             return {}
         casters = np.array([[*occ.position, np.linalg.norm(occ.scale)] for occ in view.occluders]).reshape(-1, 4)
         points = np.vstack([p for other in sequence.views
                             if other.lights == view.lights and other.occluders == view.occluders
-                            for p in self._visible_receivers(other.camera, casters, sequence.occluders_visible)])
+                            for p in self._visible_receivers(other.camera, casters)])
         margin = SHADOW_MARGIN_TEXELS / self._gl.shadow_map_size
         frusta = {node: light_frustum(node.matrix[:3, 3], node.light.outerConeAngle, points, casters, margin)
                   for node in shadowed}
         return {node: frustum for node, frustum in frusta.items() if frustum is not None}
 
-    def _visible_receivers(self, cam: Camera, casters: np.ndarray, occluders_visible: bool) -> list[np.ndarray]:
+    def _visible_receivers(self, cam: Camera, casters: np.ndarray) -> list[np.ndarray]:
         """World points ``(N, 3)`` bounding what ``cam`` sees: the corners of the visible part of
         the painting and of the bounding cubes of the occluders that may be in view."""
         region = self._visible_region(cam)
         points = [np.column_stack([region, np.zeros(len(region))])]
-        if occluders_visible:
+        if self.settings.occluders_visible:
             points += [cube_corners(c[:3], c[3]) for c in casters
                        if ball_may_be_seen(cam.K, cam.R, cam.t, self.image_size, c[:3], c[3])]
         return points
@@ -751,17 +728,8 @@ _DISOWNED: list[SceneRenderer] = []
 """Renderers inherited from a parent process, kept alive and unused (see ``SceneRenderer.disown``)."""
 
 
-def renderer_options(config: SidarConfig) -> dict[str, Any]:
-    """The :class:`SceneRenderer` keyword arguments (besides size and shadow-map size) that
-    ``config`` sets: ``shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))``."""
-    return {"shadow_filter": config.shadow_filter, "shadow_frustum": config.shadow_frustum,
-            "texture_filter": config.texture_filter,
-            "mesh_error_px": config.mesh_error_px if config.mesh_detail == "auto" else None}
-
-
-def shared_renderer(image_size: tuple[int, int], shadow_map_size: int, **options: Any) -> SceneRenderer:
-    """This process's renderer for these settings (``options``: the other keyword arguments of
-    :class:`SceneRenderer`), created at first use and then reused.
+def shared_renderer(settings: RenderSettings) -> SceneRenderer:
+    """This process's renderer for ``settings``, created at first use and then reused.
 
     A forked child (a DataLoader worker) inherits its parent's renderers; it disowns them
     without touching their GL state and creates its own.
@@ -769,7 +737,7 @@ def shared_renderer(image_size: tuple[int, int], shadow_map_size: int, **options
     pid = os.getpid()
     for key in [k for k in _SHARED if k[0] != pid]:
         _SHARED.pop(key).disown()
-    key = (pid, tuple(image_size), shadow_map_size, *sorted(options.items()))
+    key = (pid, settings)
     if key not in _SHARED:
-        _SHARED[key] = SceneRenderer(image_size, shadow_map_size, **options)
+        _SHARED[key] = SceneRenderer(settings)
     return _SHARED[key]
