@@ -11,7 +11,7 @@ import pyrender
 import pytest
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.render import RenderSettings, SceneRenderer
+from sidar_torch.render import RenderSettings, SceneRenderer, visibility
 from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
@@ -81,7 +81,7 @@ def test_off_view_caster_shadows_the_view_and_the_scene_has_shadows():
     sequence = shadow_scene()
     cam = sequence.views[0].camera
     off_view = sequence.views[0].occluders[-1]
-    assert not geometry.ball_may_be_seen(cam.K, cam.R, cam.t, SIZE, off_view.position, 0.07 * math.sqrt(3))
+    assert not visibility.ball_may_be_seen(cam.K, cam.R, cam.t, SIZE, off_view.position, 0.07 * math.sqrt(3))
     without = SceneSequence(SIZE, (ViewScene(cam, sequence.views[0].lights, sequence.views[0].occluders[:-1],
                                              WHITE, 0.05),))
     assert shadowed(sequence, 1024, "cone").sum() > shadowed(without, 1024, "cone").sum() + 50
@@ -136,7 +136,7 @@ def test_light_frustum_holds_receivers_within_the_cone_and_casters_beyond_near()
     emitter = np.array([0.4, -0.3, 1.5])
     receivers = geometry.plane_corners(SIZE)
     casters = np.array([[0.0, 0.0, 1.2, 0.05], [0.1, 0.1, 0.3, 0.1]])
-    x0, x1, y0, y1, near, far = geometry.light_frustum(emitter, 1.0, receivers, casters)
+    x0, x1, y0, y1, near, far = visibility.light_frustum(emitter, 1.0, receivers, casters)
     R, t = geometry.look_at(emitter)
     cam = receivers @ R.T + t
     tangents = cam[:, :2] / cam[:, 2:]
@@ -145,12 +145,12 @@ def test_light_frustum_holds_receivers_within_the_cone_and_casters_beyond_near()
     assert near == pytest.approx(((casters[:, :3] @ R.T + t)[:, 2] - casters[:, 3]).min())
     assert near < cam[:, 2].min()
     # A narrow cone clips the window to it: nothing outside the cone is lit.
-    x0, x1, y0, y1, *_ = geometry.light_frustum(emitter, 0.1, receivers, casters)
+    x0, x1, y0, y1, *_ = visibility.light_frustum(emitter, 0.1, receivers, casters)
     assert max(abs(x0), abs(x1), abs(y0), abs(y1)) == pytest.approx(math.tan(0.1))
     # A margin widens the window; a receiver behind the light has no frustum of this kind.
-    wide = geometry.light_frustum(emitter, 1.0, receivers, casters, margin=0.1)
-    assert wide[0] < geometry.light_frustum(emitter, 1.0, receivers, casters)[0]
-    assert geometry.light_frustum(emitter, 1.0, np.vstack([receivers, [[0.8, -0.6, 3.0]]]), casters) is None
+    wide = visibility.light_frustum(emitter, 1.0, receivers, casters, margin=0.1)
+    assert wide[0] < visibility.light_frustum(emitter, 1.0, receivers, casters)[0]
+    assert visibility.light_frustum(emitter, 1.0, np.vstack([receivers, [[0.8, -0.6, 3.0]]]), casters) is None
 
 
 def test_shared_lights_get_one_frustum_over_the_views():

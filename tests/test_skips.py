@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sidar_torch import geometry
-from sidar_torch.render import RenderSettings, shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer, visibility
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -150,7 +150,7 @@ def test_mask_from_the_painting_outline_matches_the_rendered_mask(size):
     rendered = renderer.render(SceneSequence(size, views), painting).masks
     differ, worst, edge_pixels = 0, 0.0, 0
     for camera, mask in zip(cameras, rendered):
-        outline = geometry.painting_mask(camera.K, camera.R, camera.t, size)
+        outline = visibility.painting_mask(camera.K, camera.R, camera.t, size)
         distance = edge_distance(camera, size)
         wrong = outline != mask
         differ += int(wrong.sum())
@@ -204,13 +204,13 @@ def test_margins_grow_the_shadow_tests():
     emitter = np.array([[0.0, 0.0, 2.0]])
     region = np.array([[0.3, -0.1], [0.5, -0.1], [0.5, 0.1], [0.3, 0.1]])
     centres, radii = np.array([[0.0, 0.0, 1.0], [0.3, 0.0, 1.0]]), np.array([0.1, 0.1])  # shadows about 0.2 wide
-    assert geometry.shadow_may_reach(emitter, centres, radii, region).tolist() == [[False, True]]
-    assert geometry.shadow_may_reach(emitter, centres, radii, region[::-1]).tolist() == [[False, True]]
-    assert geometry.shadow_may_reach(emitter, centres, radii, region, margins=0.06).tolist() == [[True, True]]
-    apart = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii)
+    assert visibility.shadow_may_reach(emitter, centres, radii, region).tolist() == [[False, True]]
+    assert visibility.shadow_may_reach(emitter, centres, radii, region[::-1]).tolist() == [[False, True]]
+    assert visibility.shadow_may_reach(emitter, centres, radii, region, margins=0.06).tolist() == [[True, True]]
+    apart = visibility.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii)
     assert apart.tolist() == [[[True, False]]]  # a ball shadows itself
-    near = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii, margins=0.15)
+    near = visibility.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii, margins=0.15)
     assert near.tolist() == [[[True, True]]]
-    holding = geometry.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
+    holding = visibility.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
                                                radii[1:])
     assert holding.tolist() == [[[True]]]

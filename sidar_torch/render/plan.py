@@ -35,10 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ball_may_be_seen, clip_polygon, plane_corners, shadow_may_fall_on_ball, shadow_may_reach, \
-    visible_halfplanes
+from ..geometry import clip_polygon, plane_corners, visible_halfplanes
 from ..scene import SceneSequence, ViewScene
 from .settings import RenderSettings
+from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
 __all__ = ["SHADOW_READ_TEXELS", "ViewPlan", "plan_views", "shadow_margin"]
 

@@ -13,7 +13,7 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   and occluders are 1. Occluders less opaque than ``settings.mask_min_opacity`` are left out
   of this draw, so the painting seen through them counts as visible. With no such occluder in
   view the mask is the painting's outline, computed without a draw
-  (:func:`~sidar_torch.geometry.painting_mask`);
+  (:func:`~.visibility.painting_mask`);
 * the **opacity** (only with ``settings.opacities``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -49,8 +49,7 @@ from OpenGL import GL
 from pyrender.constants import MAX_N_LIGHTS, RenderFlags
 
 from ..render_choices import MAX_SHADOWED_LIGHTS
-from ..geometry import (ball_may_be_seen, ball_pixel_radius, ball_shadow_pixel_radius, clip_polygon, cube_corners,
-                        light_frustum, look_at, painting_mask, plane_corners, visible_halfplanes)
+from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, Occluder, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
@@ -60,6 +59,8 @@ from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
 from .settings import RenderSettings
 from .transmittance import TransmittanceMaps, vertex_defines
+from .visibility import (ball_may_be_seen, ball_pixel_radius, ball_shadow_pixel_radius, cube_corners,
+                         light_frustum, painting_mask)
 
 __all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
 
@@ -151,7 +152,7 @@ def _clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, flo
 
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
-    """OpenGL projection ``(4, 4)`` of a frustum from :func:`sidar_torch.geometry.light_frustum`.
+    """OpenGL projection ``(4, 4)`` of a frustum from :func:`~.visibility.light_frustum`.
 
     The frustum is in the OpenCV frame (y down, z forward); the light's node pose is the same frame
     turned to OpenGL's (``_gl_pose``: y up, looking along -z), so its window's y bounds swap sign.
@@ -233,7 +234,7 @@ class _GLRenderer(pyrender.Renderer):
         self._make_depth_compare(self._unused_shadow_map)
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self.shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
-        """Light node -> fitted frustum (``geometry.light_frustum``) for the next draws; a light
+        """Light node -> fitted frustum (``visibility.light_frustum``) for the next draws; a light
         not in it gets pyrender's frustum, fitted to its cone."""
         self.transmittance = TransmittanceMaps(shadow_map_size // 2)
         self._filtered = False  # whether the current draw's lights have transmittance maps
@@ -587,7 +588,7 @@ class SceneRenderer:
 
     def _shadow_frusta(self, shadowed: set[pyrender.Node], view: ViewScene,
                        sequence: SceneSequence) -> dict[pyrender.Node, np.ndarray]:
-        """Fitted frusta (:func:`~sidar_torch.geometry.light_frustum`) of the ``shadowed`` light
+        """Fitted frusta (:func:`~.visibility.light_frustum`) of the ``shadowed`` light
         nodes for ``"fitted"``; none for ``"cone"``, whose maps keep pyrender's frustum.
 
         A fitted map covers what its shadows must be right on (the *receivers*): the part of the
