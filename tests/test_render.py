@@ -259,3 +259,20 @@ def test_the_render_layer_does_not_import_the_config():
             else:
                 continue
             assert not any("config" in m.split(".") for m in modules), (path.name, modules)
+
+
+def test_sizes_beyond_the_gl_limits_name_the_field_and_the_limit():
+    # Issue 13 item 4: without the check, GL raised "GLError ... glRenderbufferStorage" naming no field.
+    renderbuffer, texture = shared_renderer(RenderSettings(SMALL)).gl_limits
+    assert renderbuffer >= 1024 and texture >= 1024
+    side = min(renderbuffer, texture)
+    with pytest.raises(ValueError, match=rf"image_size: \(64, {side + 1}\) .* GL_MAX_\w+_SIZE = {side}"):
+        SceneRenderer(RenderSettings((64, side + 1)))
+    with pytest.raises(ValueError, match=rf"shadow_map_size: {2 * texture} .* GL_MAX_TEXTURE_SIZE = {texture}"):
+        SceneRenderer(RenderSettings(SMALL, 2 * texture))
+    # The check itself, with made-up limits (no GL needed).
+    with pytest.raises(ValueError, match="image_size: .* GL_MAX_RENDERBUFFER_SIZE = 100: expected H, W <= 100"):
+        RenderSettings((96, 128)).check_gl_limits(100, 4096)
+    with pytest.raises(ValueError, match="shadow_map_size: 1024 .* = 1000: expected a power of two <= 512"):
+        RenderSettings((96, 128)).check_gl_limits(4096, 1000)
+    RenderSettings((96, 128), 1024).check_gl_limits(1024, 1024)  # at the limit: fine

@@ -53,7 +53,7 @@ from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
 from ..scene import CAMERA_CLEARANCE, Camera, Light, Material, Occluder, SceneSequence, ViewScene
 from ..timing import timed
 from .context import open_context
-from .framebuffer import FLIP_Y, Framebuffer
+from .framebuffer import FLIP_Y, Framebuffer, size_limits
 from .meshes import FIXED_LEVEL, MeshPool, detail_level, plane_mesh
 from .plan import ViewPlan, plan_views
 from .programs import ProgramCache, surface_factors
@@ -417,7 +417,8 @@ class SceneRenderer:
             ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes).
 
     Raises:
-        ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context.
+        ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context
+            (:meth:`~.settings.RenderSettings.check_gl_limits`).
     """
 
     def __init__(self, settings: RenderSettings):
@@ -431,6 +432,9 @@ class SceneRenderer:
         # Destroying the context frees every GL object in it; it needs no current context, so a
         # collected renderer cannot disturb another one mid-render. Runs at exit too.
         self._release = weakref.finalize(self, self._platform.delete_context)
+        self.gl_limits = size_limits()
+        """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
+        settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
         self._gl = _GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()

@@ -93,6 +93,28 @@ class RenderSettings:
             opacities=config.opacity_output,
         )
 
+    def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:
+        """Raise if a GL context with these limits cannot hold the renderer's buffers.
+
+        Every view is drawn into renderbuffers of ``image_size`` and the painting is a texture of
+        that size; each shadow map is a ``shadow_map_size`` square texture.
+
+        Args:
+            max_renderbuffer_size, max_texture_size: the context's ``GL_MAX_RENDERBUFFER_SIZE``
+                and ``GL_MAX_TEXTURE_SIZE`` (pixels along a side).
+
+        Raises:
+            ValueError: naming the field, the context's limit, and what fits.
+        """
+        limit, name = min((max_renderbuffer_size, "GL_MAX_RENDERBUFFER_SIZE"), (max_texture_size, "GL_MAX_TEXTURE_SIZE"))
+        if max(self.image_size) > limit:
+            raise ValueError(f"image_size: {self.image_size} (H, W) exceeds this OpenGL context's {name} = {limit}: "
+                             f"expected H, W <= {limit}")
+        if self.shadow_map_size > max_texture_size:
+            fits = 1 << (max_texture_size.bit_length() - 1)
+            raise ValueError(f"shadow_map_size: {self.shadow_map_size} exceeds this OpenGL context's "
+                             f"GL_MAX_TEXTURE_SIZE = {max_texture_size}: expected a power of two <= {fits}")
+
     @property
     def shadow_taps(self) -> int:
         """Depth-compare taps per shadow lookup: 4 (tent) or 1 (bilinear)."""
