@@ -12,7 +12,7 @@ import pytest
 
 from sidar_torch import SidarDataset, geometry, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer, visibility
-from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, unit_primitive
+from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, mesh_level, unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
 from conftest import SMALL, sample_digest, small_config, textured_painting
@@ -164,8 +164,8 @@ def test_shared_lights_get_one_frustum_over_the_views():
         for view in sequence.views:
             scene = pyrender.Scene()
             order = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-            nodes = renderer._add_lights(scene, view.lights, order, len(order))
-            frusta.append(sorted(map(tuple, renderer._shadow_frusta(nodes, view, sequence).values())))
+            nodes = renderer._shadows.add_lights(scene, view.lights, order, len(order))
+            frusta.append(sorted(map(tuple, renderer._shadows.frusta(nodes, view, sequence).values())))
         assert frusta[0] and all(f == frusta[0] for f in frusta)
     finally:
         renderer.close()
@@ -196,15 +196,12 @@ def test_sphere_silhouette_within_the_stated_error_of_the_finest_mesh(radius):
 
 
 def test_level_grows_with_on_screen_size():
-    renderer = SceneRenderer(RenderSettings(SIZE, 64, mesh_error_px=0.25, shadows=False))
-    try:
-        levels = []
-        for radius in (0.005, 0.02, 0.05, 0.1, 0.3):
-            sequence = sphere_view(radius)
-            levels.append(renderer._mesh_level(sequence.views[0].occluders[0], sequence.views[0]))
-        assert levels == sorted(levels) and levels[0] < levels[-1], levels
-    finally:
-        renderer.close()
+    settings = RenderSettings(SIZE, 64, mesh_error_px=0.25, shadows=False)
+    levels = []
+    for radius in (0.005, 0.02, 0.05, 0.1, 0.3):
+        sequence = sphere_view(radius)
+        levels.append(mesh_level(sequence.views[0].occluders[0], sequence.views[0], settings))
+    assert levels == sorted(levels) and levels[0] < levels[-1], levels
     assert [detail_level("sphere", ppu, 0.25) for ppu in (1, 10, 50, 200, 1e4)] == [0, 1, 2, 3, 3]
     assert detail_level("cube", 1e4, 0.25) == 0 and level_gap("cube", 0) == 0.0
 
@@ -212,12 +209,10 @@ def test_level_grows_with_on_screen_size():
 def test_shadow_sets_the_level_of_an_invisible_occluder():
     """An occluder cameras cannot see still needs detail for its shadow."""
     sequence = shadow_scene()
-    renderer = SceneRenderer(RenderSettings(SIZE, 64, mesh_error_px=0.25, occluders_visible=False))
-    try:
-        view = sequence.views[0]
-        assert renderer._mesh_level(view.occluders[0], view) > 0
-    finally:
-        renderer.close()
+    view = sequence.views[0]
+    settings = RenderSettings(SIZE, 64, mesh_error_px=0.25, occluders_visible=False)
+    assert mesh_level(view.occluders[0], view, settings) > 0
+    assert mesh_level(view.occluders[0], view, replace(settings, shadows=False)) == 0
 
 
 @pytest.mark.parametrize("shape", ["sphere", "cylinder", "cone", "torus", "capsule"])

@@ -13,7 +13,7 @@ import torch
 
 import sidar_torch.render
 from sidar_torch import SidarDataset, geometry
-from sidar_torch.render import RenderSettings, SceneRenderer, programs, shared_renderer
+from sidar_torch.render import RenderSettings, SceneRenderer, shader_patches, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, small_config, textured_painting
@@ -172,10 +172,10 @@ def test_compiling_out_the_unused_point_and_directional_light_loops_changes_no_p
     painting = textured_painting(SMALL)
     sequences = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(3)]
     fast = [SceneRenderer(RenderSettings(SMALL)).render(seq, painting) for seq in sequences]
-    loops = [(old, new) for old, new in programs.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
+    loops = [(old, new) for old, new in shader_patches.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
     assert len(loops) == 2
-    kept = [patch for patch in programs.SHADER_PATCHES["mesh.frag"] if patch not in loops]
-    monkeypatch.setitem(programs.SHADER_PATCHES, "mesh.frag", kept)
+    kept = [patch for patch in shader_patches.SHADER_PATCHES["mesh.frag"] if patch not in loops]
+    monkeypatch.setitem(shader_patches.SHADER_PATCHES, "mesh.frag", kept)
     renderer = SceneRenderer(RenderSettings(SMALL))  # a new program cache: compiled without those two patches
     for seq, expected in zip(sequences, fast):
         assert np.array_equal(renderer.render(seq, painting).views, expected.views)
@@ -217,7 +217,8 @@ def test_unknown_shadow_filter_is_named():
     ("import os; os.environ['PYOPENGL_PLATFORM'] = 'vulkan'", "expected 'osmesa' or 'egl'"),
 ])
 def test_a_platform_that_cannot_open_says_what_is_missing(setup, expected):
-    script = f"{setup}\nfrom sidar_torch.render import RenderSettings, SceneRenderer\nSceneRenderer(RenderSettings((8, 8)))\n"
+    script = (f"{setup}\nfrom sidar_torch.render import RenderSettings, SceneRenderer\n"
+              "SceneRenderer(RenderSettings((8, 8)))\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode != 0
     assert "RuntimeError" in result.stderr and expected in result.stderr, result.stderr[-500:]

@@ -44,7 +44,7 @@ __all__ = ["SHADOW_READ_TEXELS", "ViewPlan", "plan_views", "shadow_margin"]
 
 SHADOW_READ_TEXELS = 3.0
 """How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
-a texel's depth: ``programs._SPOT_SHADOW_LOOKUP`` takes 4 hardware-filtered taps half a texel off
+a texel's depth: ``shaders/spot_shadow.glsl`` takes 4 hardware-filtered taps half a texel off
 the point, each reading the 2 x 2 texels around it, so texel centres within 1.5 texels; the
 transmittance lookup reads the 2 x 2 texels of a map of half the resolution, so centres within 2
 depth-map texels; the other 1 covers float32 rounding. A texel an occluder covers has its centre inside the occluder's

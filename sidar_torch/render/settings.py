@@ -106,7 +106,8 @@ class RenderSettings:
         Raises:
             ValueError: naming the field, the context's limit, and what fits.
         """
-        limit, name = min((max_renderbuffer_size, "GL_MAX_RENDERBUFFER_SIZE"), (max_texture_size, "GL_MAX_TEXTURE_SIZE"))
+        limit, name = min((max_renderbuffer_size, "GL_MAX_RENDERBUFFER_SIZE"),
+                          (max_texture_size, "GL_MAX_TEXTURE_SIZE"))
         if max(self.image_size) > limit:
             raise ValueError(f"image_size: {self.image_size} (H, W) exceeds this OpenGL context's {name} = {limit}: "
                              f"expected H, W <= {limit}")

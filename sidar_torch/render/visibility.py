@@ -145,7 +145,7 @@ def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple
     condition holds on a half-line of ``u`` and the seen columns are an interval: the work is
     per row, and exact up to float64 rounding (the same plane geometry as the homographies).
     Nothing is near-clipped: the renderer's near plane lies in front of every painting point in
-    view (``render.renderer._clip_range``).
+    view (``render.scene_graph.clip_range``).
 
     Args:
         K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
