@@ -19,7 +19,7 @@ import numpy as np
 
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.artifacts import apply_effects, draw_effects
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 
 from .common import DEFAULT_PRESET, cpu_seconds, median, one_thread, parse_size, size_label
 
@@ -48,7 +48,7 @@ def measure(args: argparse.Namespace) -> None:
     """Render the sequences once, then time the effects on them (see the module docstring)."""
     base = load_config(args.config, image_size=args.size, n_views=args.views)
     dataset = SidarDataset(None, base, seed=0)
-    renderer = shared_renderer(base.image_size, base.shadow_map_size)
+    renderer = shared_renderer(RenderSettings.from_config(base))
     renderer.render(dataset.scene(args.samples), dataset.source.painting(args.samples, base.image_size))  # warm-up
     rendered, render_s = [], []
     for i in range(args.samples):

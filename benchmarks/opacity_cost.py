@@ -2,7 +2,7 @@
 ``python -m benchmarks.opacity_cost [--size HxW] [--samples N]`` from the repository root.
 
 Renders the same scenes and paintings both ways, alternating which goes first, in this process's
-shared renderer, after warm-up samples (shader variants compile at first use). Prints, per view
+shared renderers (one per setting), after warm-up samples (shader variants compile at first use). Prints, per view
 (a sequence's ``SceneRenderer.render`` time over its views), the medians with and without, the
 median paired difference (same sequence, with minus without; steadier on a loaded machine), in
 wall-clock and in this process's CPU time (llvmpipe draws in this thread with
@@ -17,9 +17,10 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from dataclasses import replace
 
 from sidar_torch import SidarDataset, load_config
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 
 from .common import DEFAULT_PRESET, parse_size, size_label
 
@@ -34,7 +35,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     config = load_config(args.config, image_size=args.size)
     dataset = SidarDataset(config=config, seed=0)
-    renderer = shared_renderer(config.image_size, config.shadow_map_size)
+    settings = RenderSettings.from_config(config)
+    renderers = {on: shared_renderer(replace(settings, opacities=on)) for on in (False, True)}
     ms_per_view = {(clock, on): [] for clock in CLOCKS for on in (False, True)}
     draw_ms: list[float] = []
     warmup = [10_000 + k for k in range(3)]
@@ -44,7 +46,7 @@ def main(argv: list[str] | None = None) -> None:
         for on in ((False, True) if index % 2 else (True, False)):
             timings: dict[str, float] = {}
             start = {clock: read() for clock, read in CLOCKS.items()}
-            renderer.render(sequence, painting, timings, opacities=on)
+            renderers[on].render(sequence, painting, timings)
             if index in warmup:
                 continue
             for clock, read in CLOCKS.items():

@@ -32,7 +32,7 @@ import sys
 import time
 
 from sidar_torch import SidarDataset, load_config  # first: it selects the GL platform
-from sidar_torch.render import renderer_options, shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 
 from OpenGL import GL
 
@@ -103,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     for done in range(1, args.samples + 1):
         dataset.sample((done - 1) % (args.distinct or args.samples))
         if done % args.every == 0:
-            renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
+            renderer = shared_renderer(RenderSettings.from_config(config))
             reports.append(report(done, renderer, started))
             r = reports[-1]
             print(f"{r['samples']:>8} {r['rss_mb']:>8.1f} {r['programs']:>8} {r['gl_textures']:>11} "

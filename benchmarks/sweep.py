@@ -63,7 +63,7 @@ from sidar_torch.artifacts import linear_to_srgb, srgb_to_linear
 from sidar_torch.config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from sidar_torch.dataset import SidarDataset
 from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals
-from sidar_torch.render import SceneRenderer
+from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.sample import sequence_homographies
 from sidar_torch.scene import SceneSequence
 
@@ -251,9 +251,10 @@ def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tu
     """Seconds per sequence and the views of scenes ``0 .. scenes - 1`` (one warm-up first)."""
     h, w = dataset.config.image_size
     factor = setting.supersampling
-    renderer = SceneRenderer((factor * h, factor * w), setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
-                             mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
-                             shadow_filter=setting.shadow_filter)
+    renderer = SceneRenderer(replace(RenderSettings.from_config(dataset.config), image_size=(factor * h, factor * w),
+                                     shadow_map_size=setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
+                                     mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
+                                     shadow_filter=setting.shadow_filter))
     try:
         seconds, views = [], []
         for index in [_WARMUP_INDEX, *range(scenes)]:
@@ -274,7 +275,7 @@ def residual_row(size: tuple[int, int], factor: int, samples: int, seed: int) ->
     drawn with supersampling ``factor`` (shadow maps play no part: no lights)."""
     config = load_config("ambient", image_size=size, n_views=4)
     dataset = SidarDataset(speckle_paintings(samples, size, seed), config, seed=seed)
-    renderer = SceneRenderer((factor * size[0], factor * size[1]), config.shadow_map_size)
+    renderer = SceneRenderer(replace(RenderSettings.from_config(config), image_size=(factor * size[0], factor * size[1])))
     lengths = []
     try:
         for index in range(samples):

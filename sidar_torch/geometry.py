@@ -21,26 +21,18 @@ import numpy as np
 import torch
 
 __all__ = [
-    "ball_may_be_seen",
-    "ball_pixel_radius",
-    "ball_shadow_corners",
-    "ball_shadow_pixel_radius",
-    "cube_corners",
     "clip_polygon",
-    "painting_mask",
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
-    "shadow_may_fall_on_ball",
-    "shadow_may_reach",
     "shared_points",
     "visible_plane_points",
+    "view_edges",
     "visible_halfplanes",
     "corner_pixels",
     "fit_points",
     "homographies_from_points",
     "intrinsics_from_fov",
-    "light_frustum",
     "look_at",
     "normalize_det",
     "plane_corners",
@@ -291,27 +283,15 @@ def visible_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: 
     Returns:
         ``(5, 3)`` float64 half-plane coefficients: four image edges and the camera's front.
     """
-    return _view_edges(K, image_size) @ np.column_stack([R[:, 0], R[:, 1], t])
+    return view_edges(K, image_size) @ np.column_stack([R[:, 0], R[:, 1], t])
 
 
-def _view_edges(K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+def view_edges(K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
     """``(5, 3)``: camera-frame points ``X`` inside the view have ``a . X >= 0`` for every row ``a``
     (four image edges at the outer pixel borders, then the camera's front)."""
     h, w = image_size
     e3 = np.array([0.0, 0.0, 1.0])
     return np.stack([K[0] + 0.5 * e3, (w - 0.5) * e3 - K[0], K[1] + 0.5 * e3, (h - 0.5) * e3 - K[1], e3])
-
-
-def ball_may_be_seen(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
-                     centre: np.ndarray, radius: float) -> bool:
-    """Whether a ball ``|X - centre| <= radius`` (world) may show in a camera's image.
-
-    Conservative: ``False`` only when the ball lies wholly outside one of the view's bounding
-    planes (the four image edges and the camera's front).
-    """
-    edges = _view_edges(K, image_size)
-    distance = edges @ (R @ centre + t) / np.linalg.norm(edges, axis=1)
-    return bool((distance >= -radius).all())
 
 
 def clip_polygon(polygon: np.ndarray, halfplanes: np.ndarray) -> np.ndarray:
@@ -366,227 +346,3 @@ def painting_pixel_area(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size:
     if len(region) < 3:
         return 0.0
     return polygon_area(project(K, R, t, np.column_stack([region, np.zeros(len(region))])))
-
-
-_CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
-"""The corners ``(8, 3)`` of the cube of half-side 1 around the origin."""
-
-
-def shadow_may_reach(emitters: np.ndarray, centres: np.ndarray, radii: np.ndarray, region: np.ndarray,
-                     margins: np.ndarray | float = 0.0) -> np.ndarray:
-    """Whether each ball can shadow any part of a region of the painting's plane, lit from each point.
-
-    Conservative: ``False`` only when the shadow certainly misses. A ball ``|X - c| <= r`` lies in
-    the cube of half-side ``r`` around ``c``; seen from an emitter above the cube, its shadow on
-    ``z = 0`` lies in the convex hull of the cube's 8 corners projected from the emitter, and so in
-    their bounding box, which is tested against the region (separating axes: the box's two and the
-    region's edge normals). A ball reaching the emitter's height has an unbounded shadow.
-
-    ``margins`` widen each emitter's shadows by an angle: every plane point whose direction from
-    the emitter is within the margin of a ball's is tested too. The ball is grown to radius
-    ``r + D margin`` (``D`` its centre's distance from the emitter), whose cone of directions holds
-    the widened one (``asin(x + m) >= asin(x) + m``).
-
-    Args:
-        emitters: ``(E, 3)`` light positions (world, painting units), ``z > 0``.
-        centres, radii: ``(B, 3)`` and ``(B,)`` balls (world, painting units).
-        region: ``(N, 2)`` convex polygon on the plane ``z = 0`` (e.g. what a camera sees).
-        margins: ``(E,)`` or one angle, radians.
-
-    Returns:
-        ``(E, B)`` bool.
-    """
-    emitters, centres = np.asarray(emitters, np.float64), np.asarray(centres, np.float64).reshape(-1, 3)
-    if len(region) < 3:
-        return np.zeros((len(emitters), len(centres)), dtype=bool)
-    distance = np.linalg.norm(centres[None] - emitters[:, None], axis=2)
-    grown = np.asarray(radii, np.float64)[None] + distance * np.reshape(margins, (-1, 1))  # (E, B)
-    unbounded = centres[None, :, 2] + grown >= emitters[:, None, 2]
-    corners = centres[None, :, None] + grown[..., None, None] * _CUBE  # (E, B, 8, 3)
-    light = emitters[:, None, None]
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # unbounded shadows: results unused
-        scale = light[..., 2] / (light[..., 2] - corners[..., 2])
-        shadow = light[..., :2] + scale[..., None] * (corners[..., :2] - light[..., :2])
-        return unbounded | _boxes_meet_polygon(shadow.min(axis=2), shadow.max(axis=2), region)
-
-
-def _boxes_meet_polygon(lo: np.ndarray, hi: np.ndarray, polygon: np.ndarray) -> np.ndarray:
-    """Whether axis-aligned boxes ``[lo, hi]`` (``(..., 2)`` each) meet a convex polygon ``(N, 2)``
-    (touching counts), by separating axes: the two axes, then each edge's outward normal. A
-    polygon too thin for its orientation to be sure meets every box."""
-    apart = (hi < polygon.min(axis=0)).any(axis=-1) | (lo > polygon.max(axis=0)).any(axis=-1)
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    twice_area = float(edges[:, 0] @ (np.roll(polygon, -1, axis=0)[:, 1] + polygon[:, 1]))  # > 0: clockwise
-    if abs(twice_area) <= 1e-9 * float(np.ptp(polygon, axis=0).max()) ** 2:
-        return np.ones(lo.shape[:-1], dtype=bool)
-    normals = np.stack([edges[:, 1], -edges[:, 0]], axis=1) * -np.sign(twice_area)
-    support = np.einsum("na,na->n", normals, polygon)  # the polygon lies where normal . p <= support
-    nearest = np.where(normals > 0, lo[..., None, :], hi[..., None, :])  # (..., N, 2): box corner least along each normal
-    apart |= (np.einsum("...na,na->...n", nearest, normals) > support).any(axis=-1)
-    return ~apart
-
-
-def shadow_may_fall_on_ball(emitters: np.ndarray, centres: np.ndarray, radii: np.ndarray, targets: np.ndarray,
-                            target_radii: np.ndarray, margins: np.ndarray | float = 0.0) -> np.ndarray:
-    """Whether each ball can shadow any point of each target ball (or itself), lit from each point.
-
-    Conservative: ``False`` only when no direction from the emitter within its margin (radians)
-    of one that meets the ball meets the target, i.e. their cones of directions seen from the
-    emitter, widened by the margin, are apart. A ball holding the emitter spans every direction.
-
-    Args:
-        emitters: ``(E, 3)`` light positions (world, painting units).
-        centres, radii: ``(B, 3)``, ``(B,)`` shadowing balls; targets, target_radii: ``(T, 3)``,
-            ``(T,)`` shadowed ones.
-        margins: ``(E,)`` or one angle, radians.
-
-    Returns:
-        ``(E, B, T)`` bool.
-    """
-    emitters = np.asarray(emitters, np.float64)
-    a = np.asarray(centres, np.float64).reshape(-1, 3)[None] - emitters[:, None]  # (E, B, 3)
-    b = np.asarray(targets, np.float64).reshape(-1, 3)[None] - emitters[:, None]  # (E, T, 3)
-    da, db = np.linalg.norm(a, axis=2), np.linalg.norm(b, axis=2)
-    inside = (da <= radii)[..., None] | (db <= target_radii)[:, None, :]
-    with np.errstate(divide="ignore", invalid="ignore"):  # an emitter at a centre: inside, result unused
-        cos = np.einsum("eba,eta->ebt", a, b) / (da[..., None] * db[:, None, :])
-        between = np.arccos(np.clip(cos, -1.0, 1.0))
-        half_a = np.arcsin(np.clip(radii / da, 0.0, 1.0))
-        half_b = np.arcsin(np.clip(target_radii / db, 0.0, 1.0))
-    return inside | (between <= half_a[..., None] + half_b[:, None, :] + np.reshape(margins, (-1, 1, 1)))
-
-
-def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """``(H, W)`` bool: True at pixels whose centre does not see the painting (background).
-
-    The camera ray through pixel centre ``(u, v)`` (Kornia pixels, integer centres) meets the
-    plane at homogeneous plane point ``p = M^-1 K^-1 (u, v, 1)``, ``M = [r_1, r_2, t]`` (so
-    ``(x, y) = p[:2] / p[2]``), in front of the camera when ``p[2] > 0``; it sees the painting when
-    moreover ``|x| <= w / 2`` and ``|y| <= h / 2``. Along a row ``p`` is linear in ``u``, so each
-    condition holds on a half-line of ``u`` and the seen columns are an interval: the work is
-    per row, and exact up to float64 rounding (the same plane geometry as the homographies).
-    Nothing is near-clipped: the renderer's near plane lies in front of every painting point in
-    view (``render.renderer._clip_range``).
-
-    Args:
-        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
-        image_size: ``(H, W)`` in pixels, of the image and of the painting (same aspect).
-    """
-    h, w = image_size
-    half_w, half_h = plane_size(image_size)[0] / 2, plane_size(image_size)[1] / 2
-    to_plane = np.linalg.inv(np.asarray(K, dtype=np.float64) @ np.column_stack([R[:, 0], R[:, 1], t]))
-    # Conditions c . p >= 0: in front, then the painting's four edges.
-    conditions = np.array([[0, 0, 1.0], [1, 0, half_w], [-1, 0, half_w], [0, 1, half_h], [0, -1, half_h]])
-    step = conditions @ to_plane[:, 0]  # (5,): change per column
-    start = (conditions @ to_plane[:, 1:]) @ np.stack([np.arange(h, dtype=np.float64), np.ones(h)])  # (5, H): at u = 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        bound = -start / step[:, None]
-    lo = np.where(step[:, None] > 0, bound, np.where((step[:, None] == 0) & (start < 0), np.inf, -np.inf)).max(axis=0)
-    hi = np.where(step[:, None] < 0, bound, np.where((step[:, None] == 0) & (start < 0), -np.inf, np.inf)).min(axis=0)
-    columns = np.arange(w, dtype=np.float64)
-    return ~((columns >= lo[:, None]) & (columns <= hi[:, None]))
-
-
-def cube_corners(centre: np.ndarray, radius: float) -> np.ndarray:
-    """``(8, 3)`` corners of the axis-aligned cube of half-side ``radius`` around ``centre``: the
-    cube holds the ball ``|X - centre| <= radius``, so their convex hull bounds the ball."""
-    return np.asarray(centre, dtype=np.float64) + radius * _CUBE
-
-
-def ball_shadow_corners(emitter: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
-    """The ball's bounding-cube corners projected from a point light onto the plane ``z = 0``,
-    ``(8, 2)`` plane points whose convex hull holds the ball's shadow; ``None`` when the ball
-    reaches the light's height (its shadow is then unbounded).
-
-    Args:
-        emitter: ``(3,)`` light position, ``z > 0``; centre, radius: the ball (world, painting units).
-    """
-    if centre[2] + radius >= emitter[2]:
-        return None
-    corners = cube_corners(centre, radius)
-    scale = emitter[2] / (emitter[2] - corners[:, 2])
-    return emitter[:2] + scale[:, None] * (corners[:, :2] - emitter[:2])
-
-
-def _pixel_spread(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> float:
-    """Half the longer side of the image bounding box of world points ``(N, 3)``, pixels; ``inf``
-    when a point is not in front of the camera."""
-    if ((points @ R.T + t)[:, 2] <= 0).any():
-        return math.inf
-    pixels = project(K, R, t, points)
-    return float((pixels.max(axis=0) - pixels.min(axis=0)).max()) / 2
-
-
-def ball_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, centre: np.ndarray, radius: float) -> float:
-    """The radius, in pixels, a ball ``|X - centre| <= radius`` shows at in a camera's image.
-
-    Measured as half the longer side of the image bounding box of its bounding cube's corners (at
-    most ``sqrt(3)`` times the ball's own projected radius, never less); ``inf`` when the cube
-    reaches behind the camera. The image's bounds are ignored (a ball partly out of view counts whole).
-
-    Args:
-        K, R: ``(3, 3)``; t: ``(3,)`` float64 camera (module conventions).
-    """
-    return _pixel_spread(K, R, t, cube_corners(centre, radius))
-
-
-def ball_shadow_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, emitter: np.ndarray,
-                             centre: np.ndarray, radius: float) -> float:
-    """Like :func:`ball_pixel_radius` for the ball's shadow on the painting's plane, cast from a
-    point light at ``emitter (3,)``: the projected radius of its :func:`ball_shadow_corners`
-    (``inf`` when the shadow is unbounded)."""
-    shadow = ball_shadow_corners(emitter, centre, radius)
-    if shadow is None:
-        return math.inf
-    return _pixel_spread(K, R, t, np.column_stack([shadow, np.zeros(len(shadow))]))
-
-
-def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray, casters: np.ndarray,
-                  margin: float = 0.0) -> np.ndarray | None:
-    """The tightest perspective shadow-map frustum of a spot light aimed at the origin.
-
-    The frustum is expressed in the light's own frame, :func:`look_at` ``(emitter)`` (OpenCV axes:
-    x right, y down, z along the light's axis): ``[x0, x1, y0, y1, near, far]``, the window's
-    bounds as tangents (``x / z``, ``y / z``) and the depth range along the axis. It holds
-
-    * every receiver point (the points whose shadowing must be right; give the corners of a
-      region or of a ball's :func:`cube_corners`), so every caster between the light and a
-      receiver lies inside it too (on the segment from the light to that receiver);
-    * laterally at most the light's cone ``|x|, |y| <= tan(outer_cone)``: outside it the light
-      adds nothing, so no shadow there can change a pixel;
-    * in depth, from the nearest caster or receiver (``near``) to the farthest receiver
-      (``far``), so no caster is cut by the near plane; ``near`` is kept at least ``far / 1000``
-      (a caster closer to the light than that would be inside the lamp).
-
-    The window is widened by ``margin`` times its size on each side (for the texels a filtered
-    shadow lookup reads around a point), and ``far`` by ``margin`` times the depth range.
-
-    Args:
-        emitter: ``(3,)`` light position (world, painting units), not at the origin.
-        outer_cone: the light's outer half-angle, rad, below pi / 2.
-        receivers: ``(N, 3)`` world points.
-        casters: ``(M, 4)`` balls ``(centre x, y, z, radius)`` that may cast shadows.
-        margin: relative widening (>= 0).
-
-    Returns:
-        ``(6,)`` float64, or ``None`` when a receiver is not in front of the light (no frustum
-        of this kind holds them) or the receivers span no area inside the cone.
-    """
-    R, t = look_at(emitter)
-    cam = receivers @ R.T + t
-    if len(cam) == 0 or (cam[:, 2] <= 0).any():
-        return None
-    tangents = cam[:, :2] / cam[:, 2:]
-    limit = math.tan(outer_cone)
-    low = np.clip(tangents.min(axis=0), -limit, limit)
-    high = np.clip(tangents.max(axis=0), -limit, limit)
-    if (high <= low).any():
-        return None
-    pad = margin * (high - low)
-    far = float(cam[:, 2].max())
-    depths = [float(cam[:, 2].min())]
-    if len(casters):
-        depths.append(float(((casters[:, :3] @ R.T + t)[:, 2] - casters[:, 3]).min()))
-    near = max(min(depths), far / 1000)
-    far += margin * (far - near)
-    return np.array([low[0] - pad[0], high[0] + pad[0], low[1] - pad[1], high[1] + pad[1], near, far])

@@ -23,7 +23,7 @@ import torch
 from . import geometry
 from .artifacts import apply_effects, draw_effects
 from .config import SidarConfig
-from .render import renderer_options, shared_renderer
+from .render import RenderSettings, shared_renderer
 from .scene import SceneSequence
 from .timing import timed
 
@@ -223,8 +223,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             when ``config`` switches an effect on (``ValueError`` otherwise).
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    renderer = shared_renderer(config.image_size, config.shadow_map_size, **renderer_options(config))
-    rendered = renderer.render(sequence, painting, timings, opacities=config.opacity_output)
+    rendered = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting, timings)
     views = rendered.views
     if effects is not None:
         with timed(timings, "effects"):

@@ -154,17 +154,13 @@ class SceneSequence(_Plain):
     Attributes:
         image_size: ``(H, W)`` of every view, in pixels.
         views: ``V`` view scenes; view 0's camera is the fronto-parallel reference.
-        occluders_visible: false: occluders cast shadows but cameras do not see them.
-        shadows: whether lights cast shadows.
-        mask_min_opacity: occluders whose ``material.base_color[3]`` is below this are left out
-            of the masks (0: every occluder is masked).
+
+    How it is drawn (shadows, occluders seen by the cameras, masks) is the renderer's business
+    (``sidar_torch.render.RenderSettings``), not the scene's.
     """
 
     image_size: tuple[int, int]
     views: tuple[ViewScene, ...]
-    occluders_visible: bool
-    shadows: bool
-    mask_min_opacity: float = 0.0
 
     def cameras(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Stacked ``K (V, 3, 3)``, ``R (V, 3, 3)``, ``t (V, 3)`` float64."""
@@ -186,7 +182,7 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
         if content is None or config.scene_per_view:
             content = _sample_content(config, rng, size, cameras)
         views.append(ViewScene(camera, *content))
-    return SceneSequence(size, tuple(views), config.occluders_visible, config.shadows, config.mask_min_opacity)
+    return SceneSequence(size, tuple(views))
 
 
 CAMERA_ATTEMPTS = 1000

@@ -14,7 +14,7 @@ from PIL import Image
 from sidar_torch import SidarAugment, SidarDataset, geometry
 from sidar_torch.artifacts import ViewEffects, apply_effects, draw_effects, linear_to_srgb, srgb_to_linear
 from sidar_torch.sample import render_sample
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, sample_digest, small_config
@@ -58,7 +58,7 @@ def test_effects_are_off_by_default_and_leave_the_views_bit_identical():
     rng = dataset.generator(0)
     sequence = sample_sequence(config, rng)
     painting = dataset.source.painting(0, SMALL)
-    raw = shared_renderer(SMALL, config.shadow_map_size).render(sequence, painting).views
+    raw = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting).views
     state = rng.bit_generator.state
     sample = render_sample(sequence, painting, config, 0, rng=rng)
     assert rng.bit_generator.state == state  # effects off draw nothing
@@ -171,9 +171,8 @@ def test_background_is_where_the_renderer_drew_nothing_even_beside_black_occlude
 
     def drawn(rgb):
         cube = Occluder("cube", edge, np.eye(3), np.full(3, 0.15), Material(np.array([*rgb, 1.0]), 0.0, 1.0, 0.0))
-        sequence = SceneSequence(SMALL, (ViewScene(camera, (), (cube,), Material(np.ones(4), 0.0, 1.0), 1.0),),
-                                 True, True)
-        return shared_renderer(SMALL, 1024).render(sequence, np.full((*SMALL, 3), 100, np.uint8))
+        sequence = SceneSequence(SMALL, (ViewScene(camera, (), (cube,), Material(np.ones(4), 0.0, 1.0), 1.0),))
+        return shared_renderer(RenderSettings(SMALL)).render(sequence, np.full((*SMALL, 3), 100, np.uint8))
 
     white, black = drawn((1, 1, 1)), drawn((0, 0, 0))
     nothing = (white.views[0] == 0).all(axis=2)  # a white cube and a grey painting: drawn pixels are not black

@@ -4,14 +4,15 @@ acne appears; coarser meshes stay within their stated silhouette error; the chos
 with on-screen size."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pyrender
 import pytest
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.render import SceneRenderer, renderer_options
-from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, unit_primitive
+from sidar_torch.render import RenderSettings, SceneRenderer, visibility
+from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, mesh_level, unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
 from conftest import SMALL, sample_digest, small_config, textured_painting
@@ -34,7 +35,7 @@ def wide_spot(position=(1.0, 0.2, 1.6), outer=0.95):
     return Light("spot", position[None], np.ones(3), intensity, outer, outer)
 
 
-def shadow_scene(visible=True, camera=None):
+def shadow_scene(camera=None):
     """One view: a sphere, a cube and a torus between a wide spot and the painting, plus a cube
     near the light (its shadow is large, it must not be cut by the near plane) and one off to the
     side, outside the camera's view, whose shadow reaches into it."""
@@ -43,11 +44,13 @@ def shadow_scene(visible=True, camera=None):
                  occluder("torus", (0.05, -0.2, 0.45), 0.1), occluder("cube", (0.8, 0.16, 1.28), 0.03),
                  occluder("sphere", (0.45, 0.0, 0.6), 0.07))
     view = ViewScene(camera, (wide_spot(),), occluders, WHITE, 0.05)
-    return SceneSequence(SIZE, (view,), visible, True)
+    return SceneSequence(SIZE, (view,))
 
 
-def render(sequence, smap, frustum, painting=GREY, **options):
-    renderer = SceneRenderer(sequence.image_size, smap, shadow_frustum=frustum, **options)
+def render(sequence, smap, frustum, painting=GREY, **settings):
+    """``sequence`` rendered by a new renderer with shadow maps of ``smap`` texels fitted by ``frustum``
+    (and other ``RenderSettings`` fields)."""
+    renderer = SceneRenderer(RenderSettings(sequence.image_size, smap, shadow_frustum=frustum, **settings))
     try:
         return renderer.render(sequence, painting)
     finally:
@@ -58,11 +61,10 @@ def mse(a, b):
     return float(((a.astype(float) - b.astype(float)) ** 2).mean())
 
 
-def shadowed(sequence, smap, frustum):
+def shadowed(sequence, smap, frustum, visible=True):
     """Pixels the shadows darken: ``(V, H, W)`` bool, lit render minus the render without shadows."""
-    lit = render(sequence, smap, frustum).views.astype(int)
-    unshadowed = render(SceneSequence(sequence.image_size, sequence.views, sequence.occluders_visible, False),
-                        smap, frustum).views.astype(int)
+    lit = render(sequence, smap, frustum, occluders_visible=visible).views.astype(int)
+    unshadowed = render(sequence, smap, frustum, occluders_visible=visible, shadows=False).views.astype(int)
     return (unshadowed - lit).max(axis=-1) > 8
 
 
@@ -79,18 +81,19 @@ def test_off_view_caster_shadows_the_view_and_the_scene_has_shadows():
     sequence = shadow_scene()
     cam = sequence.views[0].camera
     off_view = sequence.views[0].occluders[-1]
-    assert not geometry.ball_may_be_seen(cam.K, cam.R, cam.t, SIZE, off_view.position, 0.07 * math.sqrt(3))
+    assert not visibility.ball_may_be_seen(cam.K, cam.R, cam.t, SIZE, off_view.position, 0.07 * math.sqrt(3))
     without = SceneSequence(SIZE, (ViewScene(cam, sequence.views[0].lights, sequence.views[0].occluders[:-1],
-                                             WHITE, 0.05),), True, True)
+                                             WHITE, 0.05),))
     assert shadowed(sequence, 1024, "cone").sum() > shadowed(without, 1024, "cone").sum() + 50
 
 
 @pytest.mark.parametrize("visible", [True, False])
 def test_fitted_small_map_is_closer_to_the_large_map_than_the_cone(visible):
-    sequence = shadow_scene(visible)
-    reference = render(sequence, 4096, "fitted").views
-    old_reference = render(sequence, 4096, "cone").views
-    cone, fitted = render(sequence, 256, "cone").views, render(sequence, 256, "fitted").views
+    sequence = shadow_scene()
+    reference = render(sequence, 4096, "fitted", occluders_visible=visible).views
+    old_reference = render(sequence, 4096, "cone", occluders_visible=visible).views
+    cone = render(sequence, 256, "cone", occluders_visible=visible).views
+    fitted = render(sequence, 256, "fitted", occluders_visible=visible).views
     assert mse(fitted, reference) < 0.5 * mse(cone, reference), (mse(fitted, reference), mse(cone, reference))
     assert mse(fitted, old_reference) < 0.5 * mse(cone, old_reference)
 
@@ -98,8 +101,8 @@ def test_fitted_small_map_is_closer_to_the_large_map_than_the_cone(visible):
 @pytest.mark.parametrize("visible", [True, False])
 def test_no_shadow_is_lost_or_clipped(visible):
     """At 4096 the shadowed pixels are the same with either frustum, up to the shadows' edge pixels."""
-    sequence = shadow_scene(visible)
-    cone, fitted = shadowed(sequence, 4096, "cone")[0], shadowed(sequence, 4096, "fitted")[0]
+    sequence = shadow_scene()
+    cone, fitted = shadowed(sequence, 4096, "cone", visible)[0], shadowed(sequence, 4096, "fitted", visible)[0]
     assert cone.sum() > 300
     differ = cone != fitted
     assert not (differ & ~edge(cone)).any(), int((differ & ~edge(cone)).sum())
@@ -133,7 +136,7 @@ def test_light_frustum_holds_receivers_within_the_cone_and_casters_beyond_near()
     emitter = np.array([0.4, -0.3, 1.5])
     receivers = geometry.plane_corners(SIZE)
     casters = np.array([[0.0, 0.0, 1.2, 0.05], [0.1, 0.1, 0.3, 0.1]])
-    x0, x1, y0, y1, near, far = geometry.light_frustum(emitter, 1.0, receivers, casters)
+    x0, x1, y0, y1, near, far = visibility.light_frustum(emitter, 1.0, receivers, casters)
     R, t = geometry.look_at(emitter)
     cam = receivers @ R.T + t
     tangents = cam[:, :2] / cam[:, 2:]
@@ -142,12 +145,12 @@ def test_light_frustum_holds_receivers_within_the_cone_and_casters_beyond_near()
     assert near == pytest.approx(((casters[:, :3] @ R.T + t)[:, 2] - casters[:, 3]).min())
     assert near < cam[:, 2].min()
     # A narrow cone clips the window to it: nothing outside the cone is lit.
-    x0, x1, y0, y1, *_ = geometry.light_frustum(emitter, 0.1, receivers, casters)
+    x0, x1, y0, y1, *_ = visibility.light_frustum(emitter, 0.1, receivers, casters)
     assert max(abs(x0), abs(x1), abs(y0), abs(y1)) == pytest.approx(math.tan(0.1))
     # A margin widens the window; a receiver behind the light has no frustum of this kind.
-    wide = geometry.light_frustum(emitter, 1.0, receivers, casters, margin=0.1)
-    assert wide[0] < geometry.light_frustum(emitter, 1.0, receivers, casters)[0]
-    assert geometry.light_frustum(emitter, 1.0, np.vstack([receivers, [[0.8, -0.6, 3.0]]]), casters) is None
+    wide = visibility.light_frustum(emitter, 1.0, receivers, casters, margin=0.1)
+    assert wide[0] < visibility.light_frustum(emitter, 1.0, receivers, casters)[0]
+    assert visibility.light_frustum(emitter, 1.0, np.vstack([receivers, [[0.8, -0.6, 3.0]]]), casters) is None
 
 
 def test_shared_lights_get_one_frustum_over_the_views():
@@ -155,14 +158,14 @@ def test_shared_lights_get_one_frustum_over_the_views():
     fitted frustum is the same in every view: one map could serve the sequence."""
     config = small_config("misaligned", scene_per_view=False, n_views=4, n_occluders=(2, 3), n_lights=(2, 2))
     sequence = SidarDataset(None, config, seed=3).scene(0)
-    renderer = SceneRenderer(SMALL, 256, shadow_frustum="fitted")
+    renderer = SceneRenderer(replace(RenderSettings.from_config(config), shadow_map_size=256))
     try:
         frusta = []
         for view in sequence.views:
             scene = pyrender.Scene()
             order = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-            nodes = renderer._add_lights(scene, view.lights, order, len(order))
-            frusta.append(sorted(map(tuple, renderer._shadow_frusta(nodes, view, sequence).values())))
+            nodes = renderer._shadows.add_lights(scene, view.lights, order, len(order))
+            frusta.append(sorted(map(tuple, renderer._shadows.frusta(nodes, view, sequence).values())))
         assert frusta[0] and all(f == frusta[0] for f in frusta)
     finally:
         renderer.close()
@@ -173,7 +176,7 @@ def sphere_view(radius, distance=0.6):
     lights: the mask is the sphere's silhouette."""
     camera = Camera(*geometry.reference_camera(SIZE, 1.0))
     sphere = occluder("sphere", (0.05, -0.03, 1.0 - distance), radius)
-    return SceneSequence(SIZE, (ViewScene(camera, (), (sphere,), WHITE, 1.0),), True, False)
+    return SceneSequence(SIZE, (ViewScene(camera, (), (sphere,), WHITE, 1.0),))
 
 
 @pytest.mark.parametrize("radius", [0.02, 0.08, 0.3])
@@ -182,39 +185,34 @@ def test_sphere_silhouette_within_the_stated_error_of_the_finest_mesh(radius):
     along the outline: at most ``0.25 px x perimeter + 4`` pixels. A much coarser level breaks
     that bound for the large sphere, so the check can fail."""
     sequence = sphere_view(radius)
-    finest = render(sequence, 64, "cone", mesh_error_px=0.0).masks[0]
-    chosen = render(sequence, 64, "cone", mesh_error_px=0.25).masks[0]
+    finest = render(sequence, 64, "cone", mesh_error_px=0.0, shadows=False).masks[0]
+    chosen = render(sequence, 64, "cone", mesh_error_px=0.25, shadows=False).masks[0]
     perimeter = 2 * math.sqrt(math.pi * finest.sum())
     bound = 0.25 * perimeter + 4
     assert (chosen != finest).sum() <= bound, ((chosen != finest).sum(), bound)
     if radius == 0.3:
-        coarse = render(sequence, 64, "cone", mesh_error_px=100.0).masks[0]  # the coarsest level
+        coarse = render(sequence, 64, "cone", mesh_error_px=100.0, shadows=False).masks[0]  # the coarsest level
         assert (coarse != finest).sum() > bound
 
 
 def test_level_grows_with_on_screen_size():
-    renderer = SceneRenderer(SIZE, 64, mesh_error_px=0.25)
-    try:
-        levels = []
-        for radius in (0.005, 0.02, 0.05, 0.1, 0.3):
-            sequence = sphere_view(radius)
-            levels.append(renderer._mesh_level(sequence.views[0].occluders[0], sequence.views[0], sequence))
-        assert levels == sorted(levels) and levels[0] < levels[-1], levels
-    finally:
-        renderer.close()
+    settings = RenderSettings(SIZE, 64, mesh_error_px=0.25, shadows=False)
+    levels = []
+    for radius in (0.005, 0.02, 0.05, 0.1, 0.3):
+        sequence = sphere_view(radius)
+        levels.append(mesh_level(sequence.views[0].occluders[0], sequence.views[0], settings))
+    assert levels == sorted(levels) and levels[0] < levels[-1], levels
     assert [detail_level("sphere", ppu, 0.25) for ppu in (1, 10, 50, 200, 1e4)] == [0, 1, 2, 3, 3]
     assert detail_level("cube", 1e4, 0.25) == 0 and level_gap("cube", 0) == 0.0
 
 
 def test_shadow_sets_the_level_of_an_invisible_occluder():
     """An occluder cameras cannot see still needs detail for its shadow."""
-    sequence = shadow_scene(visible=False)
-    renderer = SceneRenderer(SIZE, 64, mesh_error_px=0.25)
-    try:
-        view = sequence.views[0]
-        assert renderer._mesh_level(view.occluders[0], view, sequence) > 0
-    finally:
-        renderer.close()
+    sequence = shadow_scene()
+    view = sequence.views[0]
+    settings = RenderSettings(SIZE, 64, mesh_error_px=0.25, occluders_visible=False)
+    assert mesh_level(view.occluders[0], view, settings) > 0
+    assert mesh_level(view.occluders[0], view, replace(settings, shadows=False)) == 0
 
 
 @pytest.mark.parametrize("shape", ["sphere", "cylinder", "cone", "torus", "capsule"])
@@ -234,10 +232,9 @@ def test_bilinear_filter_aliases_where_the_painting_is_shrunk():
     camera = Camera(*geometry.reference_camera(SIZE, 1.0))
     shrink = np.array([[0.3, 0, 0.7 * camera.K[0, 2]], [0, 0.3, 0.7 * camera.K[1, 2]], [0, 0, 1.0]])
     far = Camera(shrink @ camera.K, camera.R, camera.t)  # the painting at 30 % in the middle
-    sequence = SceneSequence(SIZE, (ViewScene(camera, (), (), WHITE, 1.0), ViewScene(far, (), (), WHITE, 1.0)),
-                             True, False)
-    tri = render(sequence, 64, "cone", painting, texture_filter="trilinear")
-    bi = render(sequence, 64, "cone", painting, texture_filter="bilinear")
+    sequence = SceneSequence(SIZE, (ViewScene(camera, (), (), WHITE, 1.0), ViewScene(far, (), (), WHITE, 1.0)))
+    tri = render(sequence, 64, "cone", painting, texture_filter="trilinear", shadows=False)
+    bi = render(sequence, 64, "cone", painting, texture_filter="bilinear", shadows=False)
     assert np.array_equal(tri.label, bi.label) and np.array_equal(tri.views[0], bi.views[0])
     assert mse(tri.views[1], bi.views[1]) > 100
 
@@ -245,8 +242,8 @@ def test_bilinear_filter_aliases_where_the_painting_is_shrunk():
 def test_same_seed_same_sample_with_every_knob():
     config = small_config(shadow_frustum="fitted", mesh_detail="auto", mesh_error_px=0.5, texture_filter="bilinear",
                           shadow_map_size=256)
-    assert renderer_options(config) == {"shadow_filter": "tent", "shadow_frustum": "fitted",
-                                        "texture_filter": "bilinear", "mesh_error_px": 0.5}
+    assert RenderSettings.from_config(config) == RenderSettings(SMALL, 256, "tent", "fitted", 0.5, "bilinear")
+    assert RenderSettings.from_config(replace(config, mesh_detail="fixed")).mesh_error_px is None
     assert sample_digest(SidarDataset(None, config, seed=5).sample(1)) == \
         sample_digest(SidarDataset(None, config, seed=5).sample(1))
 
@@ -258,4 +255,4 @@ def test_bad_knobs_name_the_field(field, value):
         load_config("misaligned", **{field: value})
     if field != "mesh_detail":
         with pytest.raises(ValueError, match=field):
-            SceneRenderer(SIZE, 64, **{field: value})
+            RenderSettings(SIZE, 64, **{field: value})

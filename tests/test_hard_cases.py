@@ -69,7 +69,7 @@ def reference(size, distance: float) -> Camera:
 def sequence(cameras, size) -> SceneSequence:
     """A scene with these cameras and nothing else (no lights, no occluders)."""
     plane = Material(np.ones(4), 0.0, 1.0)
-    return SceneSequence(tuple(size), tuple(ViewScene(c, (), (), plane, 0.1) for c in cameras), True, False)
+    return SceneSequence(tuple(size), tuple(ViewScene(c, (), (), plane, 0.1) for c in cameras))
 
 
 def homographies(cameras, size) -> tuple[np.ndarray, np.ndarray, float]:

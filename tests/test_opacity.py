@@ -8,7 +8,7 @@ import torch
 from PIL import Image
 
 from sidar_torch import ExportedDataset, SidarAugment, SidarDataset, export_dataset, geometry, load_config
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
 
 from conftest import SMALL, sample_digest, small_config
@@ -24,8 +24,8 @@ def render(occluders, painting=200, mask_min_opacity=0.0, camera=None, visible=T
     """One unlit (ambient 1, no lights) view of a flat grey painting, with its opacities."""
     camera = camera or Camera(*geometry.reference_camera(SMALL, 0.9))
     view = ViewScene(camera, (), tuple(occluders), WHITE, 1.0)
-    sequence = SceneSequence(SMALL, (view,), visible, True, mask_min_opacity)
-    out = shared_renderer(SMALL, 1024).render(sequence, np.full((*SMALL, 3), painting, np.uint8), opacities=True)
+    settings = RenderSettings(SMALL, occluders_visible=visible, mask_min_opacity=mask_min_opacity, opacities=True)
+    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), painting, np.uint8))
     return out.views[0].astype(int), out.masks[0], out.opacities[0].astype(int)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from OpenGL import GL
 
-from sidar_torch.render import SceneRenderer, renderer
+from sidar_torch.render import RenderSettings, SceneRenderer, backend
 from sidar_torch.render.context import GL_PLATFORM
 from sidar_torch.scene import sample_sequence
 
@@ -25,7 +25,8 @@ from conftest import SMALL, small_config, textured_painting
 TESTS = Path(__file__).resolve().parent
 
 SEQUENCES = [("misaligned", 0), ("paper_misaligned", 1)]
-"""(preset, seed) pairs: lit views with shadows, masks, glossy and transparent occluders."""
+"""(preset, seed) pairs: lit views with shadows, masks, glossy and transparent occluders; both
+presets give the renderer ``RenderSettings(SMALL)``."""
 
 RENDER_SEQUENCES = f"""
 import json, sys
@@ -33,10 +34,10 @@ import numpy as np
 sys.path.insert(0, {str(TESTS)!r})
 import sidar_torch
 from OpenGL import GL, platform
-from sidar_torch.render import SceneRenderer
+from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.scene import sample_sequence
 from conftest import SMALL, small_config, textured_painting
-renderer = SceneRenderer(SMALL)
+renderer = SceneRenderer(RenderSettings(SMALL))
 arrays = {{}}
 for k, (preset, seed) in enumerate({SEQUENCES!r}):
     out = renderer.render(sample_sequence(small_config(preset), np.random.default_rng(seed)), textured_painting(SMALL, seed))
@@ -87,17 +88,17 @@ import sys
 import numpy as np
 sys.path.insert(0, {str(TESTS)!r})
 import sidar_torch
-from sidar_torch.render import SceneRenderer
+from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.scene import sample_sequence
 from conftest import SMALL, small_config, textured_painting
 seq = sample_sequence(small_config("ambient", n_views=1), np.random.default_rng(0))
 painting = textured_painting(SMALL)
-first, second = SceneRenderer(SMALL), SceneRenderer(SMALL)
+first, second = SceneRenderer(RenderSettings(SMALL)), SceneRenderer(RenderSettings(SMALL))
 expected = first.render(seq, painting)
 first.close()
 again = second.render(seq, painting)
 assert np.array_equal(again.views, expected.views)
-third = SceneRenderer(SMALL)
+third = SceneRenderer(RenderSettings(SMALL))
 assert np.array_equal(third.render(seq, painting).views, expected.views)
 """
     skip_unless_egl_opens(run_on("egl", code))
@@ -129,7 +130,8 @@ EGL_HINT = "it needs EGL (Debian/Ubuntu: apt-get install libegl1 libgl1-mesa-dri
     ("egl", [], {"EGL_DEVICE_ID": "99"}, "ValueError: EGL_DEVICE_ID='99': expected a device number from 0 to"),
 ])
 def test_a_missing_library_or_driver_says_what_to_install(platform, missing, env, expected):
-    code = REFUSE_TO_LOAD.format(libraries=missing) + "from sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n"
+    code = REFUSE_TO_LOAD.format(libraries=missing) + ("from sidar_torch.render import RenderSettings, SceneRenderer\n"
+                                                    "SceneRenderer(RenderSettings((8, 8)))\n")
     result = run_on(platform, code, **env)
     assert result.returncode != 0
     assert expected in result.stderr, result.stderr[-1000:]
@@ -159,13 +161,14 @@ def test_own_framebuffer_gives_the_pixels_of_osmesas_buffer(monkeypatch):
     # drawn upright, lit pixels round differently.
     sequences = [(sample_sequence(small_config(p), np.random.default_rng(s)), textured_painting(SMALL, s))
                  for p, s in SEQUENCES]
-    ours = SceneRenderer(SMALL)
-    theirs = SceneRenderer(SMALL)
+    assert all(RenderSettings.from_config(small_config(p)) == RenderSettings(SMALL) for p, _ in SEQUENCES)
+    ours = SceneRenderer(RenderSettings(SMALL))
+    theirs = SceneRenderer(RenderSettings(SMALL))
     theirs._gl._target = OSMesaOwnBuffer(*SMALL)
     for seq, painting in sequences:
         expected = ours.render(seq, painting)
         with monkeypatch.context() as patch:
-            patch.setattr(renderer, "FLIP_Y", np.eye(4))
+            patch.setattr(backend, "FLIP_Y", np.eye(4))
             got = theirs.render(seq, painting)
         for name in ("views", "masks", "label"):
             assert np.array_equal(getattr(got, name), getattr(expected, name)), name

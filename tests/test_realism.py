@@ -13,7 +13,7 @@ from sidar_torch import SidarDataset, geometry, load_config
 from sidar_torch.artifacts import srgb_to_linear
 from sidar_torch.config import OCCLUDER_SHAPES
 from benchmarks.exposure import view_exposure
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.scene import SHAPE_VARIANTS, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -30,9 +30,9 @@ def render(occluders=(), lights=(), plane=DIFFUSE, ambient=0.0, painting=100, ma
     """One reference-camera view of a flat painting of grey level (or RGB) ``painting``."""
     camera = camera or Camera(*geometry.reference_camera(SMALL, 0.9))
     view = ViewScene(camera, tuple(lights), tuple(occluders), plane, ambient)
-    sequence = SceneSequence(SMALL, (view,), occluders_visible, True, mask_min_opacity)
+    settings = RenderSettings(SMALL, occluders_visible=occluders_visible, mask_min_opacity=mask_min_opacity)
     texture = np.broadcast_to(np.asarray(painting, np.uint8), (*SMALL, 3)).copy()
-    out = shared_renderer(SMALL, 1024).render(sequence, texture)
+    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), texture)
     return out.views[0].astype(int), out.masks[0]
 
 
@@ -164,8 +164,7 @@ def test_mask_min_opacity_leaves_transparent_occluders_out_of_the_mask():
     assert paper[H // 2, W // 2] and solid[H // 2, W // 2]
     assert not seen_through.any()
     assert image[H // 2, W // 2, 2] > image[H // 2, W // 2, 0] + 20  # still drawn, tinted, in the view
-    seq = sample_sequence(small_config(mask_min_opacity=0.25), np.random.default_rng(0))
-    assert seq.mask_min_opacity == 0.25
+    assert RenderSettings.from_config(small_config(mask_min_opacity=0.25)).mask_min_opacity == 0.25
 
 
 @pytest.mark.parametrize("kind, field", [("point", "light_irradiance"), ("spot", "spot_irradiance"),

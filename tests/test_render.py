@@ -1,15 +1,19 @@
 """The renderer, proved by rendering: each pyrender/OSMesa quirk has a test that fails if it returns."""
 
+import ast
 import gc
 import subprocess
 import sys
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
+import sidar_torch.render
 from sidar_torch import SidarDataset, geometry
-from sidar_torch.render import SceneRenderer, programs, shared_renderer
+from sidar_torch.render import RenderSettings, SceneRenderer, shader_patches, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, small_config, textured_painting
@@ -17,11 +21,11 @@ from conftest import SMALL, small_config, textured_painting
 WHITE = Material(np.ones(4), 0.0, 1.0)
 
 
-def one_view(size, occluders=(), lights=(), ambient=1.0, shadows=True, visible=True, camera=None):
+def one_view(size, occluders=(), lights=(), ambient=1.0, camera=None):
     """A one-view sequence through the reference camera (or ``camera``)."""
     camera = camera or Camera(*geometry.reference_camera(size, 0.9))
     view = ViewScene(camera, tuple(lights), tuple(occluders), WHITE, ambient)
-    return SceneSequence(size, (view,), visible, shadows)
+    return SceneSequence(size, (view,))
 
 
 def overhead_spot(irradiance=2.0, height=2.0):
@@ -39,26 +43,26 @@ def test_label_is_the_painting_bit_exactly(size):
     # Catches: the half-pixel principal-point offset (a shift blurs every texel), texture row
     # order (flipped image), and GL_UNPACK_ALIGNMENT (odd RGB widths come out sheared).
     painting = textured_painting(size)
-    out = shared_renderer(size, 1024).render(one_view(size), painting)
+    out = shared_renderer(RenderSettings(size)).render(one_view(size), painting)
     assert np.array_equal(out.label, painting)
 
 
 def test_ambient_only_view_reproduces_the_texture_with_exact_srgb():
     # pyrender's gamma-2.2 output encoding is up to 9 levels off here; the exact sRGB encode is <= 1.
     painting = textured_painting(SMALL, seed=1)
-    out = shared_renderer(SMALL, 1024).render(one_view(SMALL, ambient=1.0), painting)
+    out = shared_renderer(RenderSettings(SMALL)).render(one_view(SMALL, ambient=1.0), painting)
     assert np.abs(out.views[0].astype(int) - painting).max() <= 1
     assert not out.masks[0].any()
 
 
 def test_shadows_darken_the_painting_under_an_occluder():
     # Catches the program-validation failure with shadow maps (an exception) and lost shadows.
-    renderer = shared_renderer(SMALL, 1024)
+    settings = RenderSettings(SMALL, occluders_visible=False)
     white = np.full((*SMALL, 3), 200, np.uint8)
     occluder = cube([0.0, 0.0, 0.3], half=0.15)
-    lit = dict(occluders=[occluder], lights=[overhead_spot()], ambient=0.05, visible=False)
-    shadowed = renderer.render(one_view(SMALL, **lit), white).views[0].astype(float)
-    unshadowed = renderer.render(one_view(SMALL, **lit, shadows=False), white).views[0].astype(float)
+    seq = one_view(SMALL, occluders=[occluder], lights=[overhead_spot()], ambient=0.05)
+    shadowed = shared_renderer(settings).render(seq, white).views[0].astype(float)
+    unshadowed = shared_renderer(replace(settings, shadows=False)).render(seq, white).views[0].astype(float)
     h, w = SMALL
     centre = (slice(h // 2 - 5, h // 2 + 5), slice(w // 2 - 5, w // 2 + 5))
     assert shadowed[centre].mean() < 0.5 * unshadowed[centre].mean()
@@ -66,7 +70,7 @@ def test_shadows_darken_the_painting_under_an_occluder():
 
 
 def test_transparent_occluder_is_blended_and_masked():
-    renderer = shared_renderer(SMALL, 1024)
+    renderer = shared_renderer(RenderSettings(SMALL))
     white = np.full((*SMALL, 3), 200, np.uint8)
     glass = Material(np.array([0.2, 0.4, 0.9, 0.4]), 0.0, 0.2)
     out = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3], 0.15, glass)], ambient=1.0), white)
@@ -77,7 +81,7 @@ def test_transparent_occluder_is_blended_and_masked():
 
 
 def test_masks_cover_visible_occluders_and_ignore_parts_behind_the_painting():
-    renderer = shared_renderer(SMALL, 1024)
+    renderer = shared_renderer(RenderSettings(SMALL))
     painting = textured_painting(SMALL)
     h, w = SMALL
     above = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])]), painting)
@@ -85,14 +89,15 @@ def test_masks_cover_visible_occluders_and_ignore_parts_behind_the_painting():
     # An occluder entirely behind the painting is hidden by it: the mask must stay empty.
     behind = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, -0.3])]), painting)
     assert not behind.masks[0].any()
-    invisible = renderer.render(one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])], visible=False), painting)
+    invisible = shared_renderer(RenderSettings(SMALL, occluders_visible=False)).render(
+        one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])]), painting)
     assert not invisible.masks[0].any()
 
 
 def test_background_is_masked():
     size = SMALL
     camera = Camera(geometry.intrinsics_from_fov(120, size), *geometry.look_at(np.array([0.0, 0.0, 0.5])))
-    out = shared_renderer(size, 1024).render(one_view(size, camera=camera), textured_painting(size))
+    out = shared_renderer(RenderSettings(size)).render(one_view(size, camera=camera), textured_painting(size))
     masks = out.masks[0]
     assert masks[0, 0] and masks[-1, -1] and not masks[size[0] // 2, size[1] // 2]
     assert np.all(out.views[0][masks] == 0)  # black background
@@ -101,7 +106,7 @@ def test_background_is_masked():
 def test_shader_programs_are_built_once():
     # pyrender's cache key changes at every call on OSMesa: programs would grow with every render.
     cfg = small_config(n_lights=(3, 4), n_occluders=(1, 3))
-    renderer = shared_renderer(cfg.image_size, cfg.shadow_map_size)
+    renderer = shared_renderer(RenderSettings.from_config(cfg))
     painting = textured_painting(cfg.image_size)
     for seed in range(4):
         renderer.render(sample_sequence(cfg, np.random.default_rng(seed)), painting)
@@ -119,7 +124,7 @@ def test_rendering_is_deterministic_with_many_lights():
     # Full-size views with several coloured lights: at 96 x 128 too few pixels round differently.
     cfg = small_config(image_size=(384, 512), n_views=2, n_lights=(4, 4), light_types=("spot", "point"),
                        n_occluders=(0, 0))
-    renderer = shared_renderer(cfg.image_size, cfg.shadow_map_size)
+    renderer = shared_renderer(RenderSettings.from_config(cfg))
     painting = textured_painting(cfg.image_size)
     seq = sample_sequence(cfg, np.random.default_rng(7))
     first = renderer.render(seq, painting)
@@ -133,9 +138,9 @@ def test_collecting_one_renderer_does_not_break_another():
     # pyrender's Renderer.__del__ deleted GL objects by id in whatever context was current.
     painting = textured_painting(SMALL)
     seq = one_view(SMALL, occluders=[cube([0.0, 0.0, 0.3])], lights=[overhead_spot()])
-    a = SceneRenderer(SMALL)
+    a = SceneRenderer(RenderSettings(SMALL))
     expected = a.render(seq, painting)
-    b = SceneRenderer(SMALL)
+    b = SceneRenderer(RenderSettings(SMALL))
     b.render(seq, painting)
     del a
     gc.collect()
@@ -147,7 +152,7 @@ def test_collecting_one_renderer_does_not_break_another():
 
 
 def test_wrong_inputs_are_rejected():
-    renderer = shared_renderer(SMALL, 1024)
+    renderer = shared_renderer(RenderSettings(SMALL))
     with pytest.raises(ValueError, match="painting"):
         renderer.render(one_view(SMALL), np.zeros((*SMALL, 3), np.float32))
     with pytest.raises(ValueError, match="image_size"):
@@ -166,24 +171,26 @@ def test_compiling_out_the_unused_point_and_directional_light_loops_changes_no_p
     cfg = small_config("misaligned", n_views=3, n_occluders=(2, 3))
     painting = textured_painting(SMALL)
     sequences = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(3)]
-    fast = [SceneRenderer(SMALL).render(seq, painting) for seq in sequences]
-    loops = [(old, new) for old, new in programs.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
+    fast = [SceneRenderer(RenderSettings(SMALL)).render(seq, painting) for seq in sequences]
+    loops = [(old, new) for old, new in shader_patches.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
     assert len(loops) == 2
-    kept = [patch for patch in programs.SHADER_PATCHES["mesh.frag"] if patch not in loops]
-    monkeypatch.setitem(programs.SHADER_PATCHES, "mesh.frag", kept)
-    renderer = SceneRenderer(SMALL)  # a new program cache: compiled without those two patches
+    kept = [patch for patch in shader_patches.SHADER_PATCHES["mesh.frag"] if patch not in loops]
+    monkeypatch.setitem(shader_patches.SHADER_PATCHES, "mesh.frag", kept)
+    renderer = SceneRenderer(RenderSettings(SMALL))  # a new program cache: compiled without those two patches
     for seq, expected in zip(sequences, fast):
         assert np.array_equal(renderer.render(seq, painting).views, expected.views)
 
 
 def test_bilinear_shadow_filter_sharpens_shadow_edges_only():
     # Coarse shadow maps (about 3 px per texel here) make the filters' footprints visible.
-    scene = dict(occluders=[cube((0.05, 0.02, 0.3), half=0.15)], lights=[overhead_spot()], ambient=0.0, visible=False)
+    seq = one_view(SMALL, occluders=[cube((0.05, 0.02, 0.3), half=0.15)], lights=[overhead_spot()], ambient=0.0)
     painting = np.full((*SMALL, 3), 200, np.uint8)
-    tent = SceneRenderer(SMALL, 128).render(one_view(SMALL, **scene), painting).views[0, ..., 1].astype(int)
-    bilinear = SceneRenderer(SMALL, 128, shadow_filter="bilinear").render(one_view(SMALL, **scene),
-                                                                          painting).views[0, ..., 1].astype(int)
-    lit = SceneRenderer(SMALL, 128).render(one_view(SMALL, shadows=False, **scene), painting).views[0, ..., 1]
+    settings = RenderSettings(SMALL, 128, occluders_visible=False)
+
+    def green(**changes):
+        return SceneRenderer(replace(settings, **changes)).render(seq, painting).views[0, ..., 1].astype(int)
+
+    tent, bilinear, lit = green(), green(shadow_filter="bilinear"), green(shadows=False)
     assert tent.min() == 0 and bilinear.min() == 0  # a full shadow under both
     # Where the tent filter leaves the painting fully lit, so does the narrower bilinear one.
     assert np.array_equal(bilinear[tent == lit], lit[tent == lit])
@@ -199,7 +206,7 @@ def test_config_shadow_filter_reaches_the_dataset_renderer():
 
 def test_unknown_shadow_filter_is_named():
     with pytest.raises(ValueError, match="shadow_filter"):
-        SceneRenderer(SMALL, shadow_filter="box")
+        RenderSettings(SMALL, shadow_filter="box")
     with pytest.raises(ValueError, match="shadow_filter"):
         small_config(shadow_filter="box")
 
@@ -210,7 +217,63 @@ def test_unknown_shadow_filter_is_named():
     ("import os; os.environ['PYOPENGL_PLATFORM'] = 'vulkan'", "expected 'osmesa' or 'egl'"),
 ])
 def test_a_platform_that_cannot_open_says_what_is_missing(setup, expected):
-    script = f"{setup}\nfrom sidar_torch.render import SceneRenderer\nSceneRenderer((8, 8))\n"
+    script = (f"{setup}\nfrom sidar_torch.render import RenderSettings, SceneRenderer\n"
+              "SceneRenderer(RenderSettings((8, 8)))\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode != 0
     assert "RuntimeError" in result.stderr and expected in result.stderr, result.stderr[-500:]
+
+
+def test_render_settings_come_from_the_config_and_key_the_shared_renderer():
+    config = small_config("shadows_only", mask_min_opacity=0.5, opacity_output=True, shadow_filter="bilinear")
+    settings = RenderSettings.from_config(config)
+    assert settings == RenderSettings(SMALL, 1024, "bilinear", "fitted", None, "trilinear", shadows=True,
+                                      occluders_visible=False, mask_min_opacity=0.5, opacities=True)
+    assert shared_renderer(RenderSettings(SMALL)) is shared_renderer(RenderSettings((96, 128), 1024))
+    assert shared_renderer(RenderSettings(SMALL)).settings == RenderSettings(SMALL)
+
+
+@pytest.mark.parametrize("field, value, expected", [
+    ("image_size", (96,), "image_size: expected (H, W)"), ("image_size", (0, 5), "image_size"),
+    ("image_size", (9.5, 5), "image_size"), ("shadow_map_size", 1000, "shadow_map_size: expected a power of two"),
+    ("shadow_map_size", 8, "shadow_map_size"), ("shadow_frustum", "tight", "shadow_frustum"),
+    ("texture_filter", "nearest", "texture_filter"), ("mesh_error_px", -1.0, "mesh_error_px"),
+    ("mask_min_opacity", 2.0, "mask_min_opacity"),
+])
+def test_wrong_render_settings_name_the_field(field, value, expected):
+    with pytest.raises(ValueError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+        RenderSettings(**{"image_size": SMALL, field: value})
+    with pytest.raises(TypeError, match="settings"):
+        SceneRenderer(SMALL)
+
+
+def test_the_render_layer_does_not_import_the_config():
+    # Settings reach the renderer as a RenderSettings only (issue 12 item 4).
+    paths = sorted(Path(sidar_torch.render.__file__).parent.glob("*.py"))
+    assert len(paths) > 5
+    for path in paths:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                modules = [node.module or ""] + [f"{node.module or ''}.{a.name}" for a in node.names]
+            elif isinstance(node, ast.Import):
+                modules = [a.name for a in node.names]
+            else:
+                continue
+            assert not any("config" in m.split(".") for m in modules), (path.name, modules)
+
+
+def test_sizes_beyond_the_gl_limits_name_the_field_and_the_limit():
+    # Issue 13 item 4: without the check, GL raised "GLError ... glRenderbufferStorage" naming no field.
+    renderbuffer, texture = shared_renderer(RenderSettings(SMALL)).gl_limits
+    assert renderbuffer >= 1024 and texture >= 1024
+    side = min(renderbuffer, texture)
+    with pytest.raises(ValueError, match=rf"image_size: \(64, {side + 1}\) .* GL_MAX_\w+_SIZE = {side}"):
+        SceneRenderer(RenderSettings((64, side + 1)))
+    with pytest.raises(ValueError, match=rf"shadow_map_size: {2 * texture} .* GL_MAX_TEXTURE_SIZE = {texture}"):
+        SceneRenderer(RenderSettings(SMALL, 2 * texture))
+    # The check itself, with made-up limits (no GL needed).
+    with pytest.raises(ValueError, match="image_size: .* GL_MAX_RENDERBUFFER_SIZE = 100: expected H, W <= 100"):
+        RenderSettings((96, 128)).check_gl_limits(100, 4096)
+    with pytest.raises(ValueError, match="shadow_map_size: 1024 .* = 1000: expected a power of two <= 512"):
+        RenderSettings((96, 128)).check_gl_limits(4096, 1000)
+    RenderSettings((96, 128), 1024).check_gl_limits(1024, 1024)  # at the limit: fine

@@ -6,11 +6,13 @@ see, the mask draw of a view with no occluder in sight, and shadow maps drawn ag
 lights and casters.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from sidar_torch import geometry
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer, visibility
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -22,27 +24,17 @@ NARROW_VIEWS = dict(n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1
 """Narrow views of a wide scene: many occluders and their shadows lie outside what a camera sees."""
 
 
-SWITCHES = ("skip_idle_shadows", "cull_occluders", "masks_from_outline", "reuse_shadow_maps")
-
-
-@pytest.fixture
-def renderer():
-    """This process's renderer at ``SMALL`` (shaders already compiled), all skips on, counts at 0."""
-    renderer = shared_renderer(SMALL, 1024)
-    renderer.skipped.clear()
-    yield renderer
-    for switch in SWITCHES:
-        setattr(renderer, switch, True)
-
-
-def render_both(renderer, seq, painting, switch):
-    """``seq`` rendered with ``renderer.<switch>`` on, then off (and back on)."""
-    setattr(renderer, switch, True)
-    on = renderer.render(seq, painting)
-    setattr(renderer, switch, False)
-    off = renderer.render(seq, painting)
-    setattr(renderer, switch, True)
+def render_both(settings, seq, painting, switch):
+    """``seq`` rendered with ``settings`` (``switch`` on), then with the skip ``switch`` off, each in
+    this process's renderer for those settings."""
+    on = shared_renderer(settings).render(seq, painting)
+    off = shared_renderer(replace(settings, **{switch: False})).render(seq, painting)
     return on, off
+
+
+def skipped(settings, key):
+    """How many times the renderer of ``settings`` has skipped ``key`` so far."""
+    return shared_renderer(settings).skipped[key]
 
 
 def assert_same_pixels(a, b):
@@ -52,27 +44,31 @@ def assert_same_pixels(a, b):
 
 
 @pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
-def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(renderer, preset):
+def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(preset):
     cfg = small_config(preset, **NARROW_VIEWS)
+    settings = RenderSettings.from_config(cfg)
     painting = textured_painting(SMALL)
-    skipped = 0
+    idle = 0
     for seed in range(6):
         seq = sample_sequence(cfg, np.random.default_rng(seed))
-        skipped += sum(len(p.order) - p.n_shadowed for p, v in zip(plan_views(seq, 1024), seq.views) if v.occluders)
-        assert_same_pixels(*render_both(renderer, seq, painting, "skip_idle_shadows"))
-    assert skipped >= 10  # the skip did happen
+        idle += sum(len(p.order) - p.n_shadowed for p, v in zip(plan_views(seq, settings), seq.views) if v.occluders)
+        assert_same_pixels(*render_both(settings, seq, painting, "skip_idle_shadows"))
+    assert idle >= 10  # the skip did happen
 
 
 @pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
-def test_culling_hidden_occluders_changes_no_pixel(renderer, preset):
+def test_culling_hidden_occluders_changes_no_pixel(preset):
     # Transparent and opaque occluders, visible or only casting shadows, in narrow and wide views.
-    renderer.masks_from_outline = False  # compare the mask draws: culling leaves them without occluders
+    # Masks drawn, not taken from the outline: culling leaves the mask draws without occluders.
+    settings = replace(RenderSettings.from_config(small_config(preset)), masks_from_outline=False)
+    before = skipped(settings, "occluders_culled")
     painting = textured_painting(SMALL)
     for cfg in (small_config(preset, **NARROW_VIEWS), small_config(preset, n_views=4, n_occluders=(2, 3))):
+        assert RenderSettings.from_config(cfg) == replace(settings, masks_from_outline=True)
         for seed in range(6):
             seq = sample_sequence(cfg, np.random.default_rng(seed))
-            assert_same_pixels(*render_both(renderer, seq, painting, "cull_occluders"))
-    assert renderer.skipped["occluders_culled"] >= 10  # counted once per view, in the "on" renders
+            assert_same_pixels(*render_both(settings, seq, painting, "cull_occluders"))
+    assert skipped(settings, "occluders_culled") - before >= 10  # counted once per view, in the "on" renders
 
 
 def overhead_spot(x=0.0):
@@ -85,7 +81,7 @@ def cube(position, half=0.1):
                     Material(np.array([0.8, 0.2, 0.2, 1.0]), 0.0, 1.0))
 
 
-def test_an_occluder_out_of_view_whose_shadow_misses_is_culled(renderer):
+def test_an_occluder_out_of_view_whose_shadow_misses_is_culled():
     # Camera over the painting's centre with a narrow view; one cube in view, one far to the side
     # (outside the view, its shadow from the overhead light lands beside it, far from the view),
     # one out of view whose shadow falls on the view's centre.
@@ -93,16 +89,18 @@ def test_an_occluder_out_of_view_whose_shadow_misses_is_culled(renderer):
     camera = Camera(geometry.intrinsics_from_fov(30, size), *geometry.look_at(np.array([0.0, 0.0, 1.0])))
     occluders = (cube([0.05, 0.0, 0.4]), cube([1.2, 0.0, 0.3]), cube([0.0, 0.0, 1.5], half=0.05))
     view = ViewScene(camera, (overhead_spot(),), occluders, WHITE, 0.2)
-    seq = SceneSequence(size, (view,), True, True)
-    (plan,) = plan_views(seq, 1024)
+    seq = SceneSequence(size, (view,))
+    settings = RenderSettings(size)
+    (plan,) = plan_views(seq, settings)
     assert plan.drawn == {0}  # the high cube is above the camera, out of its view
     assert plan.casters == {0, 2}  # the side cube is culled, the high one shadows the view
-    on, off = render_both(renderer, seq, textured_painting(size), "cull_occluders")
-    assert renderer.skipped["occluders_culled"] == 1
+    before = skipped(settings, "occluders_culled")
+    on, off = render_both(settings, seq, textured_painting(size), "cull_occluders")
+    assert skipped(settings, "occluders_culled") - before == 1
     assert_same_pixels(on, off)
     # The high cube, kept as a caster, does shadow the view: without it the view is brighter.
-    without_high = SceneSequence(size, (ViewScene(camera, view.lights, occluders[:2], WHITE, 0.2),), True, True)
-    lit = renderer.render(without_high, textured_painting(size))
+    without_high = SceneSequence(size, (ViewScene(camera, view.lights, occluders[:2], WHITE, 0.2),))
+    lit = shared_renderer(settings).render(without_high, textured_painting(size))
     assert lit.views.astype(int).sum() > on.views.astype(int).sum()
 
 
@@ -145,16 +143,14 @@ def random_cameras(rng, size, n):
 @pytest.mark.parametrize("size", [SMALL, (77, 33)])
 def test_mask_from_the_painting_outline_matches_the_rendered_mask(size):
     rng = np.random.default_rng(5)
-    renderer = shared_renderer(size, 1024)
-    renderer.masks_from_outline = False
+    renderer = shared_renderer(RenderSettings(size, masks_from_outline=False))
     painting = textured_painting(size)
     cameras = random_cameras(rng, size, 64)
     views = tuple(ViewScene(c, (), (), WHITE, 1.0) for c in cameras)
-    rendered = renderer.render(SceneSequence(size, views, True, True), painting).masks
-    renderer.masks_from_outline = True
+    rendered = renderer.render(SceneSequence(size, views), painting).masks
     differ, worst, edge_pixels = 0, 0.0, 0
     for camera, mask in zip(cameras, rendered):
-        outline = geometry.painting_mask(camera.K, camera.R, camera.t, size)
+        outline = visibility.painting_mask(camera.K, camera.R, camera.t, size)
         distance = edge_distance(camera, size)
         wrong = outline != mask
         differ += int(wrong.sum())
@@ -167,34 +163,38 @@ def test_mask_from_the_painting_outline_matches_the_rendered_mask(size):
     assert edge_pixels < 0.001 * rendered.size  # the exception is tiny
 
 
-def test_views_without_occluders_in_sight_take_the_outline_mask(renderer):
+def test_views_without_occluders_in_sight_take_the_outline_mask():
     cfg = small_config("misaligned", **NARROW_VIEWS)
+    settings = RenderSettings.from_config(cfg)
+    before = skipped(settings, "masks_from_outline")
     painting = textured_painting(SMALL)
     for seed in range(4):
         seq = sample_sequence(cfg, np.random.default_rng(seed))
-        on, off = render_both(renderer, seq, painting, "masks_from_outline")
+        on, off = render_both(settings, seq, painting, "masks_from_outline")
         assert np.array_equal(on.views, off.views)
         for camera, a, b in zip([v.camera for v in seq.views], on.masks, off.masks):
             assert (edge_distance(camera, SMALL)[a != b] < EDGE_TOLERANCE).all()
-    assert renderer.skipped["masks_from_outline"] >= 4
+    assert skipped(settings, "masks_from_outline") - before >= 4
 
 
-def test_shadow_maps_shared_by_the_views_are_drawn_once(renderer):
+def test_shadow_maps_shared_by_the_views_are_drawn_once():
     cfg = small_config("misaligned", n_views=4, scene_per_view=False, n_occluders=(1, 3), n_lights=(2, 3),
                        light_types=("spot", "point", "area"))
+    settings = RenderSettings.from_config(cfg)
+    renderer = shared_renderer(settings)
+    before = renderer.skipped["shadow_maps_reused"]
     painting = textured_painting(SMALL)
     seqs = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(5)]
     first = [renderer.render(seq, painting) for seq in seqs]  # maps reused within each sequence
-    reused = renderer.skipped["shadow_maps_reused"]
+    reused = renderer.skipped["shadow_maps_reused"] - before
     again = renderer.render(seqs[0], painting)  # after other sequences: their maps must not leak in
-    renderer.reuse_shadow_maps = False
-    fresh = [renderer.render(seq, painting) for seq in seqs]
-    assert renderer.skipped["shadow_maps_reused"] > reused  # the repeated sequence reused its maps
+    fresh = [shared_renderer(replace(settings, reuse_shadow_maps=False)).render(seq, painting) for seq in seqs]
+    assert renderer.skipped["shadow_maps_reused"] - before > reused  # the repeated sequence reused its maps
     for a, b in zip(first, fresh):
         assert_same_pixels(a, b)
     assert_same_pixels(again, fresh[0])
     # Each emitter's map was drawn in the first view that shadows it, and reused by the later ones.
-    plans = [plan_views(seq, 1024) for seq in seqs]
+    plans = [plan_views(seq, settings) for seq in seqs]
     assert all(len({p.casters for p in ps}) == 1 for ps in plans)
     shadowed = [[set(p.order[:p.n_shadowed]) for p in ps] for ps in plans]
     assert reused == sum(sum(map(len, views)) - len(set().union(*views)) for views in shadowed) > 0
@@ -204,13 +204,13 @@ def test_margins_grow_the_shadow_tests():
     emitter = np.array([[0.0, 0.0, 2.0]])
     region = np.array([[0.3, -0.1], [0.5, -0.1], [0.5, 0.1], [0.3, 0.1]])
     centres, radii = np.array([[0.0, 0.0, 1.0], [0.3, 0.0, 1.0]]), np.array([0.1, 0.1])  # shadows about 0.2 wide
-    assert geometry.shadow_may_reach(emitter, centres, radii, region).tolist() == [[False, True]]
-    assert geometry.shadow_may_reach(emitter, centres, radii, region[::-1]).tolist() == [[False, True]]
-    assert geometry.shadow_may_reach(emitter, centres, radii, region, margins=0.06).tolist() == [[True, True]]
-    apart = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii)
+    assert visibility.shadow_may_reach(emitter, centres, radii, region).tolist() == [[False, True]]
+    assert visibility.shadow_may_reach(emitter, centres, radii, region[::-1]).tolist() == [[False, True]]
+    assert visibility.shadow_may_reach(emitter, centres, radii, region, margins=0.06).tolist() == [[True, True]]
+    apart = visibility.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii)
     assert apart.tolist() == [[[True, False]]]  # a ball shadows itself
-    near = geometry.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii, margins=0.15)
+    near = visibility.shadow_may_fall_on_ball(emitter, centres[:1], radii[:1], centres, radii, margins=0.15)
     assert near.tolist() == [[[True, True]]]
-    holding = geometry.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
+    holding = visibility.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
                                                radii[1:])
     assert holding.tolist() == [[[True]]]

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from scipy.ndimage import binary_erosion
 
-from sidar_torch.render import shared_renderer
+from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Light, Material, Occluder
 from sidar_torch.artifacts import srgb_to_linear
 
@@ -96,7 +96,7 @@ def test_views_without_transparent_casters_skip_the_maps_and_glass_behind_the_pa
     # The transmittance lookup is exactly 1 where no transparent caster lies between a fragment
     # and the light, so the skip changes no pixel: glass under the painting (which lies between it
     # and the light) must leave every pixel as in the same view without it.
-    renderer = shared_renderer(SMALL, 1024)
+    renderer = shared_renderer(RenderSettings(SMALL))  # the renderer of ``render``
     lights = [side_spot(-1.0)]
     solid = cube([0.2, 0.1, 0.25])
     passes = renderer._gl.transmittance.passes

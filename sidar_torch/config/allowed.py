@@ -1,6 +1,9 @@
-"""What config fields may hold: the choices of the text fields and the limits the renderer imposes."""
+"""What config fields may hold: the choices of the text fields and the limits the renderer imposes (the
+renderer's own choices come from :mod:`sidar_torch.render_choices`, which both layers import)."""
 
 from __future__ import annotations
+
+from ..render_choices import MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
 
 __all__ = [
     "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
@@ -11,15 +14,10 @@ LIGHT_TYPES = ("spot", "point", "area")
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull", "prism")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")
-SHADOW_FILTERS = ("tent", "bilinear")
 BACKGROUNDS = ("black", "view", "sequence")
-SHADOW_FRUSTA = ("cone", "fitted")
 MESH_DETAILS = ("fixed", "auto")
-TEXTURE_FILTERS = ("trilinear", "bilinear")
 GEOMETRY_DTYPES = ("float32", "float64")
 
-MAX_SHADOWED_LIGHTS = 24
-"""Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
 
 MAX_GL_SIZE = 16384
 """Largest side, in pixels or texels, of the views and shadow maps the renderer can allocate: Mesa's

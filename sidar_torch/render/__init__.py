@@ -12,7 +12,7 @@ Importing this package fixes two environment variables before anything imports O
 Set either variable before importing ``sidar_torch`` to choose otherwise.
 
 Importing this package loads no GL library: ``renderer`` (pyrender, PyOpenGL) is imported at the
-first use of :func:`shared_renderer`, :func:`renderer_options` or an attribute named in
+first use of :func:`shared_renderer` or an attribute named in
 ``__all__``, after :func:`~.context.check_platform_libraries`, whose error names what to install.
 So ``import sidar_torch`` and everything that does not render work without the GL libraries.
 """
@@ -23,7 +23,9 @@ import os
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
 
-__all__ = ["RenderedSequence", "SceneRenderer", "renderer_options", "shared_renderer"]
+from .settings import RenderSettings  # noqa: E402  (GL-free)
+
+__all__ = ["RenderSettings", "RenderedSequence", "SceneRenderer", "shared_renderer"]
 
 
 @functools.cache
@@ -41,15 +43,11 @@ def _renderer():
     return renderer
 
 
-def shared_renderer(image_size, shadow_map_size, **options):
-    """:func:`.renderer.shared_renderer` (this process's renderer for these settings), importing the
-    renderer at the first call; defined here so that ``from .render import shared_renderer`` loads no GL."""
-    return _renderer().shared_renderer(image_size, shadow_map_size, **options)
-
-
-def renderer_options(config):
-    """:func:`.renderer.renderer_options`, imported at the first call (see :func:`shared_renderer`)."""
-    return _renderer().renderer_options(config)
+def shared_renderer(settings):
+    """:func:`.renderer.shared_renderer` (this process's renderer for ``settings``, a
+    :class:`RenderSettings`), importing the renderer at the first call; defined here so that
+    ``from .render import shared_renderer`` loads no GL."""
+    return _renderer().shared_renderer(settings)
 
 
 def __getattr__(name):

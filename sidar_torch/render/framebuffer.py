@@ -22,10 +22,16 @@ from __future__ import annotations
 import numpy as np
 from OpenGL import GL
 
-__all__ = ["FLIP_Y", "Framebuffer"]
+__all__ = ["FLIP_Y", "Framebuffer", "size_limits"]
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 """Left-multiplies a projection matrix so that clip-space y, and so the image, is drawn upside down."""
+
+
+def size_limits() -> tuple[int, int]:
+    """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of the current context: the largest side,
+    in pixels, of a renderbuffer and of a 2-D texture (16384 each on llvmpipe)."""
+    return int(GL.glGetIntegerv(GL.GL_MAX_RENDERBUFFER_SIZE)), int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_SIZE))
 
 
 class Framebuffer:

@@ -24,8 +24,11 @@ import pyrender
 import trimesh
 
 from .. import geometry
+from ..scene import Occluder, ViewScene
+from .settings import RenderSettings
+from .visibility import ball_pixel_radius, ball_shadow_pixel_radius
 
-__all__ = ["FIXED_LEVEL", "MeshPool", "detail_level", "level_gap", "plane_mesh", "unit_primitive"]
+__all__ = ["FIXED_LEVEL", "MeshPool", "detail_level", "level_gap", "mesh_level", "plane_mesh", "unit_primitive"]
 
 
 def _hull(variant: int) -> trimesh.Trimesh:
@@ -155,6 +158,28 @@ def detail_level(shape: str, pixels_per_unit: float, max_error_px: float) -> int
         if level_gap(shape, level) * pixels_per_unit <= max_error_px:
             return level
     return max(len(levels) - 1, 0)
+
+
+def mesh_level(occ: Occluder, view: ViewScene, settings: RenderSettings) -> int:
+    """The level of detail of ``occ``'s mesh in ``view`` (:data:`FIXED_LEVEL` unless
+    ``settings.mesh_error_px`` is set).
+
+    One unit of the unit primitive is ``max(scale)`` world units at most; on screen a world
+    unit near the occluder spans about ``ball_pixel_radius / r`` pixels, ``r`` its bounding
+    ball's radius, and on the painting under its shadow ``ball_shadow_pixel_radius / r``
+    (the shadow may be the larger: an occluder near a light casts a magnified shadow). The
+    larger of the two, over every emitter, sets the level: a silhouette gap of ``g`` units
+    moves the outline and the shadow's edge by at most ``g`` times it, in pixels.
+    """
+    error_px = settings.mesh_error_px
+    if error_px is None:
+        return FIXED_LEVEL
+    cam, radius = view.camera, float(np.linalg.norm(occ.scale))
+    spans = [ball_pixel_radius(cam.K, cam.R, cam.t, occ.position, radius)] if settings.occluders_visible else []
+    if settings.shadows:
+        spans += [ball_shadow_pixel_radius(cam.K, cam.R, cam.t, e, occ.position, radius)
+                  for light in view.lights for e in light.emitters]
+    return detail_level(occ.shape, max(spans, default=0.0) * float(occ.scale.max()) / radius, error_px)
 
 
 class MeshPool:

@@ -35,15 +35,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry import ball_may_be_seen, clip_polygon, plane_corners, shadow_may_fall_on_ball, shadow_may_reach, \
-    visible_halfplanes
+from ..geometry import clip_polygon, plane_corners, visible_halfplanes
 from ..scene import SceneSequence, ViewScene
+from .settings import RenderSettings
+from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
 __all__ = ["SHADOW_READ_TEXELS", "ViewPlan", "plan_views", "shadow_margin"]
 
 SHADOW_READ_TEXELS = 3.0
 """How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
-a texel's depth: ``programs._SPOT_SHADOW_LOOKUP`` takes 4 hardware-filtered taps half a texel off
+a texel's depth: ``shaders/spot_shadow.glsl`` takes 4 hardware-filtered taps half a texel off
 the point, each reading the 2 x 2 texels around it, so texel centres within 1.5 texels; the
 transmittance lookup reads the 2 x 2 texels of a map of half the resolution, so centres within 2
 depth-map texels; the other 1 covers float32 rounding. A texel an occluder covers has its centre inside the occluder's
@@ -92,37 +93,36 @@ class ViewPlan:
     casters: frozenset[int]
 
 
-def plan_views(sequence: SceneSequence, map_size: int, skip_idle_shadows: bool = True,
-               cull_occluders: bool = True) -> list[ViewPlan]:
+def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPlan]:
     """The plan of every view of ``sequence`` (see the module docstring).
 
     Args:
         sequence: the scenes.
-        map_size: shadow-map side, texels.
-        skip_idle_shadows: false: every emitter of a view with occluders is shadowed, and every
-            occluder is a caster.
-        cull_occluders: false: every occluder is a caster, and drawn when occluders are visible.
+        settings: the renderer's; its ``shadow_map_size``, ``shadows``, ``occluders_visible`` and
+            the skips count here. ``skip_idle_shadows`` false: every emitter of a view with
+            occluders is shadowed, and every occluder is a caster. ``cull_occluders`` false: every
+            occluder is a caster, and drawn when occluders are visible.
     """
     first = sequence.views[0]
     shared = all(v.lights == first.lights and v.occluders == first.occluders for v in sequence.views)
-    facts = [_ViewFacts(view, sequence, map_size) for view in sequence.views]
+    facts = [_ViewFacts(view, sequence.image_size, settings) for view in sequence.views]
     casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
     plans = []
     for view, f, cast in zip(sequence.views, facts, casting):
         # The same order whatever is skipped: the shader sums lights in this order.
         order = tuple(sorted(f.emitters, key=lambda e: e not in cast))
-        if not (sequence.shadows and view.occluders):
+        if not (settings.shadows and view.occluders):
             cast = set()
-        elif not skip_idle_shadows:
+        elif not settings.skip_idle_shadows:
             cast = set(f.emitters)
         casters = f.drawn.union(*(f.hits[e] for e in cast))
         drawn = f.drawn
-        if not (cull_occluders and skip_idle_shadows):
+        if not (settings.cull_occluders and settings.skip_idle_shadows):
             casters = frozenset(range(len(view.occluders)))
-        if not cull_occluders:
-            drawn = casters if sequence.occluders_visible else frozenset()
+        if not settings.cull_occluders:
+            drawn = casters if settings.occluders_visible else frozenset()
         plans.append(ViewPlan(order, len(cast), frozenset(drawn), frozenset(casters)))
-    if shared and cull_occluders:
+    if shared and settings.cull_occluders:
         casters = frozenset().union(*(p.casters for p in plans))
         plans = [ViewPlan(p.order, p.n_shadowed, p.drawn, casters) for p in plans]
     return plans
@@ -133,13 +133,13 @@ class _ViewFacts:
     may be read by a lookup of the view (``hits``): on the painting the camera sees, or on a drawn
     occluder. Drawn occluders shadow themselves, so with any of them every emitter casts."""
 
-    def __init__(self, view: ViewScene, sequence: SceneSequence, map_size: int):
-        cam, size = view.camera, sequence.image_size
+    def __init__(self, view: ViewScene, size: tuple[int, int], settings: RenderSettings):
+        cam, map_size = view.camera, settings.shadow_map_size
         self.emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
         centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
         radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
         self.drawn = frozenset(i for i, (c, r) in enumerate(zip(centres, radii))
-                               if sequence.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, size, c, r))
+                               if settings.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, size, c, r))
         self.hits: dict[tuple[int, int], frozenset[int]] = {e: frozenset() for e in self.emitters}
         hidden = np.array([i for i in range(len(radii)) if i not in self.drawn], dtype=int)
         if not (self.emitters and len(hidden)):

@@ -15,7 +15,7 @@ from benchmarks.sweep import main
 from sidar_torch import load_config
 from sidar_torch.dataset import SidarDataset
 from sidar_torch.metrics import speckle_paintings
-from sidar_torch.render import SceneRenderer
+from sidar_torch.render import RenderSettings, SceneRenderer
 
 from conftest import SMALL
 
@@ -81,7 +81,7 @@ def test_supersampled_views_keep_pixel_centres():
     big = sweep.supersampled_sequence(sequence, 2)
     assert big.image_size == (2 * SMALL[0], 2 * SMALL[1])
     np.testing.assert_allclose(big.views[1].camera.K[:2, 2], 2 * sequence.views[1].camera.K[:2, 2] + 0.5)
-    one, two = SceneRenderer(SMALL, 64), SceneRenderer(big.image_size, 64)
+    one, two = SceneRenderer(RenderSettings(SMALL, 64)), SceneRenderer(RenderSettings(big.image_size, 64))
     try:
         v1, m1 = sweep.render_views(one, sequence, painting, 1)
         v2, m2 = sweep.render_views(two, sequence, painting, 2)

@@ -1,0 +1,98 @@
+"""Scene descriptions as pyrender scene graphs: cameras, poses, clip ranges, materials, samplers.
+
+The one place where the package's conventions (``sidar_torch.geometry``: OpenCV camera frame,
+Kornia pixels) meet OpenGL's (y up, looking along -z, pixel centres at +0.5).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyrender
+from OpenGL import GL
+
+from ..geometry import plane_corners
+from ..scene import CAMERA_CLEARANCE, Camera, Material
+from .backend import add_node
+from .shader_patches import surface_factors
+
+__all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene"]
+
+GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
+"""Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
+
+
+PAINTING_SAMPLERS = {  # keys: render_choices.TEXTURE_FILTERS
+    "trilinear": pyrender.Sampler(magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR_MIPMAP_LINEAR,
+                                  wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE),
+    "bilinear": pyrender.Sampler(magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR,
+                                 wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE),
+}
+"""The painting's texture filters (``RenderSettings.texture_filter``): trilinear blends mipmap levels
+where a view shrinks the painting; bilinear reads the full-size texture only (aliases there).
+Clamping keeps texels of the opposite edge out of the border pixels."""
+
+
+def gl_camera(camera: Camera, znear: float, zfar: float) -> tuple[pyrender.IntrinsicsCamera, np.ndarray]:
+    """pyrender camera and its camera-to-world pose (OpenGL frame) for a Kornia-convention camera.
+
+    The one place where pixel conventions meet: OpenGL puts pixel centres at +0.5 in window
+    coordinates, Kornia at integers, so the principal point shifts by half a pixel (``cy``
+    counts from the top row in both).
+    """
+    K = camera.K
+    gl = pyrender.IntrinsicsCamera(fx=K[0, 0], fy=K[1, 1], cx=K[0, 2] + 0.5, cy=K[1, 2] + 0.5,
+                                   znear=znear, zfar=zfar)
+    return gl, gl_pose(camera.R, camera.t)
+
+
+def gl_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """pyrender node pose (camera-to-world, OpenGL axes: looks along -z) of the OpenCV-frame
+    world-to-camera pose ``R, t``. Cameras and lights (which shine along -z) both use it."""
+    world_from_cv = np.eye(4)
+    world_from_cv[:3, :3] = R.T
+    world_from_cv[:3, 3] = -R.T @ t
+    return world_from_cv @ GL_FROM_CV
+
+
+def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, float]:
+    """Near and far clip distances (painting units, along the optical axis).
+
+    Far lies beyond the painting's farthest corner. Near is far / 2000 (24-bit depth then resolves
+    about 1e-4 painting units at the painting), or less for a camera closer to the painting than
+    that: every painting point is at least the camera's height ``z`` away, and every occluder at
+    least :data:`~sidar_torch.scene.CAMERA_CLEARANCE`; a point at distance ``r`` inside the view
+    is at depth at least ``r cos(theta)``, ``theta`` the angle of the image's farthest corner
+    from the axis. Near is half the smaller such depth.
+    """
+    zfar = 2.0 * float(np.linalg.norm(plane_corners(image_size) - camera.position, axis=1).max())
+    h, w = image_size
+    f = camera.K[0, 0]
+    corner = np.hypot(max(camera.K[0, 2] + 0.5, w - 0.5 - camera.K[0, 2]), max(camera.K[1, 2] + 0.5, h - 0.5 - camera.K[1, 2]))
+    cos_corner = f / np.hypot(f, corner)
+    nearest = min(float(camera.position[2]), CAMERA_CLEARANCE) * cos_corner
+    return min(zfar / 2000.0, nearest / 2), zfar
+
+
+def gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
+    return pyrender.MetallicRoughnessMaterial(
+        baseColorFactor=material.base_color.astype(np.float64),  # floats: ints would be read as 0-255
+        metallicFactor=float(material.metallic),
+        roughnessFactor=float(material.roughness),
+        emissiveFactor=surface_factors(material.specular, material.coat, material.coat_roughness),
+        alphaMode="BLEND" if material.transparent else "OPAQUE",
+        baseColorTexture=texture,
+    )
+
+
+def new_scene(camera: Camera, ambient: float, painting: pyrender.Mesh, material: Material,
+              texture: pyrender.Texture, image_size: tuple[int, int]) -> tuple[pyrender.Scene, pyrender.Node]:
+    """A pyrender scene of one draw: the ``painting`` mesh (``meshes.plane_mesh``) with ``material`` and
+    ``texture``, ambient light ``ambient`` and ``camera``; returns it and the painting's node.
+    Occluders and lights are added by the caller."""
+    # Alpha 0 where nothing is drawn: ``RenderedSequence.background``.
+    scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 0.0), ambient_light=np.full(3, ambient))
+    painting.primitives[0].material = gl_material(material, texture)
+    plane = add_node(scene, mesh=painting)
+    gl_cam, pose = gl_camera(camera, *clip_range(camera, image_size))
+    add_node(scene, pose, camera=gl_cam)
+    return scene, plane

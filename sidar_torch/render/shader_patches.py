@@ -1,0 +1,173 @@
+"""pyrender's shaders, patched: the patch table, our GLSL in ``shaders/``, and the quirks they fix.
+
+The program classes that load them (quirks 1 and 2) are in ``render.backend``, with every other
+pyrender override.
+
+1. **The program cache never hits on OSMesa.** pyrender keys its cache on
+   ``OpenGL.contextdata.getContext()``, which returns a new pointer object at every call on
+   OSMesa, so every render compiles, links and leaks fresh programs (thousands of programs and
+   gigabytes after a few thousand renders). A cache belongs to one renderer, which owns one
+   context, so ``backend.ProgramCache`` keys on the shaders and defines alone.
+2. **Validation fails with shadows.** PyOpenGL validates a program right after linking,
+   against whatever texture units happen to be bound; with shadow maps Mesa reports "active
+   samplers with a different type refer to the same texture image unit" for a program that
+   is correct once its uniforms are set. Programs here are linked without that check (a
+   link error still raises).
+3. **Shadow lookups dominate the cost of a lit view**: pyrender filters each shadow map with
+   a 3x3 grid of manual 4-tap bilinear compares, 36 texture reads per light per pixel (about
+   50 ms per light at 512 x 384 on llvmpipe). Spot-light shadow maps here are depth-compare
+   samplers (``sampler2DShadow``, set up by the renderer) read with 4 hardware-filtered taps
+   at +-0.5 texel: a 3 x 3 tent-weighted percentage-closer filter for 4 reads; or, with the
+   program define ``SIDAR_SHADOW_TAPS`` = 1 (config ``shadow_filter: bilinear``), one tap at
+   the centre: a 2 x 2 filter.
+4. **The lit shader's output encoding is a gamma-2.2 approximation** (``pow(x, 1/2.2)``)
+   although it decodes textures with the exact sRGB curve, so an ambient-only render is up to
+   9 levels off its texture. :data:`SHADER_PATCHES` swaps in the exact sRGB encoding.
+5. **pyrender's material has no specular level, clear coat or Fresnel opacity.** Nothing here
+   emits light, so the material's ``emissive_factor`` uniform (always bound by pyrender) carries
+   ``(specular, coat, coat_roughness)`` instead (see :func:`surface_factors`), and emission is
+   dropped:
+
+   * the dielectric reflectance at normal incidence is ``0.08 * specular`` (pyrender: fixed 4 %);
+   * a clear coat adds a second GGX lobe of 4 % reflectance and its own roughness, and the base
+     layer below it gets the light the coat does not reflect (``1 - coat * F_coat``);
+   * a blended (transparent) surface's opacity rises from its alpha towards 1 with the Schlick
+     Fresnel reflectance of the view direction (4 % at normal incidence), so glass reads darker
+     or brighter at its silhouette, and specular light (coat and base, unshadowed) raises the
+     opacity too, so a highlight on clear glass shows at full strength instead of being blended
+     away. There is no refraction: what lies behind a transparent object is seen undisplaced.
+     The unlit shader (``flat.frag``) outputs the same Fresnel opacity, highlights aside, for
+     the renderer's opacity draw.
+
+6. **Loops cost even when they run zero times.** llvmpipe runs a fragment shader on 8-pixel
+   vectors and executes both sides of every branch under a lane mask, uniform conditions
+   included: only a loop's trip count saves work. pyrender's empty point- and
+   directional-light loops cost 13 ms per 512 x 384 view (the renderer makes only spot lights),
+   and a shadow lookup skipped with a branch (``i >= n_shadowed ? 0.0 : lookup``) was still
+   paid in full: the 4 filtered taps per light are two thirds of a lit view. So the point and
+   directional loops are compiled out, and the spot lights run in two loops: the first
+   ``n_shadowed_spot_lights`` with their shadow lookup, the rest without (the renderer orders
+   the lights so; the sum runs in the same order, so the pixels are the same either way).
+
+7. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
+   transmittance map per shadowed spot light instead of its depth map (model and limits in
+   ``render.transmittance``; ``shaders/transmittance.frag`` draws them), and the
+   lit shader multiplies each shadowed light's contribution by the map's colour where the
+   fragment lies beyond the nearest transparent caster (4 texels, a distance test per texel,
+   bilinear weights; the maps are tiles of one 2-D texture on one texture unit). The lookup is a
+   program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by ``backend.ProgramCache``) drawn
+   only in views with a transparent caster; other views run the shader without it, as before
+   (a uniform switch cost +50 % CPU time per view without any transparent caster: quirk 6).
+
+Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
+loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
+``#include "file"`` lines expanded by :func:`glsl`; ``*.frag`` whole shaders of our own;
+``pyrender_*.glsl`` quotes pyrender's text that a patch replaces).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["PATCH_DEFINES", "SHADER_DIR", "SHADER_PATCHES", "SHADER_SOURCES", "glsl", "patch_source", "surface_factors"]
+
+SHADER_DIR = Path(__file__).resolve().parent / "shaders"
+"""Our GLSL: whole shaders (``*.frag``) and the pieces the patches put into pyrender's (``*.glsl``)."""
+
+_INCLUDE = '#include "'
+
+
+def glsl(name: str) -> str:
+    """The text of ``shaders/<name>``, each line ``#include "<file>"`` replaced by that file's text."""
+    lines = (SHADER_DIR / name).read_text().splitlines(keepends=True)
+    return "".join(glsl(line[len(_INCLUDE):].split('"')[0]) if line.startswith(_INCLUDE) else line for line in lines)
+
+
+def _before(anchor: str, *names: str) -> tuple[str, str]:
+    """A patch putting the files ``names`` in front of the text ``anchor``."""
+    return anchor, "".join(glsl(name) for name in names) + anchor
+
+
+def _after(anchor: str, text: str) -> tuple[str, str]:
+    """A patch putting ``text`` after the text ``anchor``."""
+    return anchor, anchor + text
+
+
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS",)
+"""Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
+
+SHADER_SOURCES = ("transmittance.frag",)
+"""Shaders of our own in ``shaders/`` (pair them with pyrender's ``mesh.vert``); no ``#ifdef``."""
+
+_MAIN = "\nvoid main()\n"
+
+SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
+    "mesh.frag": [
+        # Quirk 3: spot-light shadow maps are depth-compare samplers, read by spot_shadow.
+        ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
+         "sampler2DShadow shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
+        ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
+         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
+        # Quirk 6: only the first n_shadowed_spot_lights lights can shadow what the camera sees: the
+        # others run in a second loop without the lookup, which would return "lit".
+        (glsl("pyrender_spot_loop_head.glsl"), glsl("shadowed_spot_loop_head.glsl")),
+        ("        color.xyz += res;\n    }\n    color.xyz += base_color.xyz * ambient_light;",
+         glsl("unshadowed_spot_loop.glsl")),
+        ("for (int i = 0; i < n_directional_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
+        ("for (int i = 0; i < n_point_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
+        _before(_MAIN, "spot_shadow.glsl", "spot_light.glsl", "surface_output.glsl"),
+        # Quirk 7: coloured shadows of transparent casters, in the shadowed loop only.
+        _after("            spot_lights[i].shadow_map,\n            nl\n        );\n"
+               "        res = res * (1.0 - shadow);\n",
+               "#ifdef TRANSMITTANCE_SHADOWS\n"
+               "        res *= spot_transmittance(spot_lights[i].light_matrix, i);  // in the shadowed loop only\n"
+               "#endif\n"),
+        # Quirks 4 and 5: exact sRGB output, Fresnel and specular opacity, clear coat, specular level.
+        ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)",
+         "vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"),
+        _before("\nvec3 compute_brdf(", "surface_globals.glsl"),
+        ("\n        vec3 spec_contrib = F * G * D / (4.0 * nl * nv + 0.001);\n\n"
+         "        vec3 color = nl * radiance * (diffuse_contrib + spec_contrib);\n", glsl("surface_brdf.glsl")),
+        ("vec3 dialectric_spec = vec3(min_roughness);",
+         "vec3 dialectric_spec = vec3(0.08 * material.emissive_factor.x);"),
+        ("    color.xyz += emissive * material.emissive_factor;\n", ""),
+    ],
+    # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
+    "flat.frag": [
+        _before(_MAIN, "fresnel_opacity.glsl"),
+        ("frag_color = clamp(base_color, 0.0, 1.0);",
+         "frag_color = vec4(clamp(base_color.rgb, 0.0, 1.0), fresnel_opacity(base_color.a, "
+         "clamp(abs(dot(normalize(frag_normal), normalize(cam_pos - frag_position))), 0.0, 1.0)));"),
+    ],
+}
+"""Per pyrender shader file, ``(old, new)`` text replacements, applied after pyrender has resolved
+the ``#ifdef`` lines (so no pattern may contain one)."""
+
+
+def patch_source(filename: str, text: str, defines: dict[str, int]) -> str:
+    """pyrender's shader ``filename`` (its text after pyrender's own ``#ifdef`` resolution) with
+    :data:`SHADER_PATCHES` applied, ``SIDAR_*`` defines substituted and :data:`PATCH_DEFINES`
+    declared for GLSL.
+
+    Raises:
+        RuntimeError: a patch's text is not found exactly once (a pyrender release changed it).
+    """
+    for old, new in SHADER_PATCHES.get(filename, []):
+        if text.count(old) != 1:
+            raise RuntimeError(f"pyrender shader {filename!r} changed: cannot patch {old.strip()!r}")
+        text = text.replace(old, new)
+    for name, value in defines.items():  # pyrender substituted its own before the patches
+        if name.startswith("SIDAR_"):
+            text = text.replace(name, str(value))
+    # pyrender resolved its own #ifdef lines before the patches went in; GLSL resolves ours.
+    version, rest = text.split("\n", 1)
+    declared = "".join(f"#define {name} 1\n" for name in PATCH_DEFINES if name in defines)
+    return f"{version}\n{declared}{rest}"
+
+
+def surface_factors(specular: float, coat: float, coat_roughness: float) -> np.ndarray:
+    """The ``(3,)`` float32 value of a material's ``emissiveFactor`` that the patched shader reads as
+    specular level, clear-coat weight and clear-coat roughness (all in [0, 1]; see quirk 5)."""
+    return np.array([specular, coat, coat_roughness], dtype=np.float32)

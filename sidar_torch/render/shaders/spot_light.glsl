@@ -1,0 +1,19 @@
+
+vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_diff, vec3 albedo,
+                out vec3 l)
+{
+    // pyrender's spot-light loop body, without the shadow: light i's reflected radiance.
+    vec3 position = spot_lights[i].position;
+    vec3 v = normalize(cam_pos - frag_position); // Vector towards camera
+    l = normalize(position - frag_position); // Vector towards light
+    vec3 direction = spot_lights[i].direction;
+    float las = spot_lights[i].light_angle_scale;
+    float lao = spot_lights[i].light_angle_offset;
+    float dist = length(position - frag_position);
+    float cd = clamp(dot(direction, -l), 0.0, 1.0);
+    float attenuation = clamp(cd * las + lao, 0.0, 1.0);
+    attenuation = attenuation * attenuation * spot_lights[i].intensity;
+    attenuation = attenuation / (dist * dist);
+    vec3 radiance = attenuation * spot_lights[i].color;
+    return compute_brdf(n, v, l, roughness, metallic, f0, c_diff, albedo, radiance);
+}

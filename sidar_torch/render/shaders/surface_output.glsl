@@ -1,0 +1,15 @@
+#include "fresnel_opacity.glsl"
+
+float surface_alpha(float alpha, vec3 n)
+{
+    // Opacity of a blended surface: Schlick-Fresnel towards grazing views, plus its specular light.
+    float nv = clamp(abs(dot(n, normalize(cam_pos - frag_position))), 0.0, 1.0);
+    return clamp(fresnel_opacity(alpha, nv) + max(specular_light.r, max(specular_light.g, specular_light.b)),
+                 0.0, 1.0);
+}
+
+vec3 linear_to_srgb(vec3 c)
+{
+    c = clamp(c + max(max(c.r, max(c.g, c.b)) - 1.0, 0.0), 0.0, 1.0);  // over-exposure spills into white
+    return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));
+}

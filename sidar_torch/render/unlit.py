@@ -1,0 +1,63 @@
+"""The unlit draws: the label (the painting as the reference camera sees it) and each view's
+opacity (the fraction of the painting hidden at each pixel). Both use pyrender's flat shader
+(``RenderFlags.FLAT``), patched to output the lit draw's Fresnel opacity (``shader_patches``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyrender
+from pyrender.constants import RenderFlags
+
+from ..scene import Camera, Material
+from ..timing import timed
+from .backend import GLRenderer
+from .scene_graph import gl_material, new_scene
+
+__all__ = ["render_label", "render_opacity"]
+
+
+def render_label(gl: GLRenderer, camera: Camera, painting: pyrender.Mesh, texture: pyrender.Texture,
+                 image_size: tuple[int, int], timings: dict[str, float] | None = None) -> np.ndarray:
+    """The label: ``(H, W, 3)`` uint8, the ``painting`` mesh with its ``texture`` as ``camera`` sees
+    it, unlit (white, opaque), with nothing else in the scene."""
+    plain = Material(np.ones(4), 0.0, 1.0)
+    with timed(timings, "graph"):
+        scene, plane = new_scene(camera, 1.0, painting, plain, texture, image_size)
+    return gl.draw(scene, RenderFlags.FLAT, seen={plane}, timings=timings, step="label")[..., :3]
+
+
+def render_opacity(gl: GLRenderer, scene: pyrender.Scene, plane: pyrender.Node, visible: set[pyrender.Node],
+                   mask: np.ndarray, timings: dict[str, float] | None = None) -> np.ndarray:
+    """The view's opacity: ``(H, W)`` uint8, 255 times the fraction of the painting hidden.
+
+    That is 255 outside the painting (background) and behind opaque occluders, 0 where the
+    painting is seen unobstructed, and ``255 (1 - prod_k (1 - a_k))`` where transparent
+    occluders ``k`` cover it, ``a_k`` being the opacity the colour draw blends them with: the
+    material's alpha raised towards 1 by the Schlick-Fresnel reflectance of the view (4 % at
+    normal incidence, all at grazing angles; ``shader_patches`` quirk 5). The colour draw also makes
+    a transparent occluder more opaque under its specular highlights; that light-dependent part
+    is left out here (it would need a lit draw), so under a highlight the value is lower.
+
+    An unlit draw of the ``scene`` the colour draw used (its materials are replaced; every view
+    sets its own): the painting white and opaque, the ``visible`` occluders black with their
+    alpha and blend mode, so each transparent layer multiplies what shows of the painting by
+    ``1 - a_k`` whatever the order, and an opaque one zeroes it. pyrender sorts and
+    depth-tests the occluders as in the colour draw (a transparent surface hides transparent
+    surfaces behind it drawn later, as it does there), and occluder parts behind the painting
+    fail the depth test. The framebuffer holds 8 bits, rounded after each blended layer: within
+    1/255 of the exact value per transparent layer.
+
+    With no visible occluder the draw would give the painting's coverage, which the ``mask``
+    (``(H, W)`` bool, True off the painting) already is, so it is skipped.
+    """
+    if not visible:
+        return mask.astype(np.uint8) * 255
+    with timed(timings, "graph"):
+        plane.mesh.primitives[0].material = gl_material(Material(np.ones(4), 0.0, 1.0))
+        for node in visible:
+            primitive = node.mesh.primitives[0]
+            black = np.array([0.0, 0.0, 0.0, primitive.material.baseColorFactor[3]])
+            primitive.material = gl_material(Material(black, 0.0, 1.0))
+    shown = gl.draw(scene, RenderFlags.FLAT, seen={plane} | visible, timings=timings, step="opacity")
+    return 255 - shown[..., 0]
