@@ -9,6 +9,11 @@ on the input's device.
 >>> out = aug(torch.rand(4, 3, 120, 160))               # doctest: +SKIP
 >>> out["images"].shape, out["homographies"].shape        # doctest: +SKIP
 (torch.Size([4, 3, 3, 96, 128]), torch.Size([4, 3, 3, 3, 3]))
+
+With ``num_workers=2`` a batch renders in two processes (same outputs, see the class docstring):
+
+>>> with SidarAugment("misaligned", seed=0, num_workers=2) as aug:  # doctest: +SKIP
+...     out = aug(images)
 """
 
 from __future__ import annotations
@@ -20,15 +25,19 @@ import numpy as np
 import torch
 from torch import nn
 
+from .augment_pool import RenderPool, RenderTask, render_task
 from .config import SidarConfig, load_config
 from .dataset import _check_int
-from .sample import render_sample, stack_samples
+from .sample import KEYS, stack_samples
 from .scene import SceneSequence, sample_sequence
-from .sources import CROP_MODES, TensorPaintings
+from .sources import CROP_MODES
 
 __all__ = ["SidarAugment"]
 
 Generator = torch.Generator | np.random.Generator
+
+PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
+"""The 8-bit pixel keys (``images``, ``masks``, ``opacities``, ``label``): handed out in the input's dtype."""
 
 class SidarAugment(nn.Module):
     """Render every image of a batch as the painting of a random SIDAR scene.
@@ -38,6 +47,8 @@ class SidarAugment(nn.Module):
         seed: an integer ``>= 0``, or ``None`` to draw from PyTorch's global generator (like
             ``kornia.augmentation``; ``torch.manual_seed`` then makes runs repeatable).
         crop: how images are fitted to ``image_size``, ``"center"`` or ``"none"`` (see below).
+        num_workers: ``0`` (default): render in this process; ``n >= 1``: render each batch in a
+            pool of ``n`` render processes (see "Render pool").
         **overrides: config fields replacing the preset's, e.g. ``n_views=3``,
             ``image_size=(h, w)``, ``n_occluders=(0, 1)`` (``load_config(config, **overrides)``).
 
@@ -60,14 +71,15 @@ class SidarAugment(nn.Module):
     Under DistributedDataParallel give each rank its own seed (e.g. ``seed + rank``), or every
     rank draws the same scenes for its own images.
 
-    Input. :meth:`forward` takes ``images`` ``(B, 3, h, w)``, any floating dtype with values in
-    [0, 1], on any device. Images are quantised to 8 bits (``round(x * 255)``, the texture's
-    precision) and, if ``(h, w)`` is not ``image_size``, fitted to it exactly as painting sources
-    fit images (:class:`sidar_torch.sources.TensorPaintings`, :func:`sidar_torch.sources.fit_painting`:
-    the largest centred crop of the output aspect, Lanczos resampling; ``crop="none"`` stretches).
-    Rendering runs on the CPU (OSMesa) whatever the input's device, one image after another in
-    this process's shared renderer; no gradient flows back to ``images``. For throughput on
-    fixed data, :class:`sidar_torch.SidarDataset` in DataLoader workers renders in parallel.
+    Input. :meth:`forward` takes ``images`` ``(B, 3, h, w)`` (RGB) or ``(B, 1, h, w)`` (grey,
+    copied to the three channels), on any device, either ``torch.uint8`` (``0..255``) or any
+    floating dtype with values in [0, 1], the two forms painting sources accept. Float images are
+    quantised to 8 bits (``round(x * 255)``, the texture's precision) and, if ``(h, w)`` is not
+    ``image_size``, fitted to it exactly as painting sources fit images
+    (:class:`sidar_torch.sources.TensorPaintings`, :func:`sidar_torch.sources.fit_painting`: the
+    largest centred crop of the output aspect, Lanczos resampling; ``crop="none"`` stretches).
+    Rendering runs on the CPU (OSMesa) whatever the input's device; no gradient flows back to
+    ``images``.
 
     Output. A dict with the keys of a :class:`sidar_torch.SidarDataset` sample (the table
     :data:`sidar_torch.sample.KEYS`), batched by :func:`sidar_torch.sample.stack_samples`, on the
@@ -75,10 +87,40 @@ class SidarAugment(nn.Module):
     ``homography_error`` ``(B,)`` float32 (not float64 as a DataLoader would collate the dataset's
     floats, so that every device can hold it) and ``index`` ``(B,)`` int64, each image's position
     in the batch.
+
+    Output dtypes. As in ``kornia.augmentation`` and ``torchvision.transforms.v2``, the pixel keys
+    (``images``, ``masks``, ``opacities``, ``label``: :data:`PIXEL_KEYS`) keep the input's dtype and
+    its scale: uint8 in gives uint8 ``0..255`` out (masks ``0`` or ``255``, the values export
+    writes), a float dtype in gives that dtype out, in [0, 1] (``k / 255`` for the rendered 8-bit
+    value ``k``, exact to that dtype's precision: float32 values equal a dataset sample's). The
+    geometry (``homographies``, ``K``, ``R``, ``t``) is in the config's ``geometry_dtype``
+    (float32 by default) whatever the input, as in a dataset sample.
+
+    Render pool. With ``num_workers=n`` each forward call splits its batch over ``n`` forked
+    processes, each with its own renderer; the pool starts at the first call, is reused by the
+    next ones and stops at :meth:`close`, at the end of a ``with`` block, when the module is
+    garbage-collected or at interpreter exit; its processes exit by themselves if this one dies.
+    Image ``b`` of call ``c`` is drawn and rendered by the same code whichever process renders it,
+    so the outputs are ``torch.equal`` whatever ``num_workers`` is. An exception raised in a
+    worker is raised again by :meth:`forward`, with the worker's traceback in its notes; a worker
+    that dies raises ``RuntimeError`` and the pool restarts at the next call. A pickled or
+    deep-copied module (and a module used in another process than the one that started its pool)
+    starts its own pool; ``state_dict`` holds ``calls`` only. On two cores, two workers render a
+    batch about twice as fast as one process by wall clock (``benchmarks/augment_pool.py``);
+    more workers than cores gain nothing.
+
+    When to prefer ``SidarDataset(source=your_images)`` in DataLoader workers instead: when the
+    images are a fixed set (a folder, a tensor, a dataset) rather than a batch produced by the
+    training loop itself. DataLoader workers render ahead of the training step, overlapping it,
+    and spread the decoding and fitting too; ``SidarAugment`` (even with a pool) renders while the
+    caller waits, so it suits images that exist only inside the loop (another model's outputs,
+    another augmentation's results) or code already written around a ``kornia.augmentation``
+    module. Do not combine a pool with DataLoader workers on the same cores: each extra process
+    only competes for them.
     """
 
     def __init__(self, config: SidarConfig | str | os.PathLike | None = "misaligned", *,
-                 seed: int | None = None, crop: str = "center", **overrides: Any):
+                 seed: int | None = None, crop: str = "center", num_workers: int = 0, **overrides: Any):
         super().__init__()
         if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
@@ -87,17 +129,36 @@ class SidarAugment(nn.Module):
         if crop not in CROP_MODES:
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {crop!r}")
         self.crop = crop
+        self.num_workers = _check_int("num_workers", num_workers, 0)
         self.calls = 0
+        self._pool: RenderPool | None = None
 
     def extra_repr(self) -> str:
         c = self.config
-        return f"n_views={c.n_views}, image_size={c.image_size}, seed={self.seed}, crop={self.crop!r}"
+        return (f"n_views={c.n_views}, image_size={c.image_size}, seed={self.seed}, crop={self.crop!r}, "
+                f"num_workers={self.num_workers}")
 
     def get_extra_state(self) -> dict[str, int]:
         return {"calls": self.calls}
 
     def set_extra_state(self, state: dict[str, int]) -> None:
         self.calls = _check_int("calls", state["calls"], 0)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled (and deep-copied) state: everything but the render pool, which a copy starts anew."""
+        return {**self.__dict__, "_pool": None}
+
+    def close(self) -> None:
+        """Stop the render pool, if one is running (safe to call twice; the next call starts a new one)."""
+        if self._pool is not None:
+            self._pool.close()
+            self._pool = None
+
+    def __enter__(self) -> "SidarAugment":
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        self.close()
 
     def scene(self, call: int, position: int) -> SceneSequence:
         """The scene of image ``position`` in forward call number ``call`` (seeded mode only)."""
@@ -107,32 +168,50 @@ class SidarAugment(nn.Module):
         return sample_sequence(self.config, np.random.default_rng([self.seed, call, position]))
 
     def forward(self, images: torch.Tensor, generator: Generator | None = None) -> dict[str, torch.Tensor]:
-        """Render each image of ``images`` ``(B, 3, h, w)`` in its own scene (see the class docstring).
+        """Render each image of ``images`` in its own scene (see the class docstring).
 
         Args:
-            images: float tensor ``(B, 3, h, w)``, values in [0, 1], any device, ``B >= 1``.
+            images: ``(B, 3, h, w)`` or ``(B, 1, h, w)``, uint8 or float in [0, 1], any device, ``B >= 1``.
             generator: optional ``torch.Generator`` or ``numpy.random.Generator`` to draw the
                 scenes from instead of ``(seed, call)``.
 
+        Returns:
+            The batched sample dict; pixel keys in ``images.dtype`` (see "Output dtypes").
+
         Raises:
             TypeError: ``images`` is not a tensor, or ``generator`` of another type.
-            ValueError: wrong shape, dtype, empty batch, NaN/infinite values or values outside [0, 1].
+            ValueError: wrong shape or dtype, empty batch, NaN/infinite values or float values outside [0, 1].
         """
-        cpu = _check_images(images)
-        paintings = TensorPaintings(cpu, crop=self.crop)
-        size = self.config.image_size
-        samples = [
-            render_sample(sample_sequence(self.config, rng), paintings.painting(b, size), self.config, b, rng=rng)
-            for b, rng in enumerate(self._scene_rngs(len(cpu), generator))
-        ]
-        return {key: value.to(images.device) for key, value in stack_samples(samples).items()}
+        pixels = _check_images(images)
+        tasks: list[RenderTask] = [(b, entropy, pixels[b]) for b, entropy in
+                                   enumerate(self._scene_entropy(len(pixels), generator))]
+        arrays = self._render(tasks)
+        batch = stack_samples([a.to_tensors(self.config.geometry_dtype) for a in arrays])
+        return {key: _in_dtype(value, images.dtype if key in PIXEL_KEYS else value.dtype).to(images.device)
+                for key, value in batch.items()}
 
-    def _scene_rngs(self, batch_size: int, generator: Generator | None) -> list[np.random.Generator]:
+    def _render(self, tasks: list[RenderTask]):
+        if self.num_workers == 0:
+            return [render_task(self.config, self.crop, task) for task in tasks]
+        if self._pool is None or not self._pool.usable:
+            self._pool = RenderPool(self.config, self.crop, self.num_workers)
+        return self._pool.run(tasks)
+
+    def _scene_entropy(self, batch_size: int, generator: Generator | None) -> list[list[int]]:
+        """Per image, the entropy of its generator (``numpy.random.default_rng(entropy)``)."""
         if generator is None and self.seed is not None:
             call = self.calls
             self.calls += 1
-            return [np.random.default_rng([self.seed, call, b]) for b in range(batch_size)]
-        return [np.random.default_rng(words) for words in _draw_words(batch_size, generator)]
+            return [[self.seed, call, b] for b in range(batch_size)]
+        return _draw_words(batch_size, generator)
+
+
+def _in_dtype(values: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """Float32 pixel values ``k / 255`` as ``dtype``: uint8 ``k``, or ``k / 255`` computed in ``dtype``."""
+    if dtype == values.dtype:
+        return values
+    levels = values.mul(255).round_().to(torch.uint8)
+    return levels if dtype == torch.uint8 else levels.to(dtype).div_(255)
 
 
 def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]:
@@ -146,21 +225,26 @@ def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]
                     f"got {type(generator).__name__}")
 
 
-def _check_images(images: Any) -> torch.Tensor:
-    """Validate ``images`` (see :meth:`SidarAugment.forward`) and return a detached CPU copy."""
+def _check_images(images: Any) -> np.ndarray:
+    """Validate ``images`` (see :meth:`SidarAugment.forward`) and return them as ``(B, 3, h, w)``
+    uint8 NumPy pixels (float values ``round(x * 255)``, grey copied to three channels)."""
     if not isinstance(images, torch.Tensor):
-        raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w), got {type(images).__name__}")
+        raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w) or (B, 1, h, w), "
+                        f"got {type(images).__name__}")
     shape = tuple(images.shape)
-    if images.ndim != 4 or shape[1] != 3 or shape[2] < 1 or shape[3] < 1:
-        raise ValueError(f"images: expected shape (B, 3, h, w) with h, w >= 1, got {shape}")
+    if images.ndim != 4 or shape[1] not in (1, 3) or shape[2] < 1 or shape[3] < 1:
+        raise ValueError(f"images: expected shape (B, 3, h, w) or (B, 1, h, w) with h, w >= 1, got {shape}")
     if shape[0] == 0:
-        raise ValueError("images: expected at least one image, got an empty batch (0, 3, h, w)")
-    if not images.is_floating_point():
-        raise ValueError(f"images: expected a floating-point dtype with values in [0, 1], got {images.dtype}")
-    cpu = images.detach().to("cpu", torch.float32)
-    if not bool(torch.isfinite(cpu).all()):
-        raise ValueError("images: expected finite values in [0, 1], found NaN or infinity")
-    low, high = float(cpu.min()), float(cpu.max())
-    if low < 0.0 or high > 1.0:
-        raise ValueError(f"images: expected values in [0, 1], got range [{low}, {high}]")
-    return cpu
+        raise ValueError(f"images: expected at least one image, got an empty batch {shape}")
+    cpu = images.detach().cpu()
+    if cpu.dtype != torch.uint8:
+        if not cpu.is_floating_point():
+            raise ValueError(f"images: expected torch.uint8 (0..255) or a floating-point dtype with values "
+                             f"in [0, 1], got {images.dtype}")
+        low, high = (float(v) for v in torch.aminmax(cpu))
+        if not (np.isfinite(low) and np.isfinite(high)):
+            raise ValueError("images: expected finite values in [0, 1], found NaN or infinity")
+        if low < 0.0 or high > 1.0:
+            raise ValueError(f"images: expected values in [0, 1], got range [{low}, {high}]")
+        cpu = cpu.float().mul(255).round_().to(torch.uint8)
+    return np.ascontiguousarray(cpu.expand(-1, 3, -1, -1).numpy())

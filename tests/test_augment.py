@@ -46,7 +46,8 @@ def test_output_format_from_a_float64_batch_of_another_size():
     for key, shape in shapes.items():
         assert out[key].shape == shape, key
         assert out[key].device.type == "cpu", key
-        assert out[key].dtype == (torch.int64 if key == "index" else torch.float32), key
+        pixel = key in {"images", "masks", "label"}
+        assert out[key].dtype == (torch.int64 if key == "index" else torch.float64 if pixel else torch.float32), key
     assert out["index"].tolist() == [0, 1]
     assert 0 <= out["images"].min() and out["images"].max() <= 1
     assert set(out["masks"].unique().tolist()) <= {0.0, 1.0}
@@ -136,10 +137,10 @@ def test_outputs_follow_the_input_device():
 
 @pytest.mark.parametrize("images, match", [
     (torch.rand(3, *TINY), r"images: expected shape \(B, 3, h, w\)"),
-    (torch.rand(1, 1, *TINY), r"images: expected shape \(B, 3, h, w\)"),
-    (torch.rand(1, 3, 0, 5), r"images: expected shape \(B, 3, h, w\) with h, w >= 1"),
+    (torch.rand(1, 2, *TINY), r"images: expected shape \(B, 3, h, w\) or \(B, 1, h, w\)"),
+    (torch.rand(1, 3, 0, 5), r"images: expected shape \(B, 3, h, w\) or \(B, 1, h, w\) with h, w >= 1"),
     (torch.rand(0, 3, *TINY), "images: expected at least one image"),
-    (torch.zeros(1, 3, *TINY, dtype=torch.uint8), "images: expected a floating-point dtype"),
+    (torch.zeros(1, 3, *TINY, dtype=torch.int32), r"images: expected torch.uint8 \(0..255\) or a floating-point"),
     (torch.full((1, 3, *TINY), float("nan")), "images: expected finite values"),
     (torch.full((1, 3, *TINY), float("inf")), "images: expected finite values"),
     (torch.full((1, 3, *TINY), 1.5), r"images: expected values in \[0, 1\], got range \[1.5, 1.5\]"),
@@ -152,6 +153,27 @@ def test_bad_images_are_rejected(images, match):
     assert aug.calls == 0
 
 
+def test_uint8_grey_and_float64_batches_give_the_float32_pixels_in_their_own_dtype():
+    # issue 13 item 3: uint8 and one-channel batches are accepted, and the pixel keys keep the input's dtype.
+    grey = torch.randint(0, 256, (2, 1, 60, 100), dtype=torch.uint8)
+    reference = tiny_augment(seed=8, opacity_output=True)(grey.expand(2, 3, 60, 100).float() / 255)
+    pixel_keys = {"images", "masks", "opacities", "label"}
+    for images in [grey, grey.expand(2, 3, 60, 100).contiguous(), grey.double() / 255, grey.float() / 255]:
+        out = tiny_augment(seed=8, opacity_output=True)(images)
+        assert out.keys() == reference.keys()
+        for key in out:
+            if key in pixel_keys:
+                assert out[key].dtype == images.dtype, key
+                scale = 1 if images.dtype == torch.uint8 else 255
+                levels = (out[key].double() * scale).round()
+                assert torch.equal(levels, (reference[key].double() * 255).round()), key
+                if images.dtype != torch.uint8:
+                    assert torch.equal(out[key], levels.to(images.dtype) / 255), key
+            else:
+                assert torch.equal(out[key], reference[key]), key
+    assert set(tiny_augment()(grey)["masks"].unique().tolist()) <= {0, 255}
+
+
 def test_bad_arguments_are_rejected():
     with pytest.raises(TypeError, match="images"):
         tiny_augment()(np.zeros((1, 3, *TINY), np.float32))
@@ -161,6 +183,8 @@ def test_bad_arguments_are_rejected():
         SidarAugment(seed=-1)
     with pytest.raises(ValueError, match="crop"):
         SidarAugment(crop="middle")
+    with pytest.raises(ValueError, match="num_workers"):
+        SidarAugment(num_workers=-1)
     with pytest.raises(ValueError, match="n_views"):
         SidarAugment(n_views=0)
     with pytest.raises(ValueError, match="unknown config override"):

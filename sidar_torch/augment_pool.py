@@ -1,0 +1,195 @@
+"""Rendering one :class:`sidar_torch.SidarAugment` image, in this process or in a pool of render processes.
+
+A *task* is everything image ``b`` of a call needs: its position, the entropy of its generator
+(``numpy.random.default_rng(entropy)`` draws the scene, then the view effects) and its pixels,
+``(3, h, w)`` uint8. :func:`render_task` turns a task into :class:`~sidar_torch.sample.SampleArrays`;
+it is the only rendering path, whichever process runs it, so the pixels do not depend on the pool.
+
+:class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (created at its first
+task and reused), fed one task at a time through its own pipe: a process that finishes takes the
+next task, and results are put back in batch order.
+
+Processes are forked (``fork`` start method): a worker starts in milliseconds, where ``spawn`` or
+``forkserver`` pay about 2 s of imports each. This is safe after the parent rendered because
+``sidar_torch.render`` sets ``LP_NUM_THREADS=0`` (llvmpipe keeps no threads that a child would
+miss) and disables Mesa's on-disk shader cache in the parent; a child disowns the parent's renderer
+and opens its own context (see :func:`sidar_torch.render.shared_renderer`).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import traceback
+import weakref
+from multiprocessing.connection import Connection, wait
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from .config import SidarConfig
+from .sample import SampleArrays, render_arrays
+from .scene import sample_sequence
+from .sources import TensorPaintings
+
+__all__ = ["RenderPool", "RenderTask", "render_task"]
+
+RenderTask = tuple[int, Sequence[int], np.ndarray]
+"""``(position, entropy, image)``: image ``position`` of the batch, the entropy of its generator
+(a list of non-negative integers) and its pixels ``(3, h, w)`` uint8."""
+
+_PARENT_CHECK_S = 1.0
+"""How often an idle worker checks that its parent is alive, seconds."""
+
+
+def render_task(config: SidarConfig, crop: str, task: RenderTask) -> SampleArrays:
+    """Draw the scene of ``task`` and render it with the task's image fitted to ``config.image_size``."""
+    position, entropy, image = task
+    rng = np.random.default_rng(list(entropy))
+    sequence = sample_sequence(config, rng)
+    painting = TensorPaintings(torch.from_numpy(image), crop=crop).painting(0, config.image_size)
+    return render_arrays(sequence, painting, config, position, rng=rng)
+
+
+class RenderPool:
+    """``num_workers`` forked render processes for one config and crop mode.
+
+    Args:
+        config, crop: what every task is rendered with (copied into the workers at the fork).
+        num_workers: number of processes (``>= 1``).
+
+    The processes start in the constructor and live until :meth:`close` (also called when the pool
+    is garbage-collected and at interpreter exit). A worker exits by itself when its parent dies.
+    A pool belongs to the process that made it: a forked copy of it (e.g. inside a DataLoader
+    worker) is :attr:`usable` nowhere but there.
+    """
+
+    def __init__(self, config: SidarConfig, crop: str, num_workers: int):
+        context = multiprocessing.get_context("fork")
+        self.pid = os.getpid()
+        self._connections: list[Connection] = []
+        processes = []
+        for _ in range(num_workers):
+            parent_end, child_end = context.Pipe()
+            process = context.Process(target=_worker_main, args=(child_end, config, crop, self.pid),
+                                      daemon=True, name="sidar-augment-render")
+            process.start()
+            child_end.close()
+            self._connections.append(parent_end)
+            processes.append(process)
+        self.processes = processes
+        self._finalizer = weakref.finalize(self, _shut_down, self.pid, self._connections, processes)
+
+    @property
+    def usable(self) -> bool:
+        """Whether this process owns the pool and it is open."""
+        return self._finalizer.alive and os.getpid() == self.pid
+
+    def run(self, tasks: Sequence[RenderTask]) -> list[SampleArrays]:
+        """Render every task, each in whichever worker is free; the results in the tasks' order.
+
+        Raises:
+            The exception a worker raised (its traceback in the exception's notes), after the
+            other workers finished their tasks; ``RuntimeError`` if a worker died (the pool is
+            then closed).
+        """
+        if not self.usable:
+            raise RuntimeError("RenderPool.run: the pool is closed or belongs to another process")
+        results: list[SampleArrays | None] = [None] * len(tasks)
+        pending = list(reversed(range(len(tasks))))
+        busy: dict[Connection, int] = {}
+        error: BaseException | None = None
+        try:
+            for connection in self._connections:
+                if pending:
+                    busy[connection] = pending.pop()
+                    self._send(connection, tasks[busy[connection]])
+            while busy:
+                for connection in wait(list(busy)):
+                    index = busy.pop(connection)
+                    status, payload = self._receive(connection)
+                    if status == "ok":
+                        results[index] = payload
+                    elif error is None:
+                        error = payload
+                    if pending and error is None:
+                        busy[connection] = pending.pop()
+                        self._send(connection, tasks[busy[connection]])
+        except BaseException:
+            self.close()  # a worker died, or the caller was interrupted with tasks in flight
+            raise
+        if error is not None:
+            raise error
+        return results  # type: ignore[return-value]
+
+    def _send(self, connection: Connection, task: RenderTask) -> None:
+        try:
+            connection.send(task)
+        except OSError:  # BrokenPipeError: the worker is gone
+            raise self._died(connection) from None
+
+    def _receive(self, connection: Connection) -> tuple[str, Any]:
+        try:
+            return connection.recv()
+        except (EOFError, OSError):
+            raise self._died(connection) from None
+
+    def _died(self, connection: Connection) -> RuntimeError:
+        process = self.processes[self._connections.index(connection)]
+        process.join(1.0)
+        return RuntimeError(f"SidarAugment render worker (pid {process.pid}) died with exit code {process.exitcode}")
+
+    def close(self) -> None:
+        """Stop the workers (safe to call twice; does nothing in a process that does not own the pool)."""
+        if os.getpid() == self.pid:
+            self._finalizer()
+        else:
+            self._finalizer.detach()
+
+
+def _shut_down(pid: int, connections: list[Connection], processes: list) -> None:
+    """Ask each worker to stop (closing its pipe), wait a little, then terminate stragglers."""
+    if os.getpid() != pid:
+        return
+    for connection in connections:
+        connection.close()
+    for process in processes:
+        process.join(2.0)
+        if process.is_alive():
+            process.terminate()
+            process.join(1.0)
+
+
+def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_pid: int) -> None:
+    """Render tasks from ``connection`` until it closes or the parent dies."""
+    torch.set_num_threads(1)
+    while True:
+        try:
+            while not connection.poll(_PARENT_CHECK_S):
+                if os.getppid() != parent_pid:
+                    return
+            task = connection.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            reply = ("ok", render_task(config, crop, task))
+        except Exception as exc:  # sent to the caller, which raises it
+            reply = ("error", _portable(exc))
+        try:
+            connection.send(reply)
+        except (BrokenPipeError, OSError):
+            return
+
+
+def _portable(exc: Exception) -> BaseException:
+    """``exc`` with the worker's traceback as a note, or a ``RuntimeError`` with its text if it does
+    not survive pickling."""
+    text = "".join(traceback.format_exception(exc))
+    try:
+        copy = pickle.loads(pickle.dumps(exc))
+    except Exception:
+        copy = RuntimeError(f"{type(exc).__name__}: {exc}")
+    copy.add_note(f"raised in SidarAugment render worker (pid {os.getpid()}):\n{text}")
+    return copy
