@@ -12,6 +12,22 @@ from sidar_torch import load_config
 SMALL = (96, 128)
 
 
+@pytest.fixture(autouse=True)
+def _no_gl_unless_marked(request, monkeypatch):
+    """A test not marked ``gl`` may not render in this process: the renderer's loader raises (every
+    renderer, shared or not, is reached through it), so an unmarked rendering test fails loudly instead of slipping into the fast
+    ``-m "not gl"`` subset (tests that render in a child process are marked by hand)."""
+    if request.node.get_closest_marker("gl") is not None:
+        return
+
+    def refuse(*args, **kwargs):
+        raise RuntimeError(f"{request.node.nodeid} renders but is not marked 'gl' (pytest.mark.gl)")
+
+    import sidar_torch.render as render
+
+    monkeypatch.setattr(render, "_renderer", refuse)
+
+
 def small_config(preset="misaligned", **overrides):
     """A preset at 96 x 128 with 3 views, unless overridden."""
     return load_config(preset, **{"image_size": SMALL, "n_views": 3, **overrides})

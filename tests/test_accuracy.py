@@ -10,6 +10,8 @@ from sidar_torch import SidarDataset, geometry, load_config
 from sidar_torch.metrics import homography_errors, speckle_paintings, warp_residuals
 from sidar_torch.scene import sample_sequence
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def ambient_sample(size, index=0, n_views=4, seed=0, **overrides):
     config = load_config("ambient", image_size=size, n_views=n_views, **overrides)

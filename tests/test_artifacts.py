@@ -19,6 +19,8 @@ from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewSce
 
 from conftest import SMALL, sample_digest, small_config
 
+pytestmark = pytest.mark.gl  # renders
+
 H, W = SMALL
 ALL_ON = dict(background="view", background_level=(0.2, 1.0), exposure_jitter=True, sensor_noise=True,
               jpeg=True)

@@ -12,6 +12,8 @@ from sidar_torch.sources import ProceduralPaintings
 
 from conftest import small_config
 
+pytestmark = pytest.mark.gl  # renders
+
 TINY = (48, 64)
 KEYS = {"images", "masks", "label", "homographies", "homography_error", "K", "R", "t", "index"}
 

@@ -15,6 +15,8 @@ import torch
 import sidar_torch.augment_pool
 from sidar_torch import SidarAugment
 
+pytestmark = pytest.mark.gl  # renders
+
 TINY = (48, 64)
 
 

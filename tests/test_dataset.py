@@ -19,6 +19,8 @@ from sidar_torch.sample import sequence_homographies
 
 from conftest import sample_digest, small_config
 
+pytestmark = pytest.mark.gl  # renders
+
 KEYS = {"images", "masks", "label", "homographies", "homography_error", "K", "R", "t", "index"}
 
 

@@ -7,6 +7,9 @@ import sys
 from pathlib import Path
 
 import torch
+import pytest
+
+pytestmark = pytest.mark.gl  # renders
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 

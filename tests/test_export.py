@@ -24,6 +24,8 @@ from sidar_torch.sample import sequence_homographies
 import export_digests
 from stored_digests import gl_renderer
 
+pytestmark = pytest.mark.gl  # renders
+
 TINY = {"image_size": (24, 32), "n_views": 2, "shadow_map_size": 256}
 SEQUENCE_FILES = {"0.png", "1.png", "0-m.png", "1-m.png", "gt.png", "H_0_1.mat", "H_1_0.mat", "cameras.json"}
 

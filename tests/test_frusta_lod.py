@@ -17,6 +17,8 @@ from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, 
 
 from conftest import SMALL, sample_digest, small_config, textured_painting
 
+pytestmark = pytest.mark.gl  # renders
+
 SIZE = (96, 128)
 WHITE = Material(np.ones(4), 0.0, 1.0)
 GREY = np.full((*SIZE, 3), 180, np.uint8)

@@ -17,6 +17,9 @@ import subprocess
 import sys
 import sysconfig
 from pathlib import Path
+import pytest
+
+pytestmark = pytest.mark.gl  # renders
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -14,6 +14,9 @@ import sys
 from sidar_torch import SidarDataset, export_dataset
 
 from conftest import small_config
+import pytest
+
+pytestmark = pytest.mark.gl  # writes the export it reads; the no-GL part runs in a subprocess
 
 GL_LIBRARIES = ["OSMesa", "GL", "EGL", "OpenGL", "GLX", "GLESv1_CM", "GLESv2"]
 

@@ -15,6 +15,8 @@ from conftest import SMALL, sample_digest, small_config
 from test_export import TINY, assert_same_sample
 from test_render import cube
 
+pytestmark = pytest.mark.gl  # renders
+
 H, W = SMALL
 WHITE = Material(np.ones(4), 0.0, 1.0)
 OPAQUE_KINDS = ("diffuse", "glossy", "metallic", "principled")

@@ -22,6 +22,8 @@ from sidar_torch.scene import sample_sequence
 
 from conftest import SMALL, small_config, textured_painting
 
+pytestmark = pytest.mark.gl  # renders
+
 TESTS = Path(__file__).resolve().parent
 
 SEQUENCES = [("misaligned", 0), ("paper_misaligned", 1)]

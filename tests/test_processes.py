@@ -25,6 +25,8 @@ from sidar_torch import SidarDataset, load_config
 
 from conftest import sample_digest, small_config
 
+pytestmark = pytest.mark.gl  # renders
+
 WAIT = 300
 """Seconds any one wait may take before the test fails."""
 

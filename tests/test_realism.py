@@ -20,6 +20,8 @@ from sidar_torch.scene import SHAPE_VARIANTS, Camera, Light, Material, Occluder,
 from conftest import SMALL, small_config
 from test_render import overhead_spot
 
+pytestmark = pytest.mark.gl  # renders
+
 H, W = SMALL
 CENTRE = (slice(H // 2 - 6, H // 2 + 6), slice(W // 2 - 6, W // 2 + 6))
 DIFFUSE = Material(np.ones(4), 0.0, 1.0, specular=0.0)

@@ -17,6 +17,8 @@ from sidar_torch.sample import KEYS, SampleArrays, present_keys, render_sample, 
 import test_hard_cases as hard_cases
 from conftest import small_config
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def expected_shape(key, V, H, W):
     """The table's shape text, e.g. ``"(V, 3, H, W)"``, with the sizes filled in."""

@@ -18,6 +18,8 @@ from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, 
 
 from conftest import SMALL, small_config, textured_painting
 
+pytestmark = pytest.mark.gl  # renders
+
 WHITE = Material(np.ones(4), 0.0, 1.0)
 
 NARROW_VIEWS = dict(n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1, 3))

@@ -774,6 +774,7 @@ def test_symlinked_subfolders_are_followed_and_loops_are_not(tmp_path):
     assert sorted(Path(p).name for p in source.paths) == sorted(["own.png"] + [f"{k:02d}.png" for k in range(20)])
 
 
+@pytest.mark.gl
 def test_scan_finds_bad_images_in_the_main_process_and_workers_stay_silent(tmp_path, capfd):
     for name in "abcd":
         _solid(tmp_path / f"{name}.png", RED)

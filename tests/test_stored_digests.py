@@ -6,6 +6,8 @@ import pytest
 
 from stored_digests import PIXEL_KEYS, STORE, current_digests, gl_renderer
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def test_samples_of_every_preset_match_the_stored_digests():
     stored = json.loads(STORE.read_text())

@@ -11,6 +11,8 @@ from sidar_torch.timing import timed
 
 from conftest import small_config, textured_painting
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def test_timed_adds_seconds_only_when_asked():
     calls = []

@@ -17,6 +17,9 @@ from sidar_torch.artifacts import srgb_to_linear
 from conftest import SMALL
 from test_realism import render, sphere
 from test_render import cube
+import pytest
+
+pytestmark = pytest.mark.gl  # renders
 
 WHITE = 255
 

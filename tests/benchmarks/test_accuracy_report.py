@@ -7,6 +7,8 @@ from benchmarks import accuracy_report
 from benchmarks.accuracy_report import AccuracySettings, format_report, run_report
 from sidar_torch import load_config
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def test_accuracy_report_runs_and_meets_its_targets():
     settings = AccuracySettings(sizes=((131, 257),), samples=1, n_views=4, scenes=50)

@@ -4,6 +4,8 @@ import pytest
 
 from benchmarks import augment_pool
 
+pytestmark = pytest.mark.gl  # renders
+
 
 def test_figures_are_consistent(capsys):
     augment_pool.main(["--batch", "2", "--size", "48x64", "--calls", "1"])

@@ -9,6 +9,8 @@ import pytest
 from benchmarks import bench
 from benchmarks.common import parse_size, size_label
 
+pytestmark = pytest.mark.gl  # renders
+
 
 @pytest.fixture(scope="module")
 def report():

@@ -5,6 +5,9 @@ import json
 import subprocess
 import sys
 from pathlib import Path
+import pytest
+
+pytestmark = pytest.mark.gl  # renders
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -19,6 +19,8 @@ from sidar_torch.render import RenderSettings, SceneRenderer
 
 from conftest import SMALL
 
+pytestmark = pytest.mark.gl  # renders
+
 TINY = sweep.SweepSettings(sizes=(SMALL,), shadow_map_sizes=(32, 128, 512), supersampling=(1,),
                            mesh_errors=(1.0,), base_shadow_map_size=128, reference=(2048, 1), scenes=2,
                            residual_samples=1, label_samples=1, preset="shadows_only", n_views=3)

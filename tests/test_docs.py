@@ -1,4 +1,6 @@
-"""The README's Python snippets run as written (each use case: dataset, augmentation, pairs, torchrun)."""
+"""The docs stay true: the Python snippets of the README and the pages run as written (dataset,
+augmentation, pairs, torchrun), the configuration page's table is the generated schema, and every
+relative link resolves."""
 
 import os
 import re
@@ -7,11 +9,18 @@ import subprocess
 import sys
 from pathlib import Path
 
-README = Path(__file__).resolve().parent.parent / "README.md"
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+DOCS = ROOT / "docs"
+SNIPPET_PAGES = (README, DOCS / "usage.md", DOCS / "distributed.md")
+"""Where the Python snippets are, in the order a reader meets them."""
 
 
 def python_blocks() -> list[str]:
-    return re.findall(r"^```python\n(.*?)^```", README.read_text(), flags=re.M | re.S)
+    return [block for page in SNIPPET_PAGES
+            for block in re.findall(r"^```python\n(.*?)^```", page.read_text(), flags=re.M | re.S)]
 
 
 def run(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
@@ -25,6 +34,7 @@ def test_every_snippet_is_checked_here():
     assert "torchrun" in blocks[3] and "torchrun" not in "".join(blocks[:3])
 
 
+@pytest.mark.gl
 def test_dataset_augmentation_and_pairs_snippets_run():
     blocks = python_blocks()
     # The pairs snippet continues the augmentation snippet; each runs as a user would paste it.
@@ -34,6 +44,7 @@ def test_dataset_augmentation_and_pairs_snippets_run():
     assert result.returncode == 0, result.stderr[-2000:]
 
 
+@pytest.mark.gl
 def test_torchrun_snippet_runs_as_a_one_rank_job():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -44,10 +55,10 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
     assert result.returncode == 0, result.stderr[-2000:]
 
 
-def test_readme_config_table_is_the_generated_schema():
+def test_configuration_page_table_is_the_generated_schema():
     from sidar_torch.config.schema import schema_markdown
 
-    text = README.read_text()
+    text = (DOCS / "configuration.md").read_text()
     start = text.index("<!-- schema:")
     table = text[text.index("\n", start) + 1:text.index("<!-- end schema -->")].rstrip("\n")
     assert table == schema_markdown()
@@ -57,3 +68,20 @@ def test_every_config_field_has_a_meaning_in_the_schema():
     from sidar_torch.config.schema import schema_rows
 
     assert all(row["meaning"] for row in schema_rows()), [row["name"] for row in schema_rows() if not row["meaning"]]
+
+
+def test_every_relative_link_of_the_docs_resolves():
+    pages = [README, *sorted(DOCS.glob("*.md")), ROOT / "benchmarks" / "README.md", ROOT / "configs" / "README.md"]
+    broken = []
+    for page in pages:
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+            if "://" not in target and not (page.parent / target).exists():
+                broken.append(f"{page.relative_to(ROOT)} -> {target}")
+    assert not broken, broken
+
+
+def test_readme_is_short_and_cites_nothing_outside_the_project():
+    text = README.read_text()
+    assert len(text.encode()) <= 15_000
+    for page in [README, *DOCS.glob("*.md")]:
+        assert "../shared" not in page.read_text() and "anchors/" not in page.read_text(), page.name
