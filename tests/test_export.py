@@ -111,8 +111,7 @@ def test_crash_while_writing_leaves_no_partial_sequence_and_resume_completes(tmp
     monkeypatch.setattr(layout, "write_file", failing_write)
     with pytest.raises(Killed):
         export_dataset(ds, tmp_path / "a", count=4, progress=False)
-    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == [".export.lock", "000000", "config.yaml",
-                                                                   "export.json"]
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["000000", "config.yaml", "export.json"]
     assert {p.name for p in (tmp_path / "a" / "000000").iterdir()} == SEQUENCE_FILES
     assert any(".tmp-000001" in str(path) for path in writes)  # it did crash inside sequence 1
 
@@ -201,13 +200,21 @@ def test_export_refuses_other_settings_foreign_folders_concurrent_writers_and_ba
         with pytest.raises(ValueError, match=match):
             export_dataset(ds, tmp_path / "c", **kwargs)
 
-    import fcntl
-
-    with open(tmp_path / "a" / layout.LOCK, "a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    assert not (tmp_path / "b" / layout.LOCK).exists()  # a refused run leaves no lock file behind
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time\n"
+                               f"fd = os.open({str(tmp_path / 'a' / layout.LOCK)!r}, os.O_RDWR | os.O_CREAT)\n"
+                               "fcntl.lockf(fd, fcntl.LOCK_EX); print('locked', flush=True); time.sleep(60)"],
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "locked\n"
         with pytest.raises(RuntimeError, match="another export is writing"):
             export_dataset(ds, tmp_path / "a", count=2, progress=False)
+    finally:
+        holder.kill()
+        holder.wait()
+        holder.stdout.close()
     assert export_dataset(ds, tmp_path / "a", count=2, progress=False).written == (1,)
+    assert not (tmp_path / "a" / layout.LOCK).exists()
 
 
 def test_reader_errors(tmp_path):
@@ -293,3 +300,58 @@ def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, 
         sample = read[k]
         assert sample["homographies"].dtype == torch.float64 and sample["K"].dtype == torch.float64
         assert_same_sample(sample, ds.sample(k))
+
+
+def _children(pid: int) -> set[int]:
+    """Pids of the live processes whose parent is ``pid`` (from ``/proc``)."""
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            found.add(int(stat.parent.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize("signal_number", [signal.SIGKILL, signal.SIGTERM], ids=["kill-9", "sigterm"])
+def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_bytes(tmp_path, signal_number):
+    """Issue 13 items 1 and 10: killing the export's main process while two DataLoader workers render
+    leaves no worker alive (they used to block forever holding the inherited lock), and the rerun
+    resumes to a set byte-identical to an uninterrupted export."""
+    out, reference = tmp_path / "out", tmp_path / "reference"
+    settings = ["--seed", "4", "--no-progress", "--set", "image_size=[24,32]", "--set", "n_views=2",
+                "--set", "shadow_map_size=256"]
+    command = [sys.executable, "-m", "sidar_torch", "export", "--out", str(out), "--count", "30", "--workers", "2"]
+    process = subprocess.Popen(command + settings, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "000002").exists():
+            assert process.poll() is None, process.stderr.read().decode()
+            assert time.monotonic() < deadline, "the export did not write 3 sequences in 120 s"
+            time.sleep(0.05)
+        workers = _children(process.pid)
+        assert len(workers) >= 2, workers
+    finally:
+        if process.poll() is None:
+            os.kill(process.pid, signal_number)
+        process.wait()
+        process.stderr.close()
+    deadline = time.monotonic() + 10
+    while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not [pid for pid in workers if _alive(pid)], "workers of the killed export are still running"
+    rerun = subprocess.run(command + settings, capture_output=True, text=True, timeout=300)
+    assert rerun.returncode == 0, rerun.stderr[-2000:]
+    subprocess.run([sys.executable, "-m", "sidar_torch", "export", "--out", str(reference), "--count", "30"]
+                   + settings, check=True, capture_output=True, timeout=300)
+    assert tree(out) == tree(reference)
+    assert not (out / layout.LOCK).exists()

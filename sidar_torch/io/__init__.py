@@ -30,7 +30,8 @@ rerun with the same arguments skips what exists, deletes stale ``.tmp-*`` left b
 and renders only what is missing; samples are pure functions of ``(seed, index)``, so the result
 is byte for byte an uninterrupted export's. Files are not ``fsync``-ed: this protects against
 the process dying (exception, Ctrl-C, ``kill -9``), not against losing power. One export at a
-time may write to a folder (an ``flock`` on ``out/.export.lock``), and a rerun must keep the
+time may write to a folder (a POSIX lock on ``out/.export.lock``, which DataLoader workers do not inherit, released when
+the export's process dies and removed when it ends), and a rerun must keep the
 seed, source, config and layout recorded in ``export.json`` (else ``ValueError``).
 """
 

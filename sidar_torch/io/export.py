@@ -10,6 +10,7 @@ import dataclasses
 import itertools
 import os
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any, Iterator, TextIO
@@ -116,7 +117,25 @@ def _render(dataset: SidarDataset, indices: list[int], workers: int) -> Iterator
     """The samples of ``indices``, in order, rendered here (``workers=0``) or in DataLoader workers."""
     if workers == 0 or not indices:
         return (dataset.sample_arrays(index) for index in indices)
-    return iter(DataLoader(_Renders(dataset, indices), batch_size=None, num_workers=workers, collate_fn=_keep))
+    return iter(DataLoader(_Renders(dataset, indices), batch_size=None, num_workers=workers, collate_fn=_keep,
+                           worker_init_fn=_exit_with_parent))
+
+
+def _exit_with_parent(worker_id: int) -> None:
+    """DataLoader ``worker_init_fn``: end this worker as soon as the export's process is gone.
+
+    PyTorch's workers notice a dead parent only between tasks and then wait for their result queue
+    to drain, which no one reads any more: after a ``kill -9`` of the export they stayed alive for
+    good. A daemon thread polls the parent's pid and leaves at once (nothing of the worker's is
+    worth saving: the export writes only what reached it, atomically)."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(0.2)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
 class _Progress:

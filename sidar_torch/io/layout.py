@@ -202,17 +202,34 @@ def remove_stale(out: Path) -> None:
 
 @contextmanager
 def locked(out: Path) -> Iterator[None]:
-    """Hold an exclusive ``flock`` on ``out/.export.lock`` (released when the process dies)."""
-    with open(out / LOCK, "a") as lock:
+    """Hold an exclusive lock on ``out/.export.lock`` while writing; the file is removed afterwards.
+
+    A POSIX record lock (``fcntl.lockf``), not ``flock``: it belongs to this process alone, so
+    forked DataLoader workers do not inherit it and cannot keep it after this process dies (with
+    ``flock`` they did, and a rerun after ``kill -9`` was refused for good); the kernel releases it
+    when this process dies, however it dies. The file is removed on the way out, also when the
+    export is refused, so no run leaves it behind.
+
+    Raises:
+        RuntimeError: another live process holds the lock.
+    """
+    path = out / LOCK
+    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    try:
         try:
-            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
+            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except (BlockingIOError, PermissionError):
             raise RuntimeError(f"out_dir: another export is writing to {str(out)!r} "
-                               f"(it holds the lock on {str(out / LOCK)!r})") from None
+                               f"(it holds the lock on {str(path)!r})") from None
+        if not path.exists() or os.stat(path).st_ino != os.fstat(fd).st_ino:
+            # The holder we waited behind removed the file we locked: another run may hold a new one.
+            raise RuntimeError(f"out_dir: another export was finishing in {str(out)!r}; run again")
         try:
             yield
         finally:
-            fcntl.flock(lock, fcntl.LOCK_UN)
+            path.unlink(missing_ok=True)  # while holding the lock; a run that opened it meanwhile sees it gone
+    finally:
+        os.close(fd)  # releases the lock
 
 
 # --------------------------------------------------------------------------- manifest
