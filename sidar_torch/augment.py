@@ -26,8 +26,7 @@ import torch
 from torch import nn
 
 from .augment_pool import RenderPool, RenderTask, render_task
-from .config import SidarConfig, load_config
-from .dataset import _check_int
+from .config import SidarConfig, as_int, load_config
 from .sample import KEYS, stack_samples
 from .scene import SceneSequence, sample_sequence
 from .sources import CROP_MODES
@@ -125,11 +124,11 @@ class SidarAugment(nn.Module):
         if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
         self.config = load_config(config if config is not None else "misaligned", **overrides)
-        self.seed = None if seed is None else _check_int("seed", seed, 0)
+        self.seed = None if seed is None else as_int("seed", seed, 0)
         if crop not in CROP_MODES:
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {crop!r}")
         self.crop = crop
-        self.num_workers = _check_int("num_workers", num_workers, 0)
+        self.num_workers = as_int("num_workers", num_workers, 0)
         self.calls = 0
         self._pool: RenderPool | None = None
 
@@ -142,7 +141,7 @@ class SidarAugment(nn.Module):
         return {"calls": self.calls}
 
     def set_extra_state(self, state: dict[str, int]) -> None:
-        self.calls = _check_int("calls", state["calls"], 0)
+        self.calls = as_int("calls", state["calls"], 0)
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickled (and deep-copied) state: everything but the render pool, which a copy starts anew."""
@@ -164,7 +163,7 @@ class SidarAugment(nn.Module):
         """The scene of image ``position`` in forward call number ``call`` (seeded mode only)."""
         if self.seed is None:
             raise ValueError("scene: needs a module built with an integer seed (this one has seed=None)")
-        call, position = _check_int("call", call, 0), _check_int("position", position, 0)
+        call, position = as_int("call", call, 0), as_int("position", position, 0)
         return sample_sequence(self.config, np.random.default_rng([self.seed, call, position]))
 
     def forward(self, images: torch.Tensor, generator: Generator | None = None) -> dict[str, torch.Tensor]:

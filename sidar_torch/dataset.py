@@ -15,18 +15,15 @@ import numpy as np
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
-from .config import SidarConfig, load_config
+from .config import SidarConfig, as_int, load_config
 from .sample import SampleArrays, render_arrays
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
 
-__all__ = ["SidarDataset"]
+__all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
-
-def _check_int(name: str, value: Any, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-        raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
-    return int(value)
+EPOCH_STRIDE = 2**40
+"""Indices between the starts of two epochs of an endless stream (see :meth:`SidarDataset.set_epoch`)."""
 
 
 def _process_group_rank() -> tuple[int, int] | None:
@@ -68,6 +65,14 @@ class SidarDataset(IterableDataset):
     must use the same ``num_workers``. Shards differ in size by at most one sample: for equal
     batch counts on every rank under DDP, make ``length`` a multiple of
     ``world_size * num_workers * batch_size``.
+
+    Epochs: :meth:`set_epoch` (the ``DistributedSampler`` habit) moves the stream to fresh indices
+    while keeping every sample a pure function of ``(seed, index)`` and the sharding above exact:
+    epoch ``e`` draws ``e * N .. e * N + N - 1`` for a finite ``length = N``, and the endless stream
+    starts at ``e * EPOCH_STRIDE`` (``2**40``: no epoch reaches the next). Call it before each
+    ``iter(loader)`` with ``persistent_workers=False`` (the default), which hands workers a fresh copy
+    of the dataset each epoch; persistent workers keep the copy they started with. Without it every
+    ``iter(loader)`` starts again at the same indices: right for validation, wrong for training.
     """
 
     def __init__(self, source: Any = None, config: SidarConfig | str | os.PathLike | None = None,
@@ -77,8 +82,22 @@ class SidarDataset(IterableDataset):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
         self.config = load_config(config if config is not None else "misaligned")
         self.source: PaintingSource = make_source(source, crop=crop, on_bad_image=self.config.on_bad_image)
-        self.seed = _check_int("seed", seed, 0)
-        self.length = None if length is None else _check_int("length", length, 1)
+        self.seed = as_int("seed", seed, 0)
+        self.length = None if length is None else as_int("length", length, 1)
+        self.epoch = 0
+
+    def set_epoch(self, epoch: int) -> None:
+        """Draw epoch ``epoch``'s indices from now on (see "Epochs" in the class docstring)."""
+        self.epoch = as_int("epoch", epoch, 0)
+
+    def __getitem__(self, index: int) -> dict[str, Any]:
+        raise TypeError(f"SidarDataset is an IterableDataset and is not indexed: use ds.sample({index!r}) for "
+                        f"sample {index!r}, or ExportedDataset for a map-style dataset of a frozen set")
+
+    def __repr__(self) -> str:
+        size = "endless" if self.length is None else f"length={self.length}"
+        return (f"SidarDataset(source={type(self.source).__name__} of {len(self.source)}, seed={self.seed}, {size}, "
+                f"epoch={self.epoch}, image_size={self.config.image_size} (H, W), n_views={self.config.n_views})")
 
     def __len__(self) -> int:
         if self.length is None:
@@ -88,7 +107,7 @@ class SidarDataset(IterableDataset):
     def generator(self, index: int) -> np.random.Generator:
         """A fresh copy of sample ``index``'s generator, ``numpy.random.default_rng([seed, index])``:
         the scene sampler draws from it first, then the view effects."""
-        return np.random.default_rng([self.seed, _check_int("index", index, 0)])
+        return np.random.default_rng([self.seed, as_int("index", index, 0)])
 
     def scene(self, index: int) -> SceneSequence:
         """The scene description of sample ``index`` (no rendering)."""
@@ -108,8 +127,9 @@ class SidarDataset(IterableDataset):
         return render_arrays(sequence, painting, self.config, index, rng=rng)
 
     def indices(self) -> Iterator[int]:
-        """The indices this process draws: ``k, k + n, k + 2n, ...`` (below ``length`` if finite)
-        for its shard ``k`` of ``n`` (see "Sharding" in the class docstring).
+        """The indices this process draws: ``o + k, o + k + n, o + k + 2n, ...`` (``k + ...`` below
+        ``length`` if finite) for its shard ``k`` of ``n`` and the epoch's offset ``o`` (see
+        "Sharding" and "Epochs" in the class docstring).
 
         Raises:
             ValueError: ``RANK``/``WORLD_SIZE`` in the environment are not a valid rank of a world.
@@ -117,9 +137,10 @@ class SidarDataset(IterableDataset):
         rank, world_size = self._rank_and_world_size()
         info = get_worker_info()
         worker, num_workers = (info.id, info.num_workers) if info is not None else (0, 1)
+        offset = self.epoch * (EPOCH_STRIDE if self.length is None else self.length)
         index, n_shards = rank * num_workers + worker, world_size * num_workers
         while self.length is None or index < self.length:
-            yield index
+            yield offset + index
             index += n_shards
 
     def _rank_and_world_size(self) -> tuple[int, int]:

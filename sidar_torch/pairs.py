@@ -19,6 +19,8 @@ from typing import Any, Mapping
 import kornia
 import torch
 
+from .config import as_int
+
 __all__ = ["homography_pairs"]
 
 
@@ -84,7 +86,7 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         raise ValueError(f"min_valid: expected a fraction in [0, 1], got {min_valid!r}")
     if generator is not None and not isinstance(generator, torch.Generator):
         raise TypeError(f"generator: expected a torch.Generator or None, got {type(generator).__name__}")
-    attempts = _check_count("attempts", attempts)
+    attempts = as_int("attempts", attempts, 1)
     tries = attempts if min_valid > 0 else 1
     device, dtype = images.device, homographies.dtype
 
@@ -229,11 +231,6 @@ def _float_tensor(batch: Mapping[str, Any], key: str) -> torch.Tensor:
                          f"{'' if not isinstance(value, torch.Tensor) else ' of ' + str(value.dtype)}")
     return value
 
-
-def _check_count(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise ValueError(f"{name}: expected an integer >= 1, got {value!r}")
-    return value
 
 
 def _check_patch_size(patch_size: Any, image_size: tuple[int, int]) -> tuple[int, int]:

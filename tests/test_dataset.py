@@ -3,6 +3,7 @@
 Worker processes, ranks and runs are in ``test_processes.py``.
 """
 
+import itertools
 import math
 from types import SimpleNamespace
 
@@ -187,3 +188,35 @@ def test_homographies_stay_exact_at_extreme_aspect_ratios(size):
     for index in range(20):
         _, error = sequence_homographies(ds.scene(index))
         assert error < 1e-6, (index, error)
+
+
+def test_set_epoch_draws_fresh_indices_through_workers_and_keeps_samples_pure():
+    """Issue 13 item 2: each epoch of a finite or endless stream draws new indices, sharded exactly."""
+    config = small_config(n_views=1, image_size=(16, 16), n_occluders=(0, 0), n_lights=(0, 0))
+    ds = SidarDataset(None, config, seed=3, length=4)
+    loader = torch.utils.data.DataLoader(ds, batch_size=None, num_workers=2)
+    seen = []
+    for epoch in range(2):
+        ds.set_epoch(epoch)
+        seen.append(sorted(int(sample["index"]) for sample in loader))
+    assert seen == [[0, 1, 2, 3], [4, 5, 6, 7]]
+    last = next(iter(loader))
+    assert sample_digest(last) == sample_digest(ds.sample(int(last["index"])))
+    endless = SidarDataset(None, config, seed=3)
+    endless.set_epoch(2)
+    assert list(itertools.islice(endless.indices(), 3)) == [2 * 2**40, 2 * 2**40 + 1, 2 * 2**40 + 2]
+    with pytest.raises(ValueError, match="epoch"):
+        ds.set_epoch(-1)
+
+
+def test_indexing_points_to_sample_repr_says_what_it_is_and_numpy_integers_are_accepted():
+    """Issue 13 items 3 and 7: ``ds[i]`` names ``ds.sample(i)``; ``repr`` describes the dataset;
+    integer arguments take NumPy and torch integers."""
+    ds = SidarDataset(None, small_config(), seed=np.int64(2), length=torch.tensor(5))
+    with pytest.raises(TypeError, match=r"ds\.sample\(3\)"):
+        ds[3]
+    assert repr(ds) == ("SidarDataset(source=ProceduralPaintings of 100000, seed=2, length=5, epoch=0, "
+                        "image_size=(96, 128) (H, W), n_views=3)")
+    assert ds.generator(np.int32(1)).integers(1 << 30) == ds.generator(1).integers(1 << 30)
+    with pytest.raises(ValueError, match="seed"):
+        SidarDataset(None, small_config(), seed=np.float32(1.5))

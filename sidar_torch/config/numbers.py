@@ -28,19 +28,22 @@ def _scalar(name: str, value: Any) -> int | float:
     return int(value) if isinstance(value, numbers.Integral) else float(value)
 
 
-def as_int(name: str, value: Any) -> int:
+def as_int(name: str, value: Any, minimum: int | None = None) -> int:
     """``value`` as a Python ``int``: any integer scalar (Python, NumPy of any width, a 0-d integer
     tensor), or a float with an integral value (``3.0``).
 
     Args:
-        name: what the value is, for the error (e.g. ``"config field 'n_views'"``).
+        name: what the value is, for the error (e.g. ``"config field 'n_views'"``, ``"seed"``).
+        minimum: the least value allowed, if any.
 
     Raises:
-        ValueError: a bool, not a number, or not integral (the message starts with ``name``).
+        ValueError: a bool, not a number, not integral, or below ``minimum`` (the message starts with ``name``).
     """
     number = _scalar(name, value)
     if isinstance(number, float) and not number.is_integer():
         raise ValueError(f"{name}: expected an integer, got {value!r}")
+    if minimum is not None and number < minimum:
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
     return int(number)
 
 

@@ -17,7 +17,8 @@ from typing import Any, Iterator, TextIO
 
 from torch.utils.data import DataLoader, Dataset
 
-from ..dataset import SidarDataset, _check_int
+from ..config import as_int
+from ..dataset import SidarDataset
 from ..sample import SampleArrays
 from . import folders
 from . import shards as tar_shards  # the name "shards" is export_dataset's argument
@@ -69,9 +70,9 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     begin = time.perf_counter()
     if not isinstance(dataset, SidarDataset):
         raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
-    count, start = _check_int("count", count, 1), _check_int("start", start, 0)
-    shard_size = None if shards is None else _check_int("shards", shards, 1)
-    workers = _check_int("workers", workers, 0)
+    count, start = as_int("count", count, 1), as_int("start", start, 0)
+    shard_size = None if shards is None else as_int("shards", shards, 1)
+    workers = as_int("workers", workers, 0)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")
