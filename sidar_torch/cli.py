@@ -7,6 +7,7 @@ Measurements (speed, accuracy, the quality sweep) live outside the package, in t
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Any, Sequence
@@ -22,23 +23,51 @@ from .preview import contact_sheet
 __all__ = ["main", "parse_overrides"]
 
 
+class UsageError(ValueError):
+    """A mistake in what the user asked for: printed as one line, exit code 2 (no traceback)."""
+
+
+USER_MISTAKES = (ValueError, TypeError, OSError, yaml.YAMLError)
+"""What reading the user's config, overrides and source raises for a mistake of theirs."""
+
+
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     """Config overrides from ``--set`` items: ``key=value`` pairs, values read as YAML (``n_views=3``,
-    ``fov_deg=[40,60]``); raises ``SystemExit`` naming an item without ``=``."""
+    ``fov_deg=[40,60]``).
+
+    Raises:
+        UsageError: an item without ``=``, or a value that is not YAML (the message names the item).
+    """
     overrides = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key:
-            raise SystemExit(f"--set {item!r}: expected key=value")
-        overrides[key.strip()] = yaml.safe_load(value)
+            raise UsageError(f"--set {item!r}: expected key=value")
+        try:
+            overrides[key.strip()] = yaml.safe_load(value)
+        except yaml.YAMLError as error:
+            raise UsageError(f"--set {item!r}: the value is not YAML ({str(error).splitlines()[0]})") from None
     return overrides
+
+
+def _dataset(args: argparse.Namespace) -> SidarDataset:
+    """The dataset ``--config``, ``--set``, ``--source`` and ``--seed`` ask for.
+
+    Raises:
+        UsageError: any of them is wrong (the message says which and why).
+    """
+    try:
+        config = load_config(args.config, **parse_overrides(args.set))
+        return SidarDataset(source=args.source, config=config, seed=args.seed)
+    except USER_MISTAKES as error:
+        raise UsageError(str(error)) from error
 
 
 def _preview(args: argparse.Namespace) -> None:
     if args.samples < 1:
-        raise SystemExit(f"--samples {args.samples}: expected at least 1")
-    config = load_config(args.config, **parse_overrides(args.set))
-    dataset = SidarDataset(source=args.source, config=config, seed=args.seed)
+        raise UsageError(f"--samples {args.samples}: expected at least 1")
+    dataset = _dataset(args)
+    config = dataset.config
     start = time.perf_counter()
     samples = [dataset.sample(i) for i in range(args.samples)]
     elapsed = time.perf_counter() - start
@@ -55,13 +84,12 @@ def _preview(args: argparse.Namespace) -> None:
 def _export(args: argparse.Namespace) -> None:
     from .io import export_dataset
 
+    dataset = _dataset(args)
     try:
-        config = load_config(args.config, **parse_overrides(args.set))
-        dataset = SidarDataset(source=args.source, config=config, seed=args.seed)
         summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
                                  workers=args.workers, progress=not args.no_progress)
-    except (ValueError, OSError, RuntimeError) as error:
-        raise SystemExit(f"export: {error}") from error
+    except (ValueError, OSError, RuntimeError) as error:  # bad arguments, a refused folder, the lock
+        raise UsageError(str(error)) from error
     print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
           f"({summary.present} of the {args.count} requested were already there); "
           f"read them with sidar_torch.ExportedDataset({args.out!r})")
@@ -123,5 +151,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> None:
+    """Run a command. A user's mistake prints one line, ``sidar_torch <command>: <what is wrong>``, and
+    exits with code 2 (as argparse does for bad options); anything else is a bug and keeps its traceback."""
     args = _parser().parse_args(argv)
-    args.run(args)
+    try:
+        args.run(args)
+    except UsageError as error:
+        print(f"sidar_torch {args.command}: {error}", file=sys.stderr)
+        raise SystemExit(2) from None

@@ -243,13 +243,34 @@ def test_cli_export_with_overrides_and_progress(tmp_path, capsys):
     assert read.config == ds.config.to_dict()
     for k in range(2):
         assert_same_sample(read[k], ds.sample(k))
-    with pytest.raises(SystemExit, match="export: count: expected an integer >= 1, got 0"):
-        cli.main(["export", "--out", str(tmp_path / "x"), "--count", "0"])
-    with pytest.raises(SystemExit, match="export: .*seed: 3 there, 0 now"):
-        cli.main(["export", "--out", str(out), "--count", "2", "--set", "image_size=[24,32]", "--set", "n_views=2",
-                  "--set", "shadow_map_size=256"])
-    with pytest.raises(SystemExit, match="unknown config override"):
-        cli.main(["export", "--out", str(tmp_path / "y"), "--count", "1", "--set", "n_veiws=2"])
+    for argv, message in (
+            (["--out", str(tmp_path / "x"), "--count", "0"], "count: expected an integer >= 1, got 0"),
+            (["--out", str(out), "--count", "2", "--set", "image_size=[24,32]", "--set", "n_views=2",
+              "--set", "shadow_map_size=256"], "seed: 3 there, 0 now"),
+            (["--out", str(tmp_path / "y"), "--count", "1", "--set", "n_veiws=2"], "unknown config override")):
+        with pytest.raises(SystemExit) as exit_info:
+            cli.main(["export", *argv])
+        assert exit_info.value.code == 2
+        err = capsys.readouterr().err
+        assert err.startswith("sidar_torch export: ") and message in err and err.count("\n") == 1, err
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--config", "no_such_preset"], "not a preset"),
+    (["--config", "missing.yaml"], "missing.yaml"),
+    (["--set", "n_views"], "expected key=value"),
+    (["--set", "fov_deg=[40, 60"], "the value is not YAML"),
+    (["--set", "n_veiws=2"], "did you mean"),
+    (["--source", "/no/such/folder"], "/no/such/folder"),
+    (["--samples", "0"], "--samples 0"),
+], ids=["preset", "yaml-path", "set-no-equals", "set-bad-yaml", "set-unknown", "source", "samples"])
+def test_every_command_prints_one_line_for_a_user_mistake_and_exits_2(argv, message, tmp_path):
+    """Issue 13 item 4: ``preview`` (like ``export``) prints one line, no traceback, exit code 2."""
+    result = subprocess.run([sys.executable, "-m", "sidar_torch", "preview", "--out", str(tmp_path / "p.png"), *argv],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith("sidar_torch preview: ") and message in result.stderr, result.stderr
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
 
 
 def test_every_command_line_option_has_help():
