@@ -76,7 +76,7 @@ def _preview(args: argparse.Namespace) -> None:
     Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
     views = args.samples * config.n_views
     print(f"wrote {out} ({args.samples} samples of {config.n_views} views at "
-          f"{config.image_size[1]}x{config.image_size[0]}, config {args.config!r})")
+          f"{config.image_size[0]}x{config.image_size[1]} (H x W), config {args.config!r})")
     print(f"rendered in {elapsed:.2f} s: {elapsed / args.samples:.3f} s per sample, "
           f"{views / elapsed:.1f} views/s (first sample includes shader compilation)")
 

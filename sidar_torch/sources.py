@@ -113,9 +113,8 @@ was listed, a dataset item whose loading raises or that is not an image. The
   order of requests or on the process. Each DataLoader worker keeps its own
   ``bad_images``, which never reach the main process: to learn which images
   are unreadable there (and keep workers silent), call ``source.scan()``
-  before iterating (``SidarDataset(...).source.scan()``); ``export`` reports
-  the images it skipped at its end. If no image can be read at all,
-  ``ValueError``.
+  before iterating or exporting (``SidarDataset(...).source.scan()``). If no
+  image can be read at all, ``ValueError``.
 
 Damage that the decoder reads through (e.g. flipped bits inside JPEG data,
 which libjpeg decodes with artefacts) cannot be detected and gives a painting.

@@ -1,6 +1,7 @@
 """Shared test settings: small images keep rendering fast on CPU."""
 
 import hashlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -56,3 +57,24 @@ def sample_digest(sample):
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def child_pids(pid: int) -> set[int]:
+    """Pids of the live processes whose parent is ``pid`` (from ``/proc``; Linux)."""
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != "Z":
+            found.add(int(stat.parent.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie (from ``/proc``)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False

@@ -22,6 +22,7 @@ from sidar_torch.io import layout
 from sidar_torch.sample import sequence_homographies
 
 import export_digests
+from conftest import alive, child_pids
 from stored_digests import gl_renderer
 
 pytestmark = pytest.mark.gl  # renders
@@ -323,26 +324,6 @@ def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, 
         assert_same_sample(sample, ds.sample(k))
 
 
-def _children(pid: int) -> set[int]:
-    """Pids of the live processes whose parent is ``pid`` (from ``/proc``)."""
-    found = set()
-    for stat in Path("/proc").glob("[0-9]*/stat"):
-        try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            found.add(int(stat.parent.name))
-    return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 @pytest.mark.parametrize("signal_number", [signal.SIGKILL, signal.SIGTERM], ids=["kill-9", "sigterm"])
 def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_bytes(tmp_path, signal_number):
     """Issue 13 items 1 and 10: killing the export's main process while two DataLoader workers render
@@ -359,7 +340,7 @@ def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_by
             assert process.poll() is None, process.stderr.read().decode()
             assert time.monotonic() < deadline, "the export did not write 3 sequences in 120 s"
             time.sleep(0.05)
-        workers = _children(process.pid)
+        workers = child_pids(process.pid)
         assert len(workers) >= 2, workers
     finally:
         if process.poll() is None:
@@ -367,9 +348,9 @@ def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_by
         process.wait()
         process.stderr.close()
     deadline = time.monotonic() + 10
-    while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.1)
-    assert not [pid for pid in workers if _alive(pid)], "workers of the killed export are still running"
+    assert not [pid for pid in workers if alive(pid)], "workers of the killed export are still running"
     rerun = subprocess.run(command + settings, capture_output=True, text=True, timeout=300)
     assert rerun.returncode == 0, rerun.stderr[-2000:]
     subprocess.run([sys.executable, "-m", "sidar_torch", "export", "--out", str(reference), "--count", "30"]
