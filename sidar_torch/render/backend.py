@@ -100,6 +100,44 @@ class _PatchedProgram(ShaderProgram):
         GL.glBindVertexArray(self._vao_id)  # a VAO must be bound while linking (PyOpenGL)
         self._program_id = gl_shaders.compileProgram(*shader_ids, validate=False)
         GL.glBindVertexArray(0)
+        self._locations: dict[str, int] = {}
+
+    def set_uniform(self, name: str, value: Any, unsigned: bool = False) -> None:
+        """pyrender's ``set_uniform``, with each uniform's location asked of GL once per program.
+
+        pyrender looks the location up at every call (about 230 calls per lit view; a third of
+        the call's cost); a linked program's locations never change. As in pyrender, a name
+        the compiler removed (location -1) is ignored; unlike it, a value of a type GL has no
+        uniform for raises instead of being dropped silently.
+
+        Args:
+            name: the uniform's name in the program (``"spot_lights[2].color"``).
+            value: a Python ``float``/``int``/``bool``, or a 1-D (vector) or 2-D (matrix, row
+                major) NumPy array; integer arrays go to ``int`` uniforms, others to ``float``.
+            unsigned: integers go to ``uint`` uniforms.
+        """
+        location = self._locations.get(name)
+        if location is None:
+            location = self._locations[name] = GL.glGetUniformLocation(self._program_id, name)
+        if location == -1:
+            return
+        if isinstance(value, np.ndarray):
+            if value.ndim == 2:
+                self._FUNC_MAP[value.shape](location, 1, GL.GL_TRUE, value)
+                return
+            if unsigned or np.issubdtype(value.dtype, np.unsignedinteger):
+                kind, value = "u", value.astype(np.uint32)
+            elif np.issubdtype(value.dtype, np.integer):
+                kind, value = "i", value.astype(np.int32)
+            else:
+                kind, value = "f", value.astype(np.float32)
+            self._FUNC_MAP[(value.shape[0], kind)](location, 1, value)
+        elif isinstance(value, float):
+            GL.glUniform1f(location, value)
+        elif isinstance(value, (int, bool)):
+            (GL.glUniform1ui if unsigned else GL.glUniform1i)(location, int(value))
+        else:
+            raise TypeError(f"uniform {name!r}: no GL uniform for a value of type {type(value).__name__}")
 
 
 class ProgramCache(ShaderProgramCache):
@@ -162,12 +200,14 @@ class GLRenderer(pyrender.Renderer):
         self._unused_shadow_map = self.new_shadow_map()
         self._unused_shadow_map._add_to_context()
         self._make_depth_compare(self._unused_shadow_map)
-        self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self.shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
         """Light node -> fitted frustum (``visibility.light_frustum``) for the next draws; a light
         not in it gets pyrender's frustum, fitted to its cone."""
         self.transmittance = TransmittanceMaps(shadow_map_size // 2)
         self._filtered = False  # whether the current draw's lights have transmittance maps
+        self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
+        self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
+        self._lit_programs: set[ShaderProgram] = set()
 
     def new_shadow_map(self) -> pyrender.Texture:
         """A depth texture for one light's shadow map (uploaded at first use)."""
@@ -205,31 +245,80 @@ class GLRenderer(pyrender.Renderer):
         pass
 
     def _bind_lighting(self, scene, program, node, flags) -> None:
-        """pyrender's light binding, then the unused shadow samplers bound to one spare map and
-        the transmittance maps bound after them.
+        """Bind the lights (the renderer makes spot lights only) for one primitive's draw.
 
-        llvmpipe compiles a fragment-shader variant for every distinct layout of bound textures
-        (about 1 s each). pyrender binds only the lights present, on units 0..k-1, and the
-        painting on unit k, so every light count was a new layout. With all shadow samplers
-        and the transmittance maps bound (used or not), the layout is the same for every lit draw.
+        pyrender computes every light's uniforms and light matrix again for every primitive and
+        sets them again, although a program keeps its uniform values: here they are computed
+        once per forward pass (:meth:`_light_uniforms`) and set once per program and pass.
+        Texture units are context state, which each primitive's material binding changes after
+        them, so the lighting textures are bound again for every primitive.
         """
-        super()._bind_lighting(scene, program, node, flags)
+        if self._pass_lighting is None:
+            self._pass_lighting = self._light_uniforms(scene, flags)
+        uniforms, textures = self._pass_lighting
+        first = program not in self._lit_programs
+        if first:
+            self._lit_programs.add(program)
+            for name, value in uniforms:
+                program.set_uniform(name, value)
+        for texture, name in textures:
+            unit = self._get_next_active_texture()
+            GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
+            texture._bind()
+            if first:
+                program.set_uniform(name, unit)
+
+    def _light_uniforms(self, scene: pyrender.Scene, flags: int) -> tuple[list[tuple[str, Any]], list[tuple[Any, str]]]:
+        """The lighting uniforms of a forward pass, as pyrender's ``_bind_lighting`` sets them, and
+        its textures: ``([(uniform, value)], [(texture, sampler uniform)])``, textures in unit order.
+
+        With spot-light shadows, the samplers of absent lights are bound to one spare map and the
+        transmittance maps (when the pass reads them) come after them. llvmpipe compiles a
+        fragment-shader variant for every distinct layout of bound textures (about 1 s each);
+        pyrender binds only the lights present, so every light count was a new layout. With
+        every sampler bound, the layout is the same for every lit draw.
+
+        Raises:
+            ValueError: the scene holds a light that is not a spot light, or more spot lights
+                than the shader has (``MAX_SHADOWED_LIGHTS``).
+        """
+        spots = scene.spot_light_nodes
+        if len(scene.light_nodes) != len(spots) or len(spots) > MAX_SHADOWED_LIGHTS:
+            raise ValueError(f"the renderer draws up to {MAX_SHADOWED_LIGHTS} spot lights and no other kind; "
+                             f"got {len(spots)} spot lights of {len(scene.light_nodes)} lights")
         shadowed = bool(flags & RenderFlags.SHADOWS_SPOT)
-        program.set_uniform("n_shadowed_spot_lights", self._n_shadowed if shadowed else 0)
+        uniforms: list[tuple[str, Any]] = [("ambient_light", scene.ambient_light), ("n_spot_lights", len(spots)),
+                                           ("n_shadowed_spot_lights", self._n_shadowed if shadowed else 0)]
+        textures: list[tuple[Any, str]] = []
+        for k, light_node in enumerate(scene.light_nodes):  # rank order (RankedNode), as pyrender's
+            light, pose, name = light_node.light, scene.get_pose(light_node), f"spot_lights[{k}]."
+            scale = 1.0 / max(0.001, np.cos(light.innerConeAngle) - np.cos(light.outerConeAngle))
+            uniforms += [(name + "direction", -pose[:3, 2]), (name + "position", pose[:3, 3]),
+                         (name + "light_angle_scale", scale),
+                         (name + "light_angle_offset", -np.cos(light.outerConeAngle) * scale),
+                         (name + "color", light.color), (name + "intensity", light.intensity)]
+            if shadowed:
+                textures.append((light.shadow_texture, name + "shadow_map"))
+                V, P = self._get_light_cam_matrices(scene, light_node, flags)
+                uniforms.append((name + "light_matrix", P.dot(V)))
         if shadowed:
-            for i in range(len(scene.spot_light_nodes), MAX_SHADOWED_LIGHTS):
-                self._bind_texture(self._unused_shadow_map, f"spot_lights[{i}].shadow_map", program)
+            textures += [(self._unused_shadow_map, f"spot_lights[{i}].shadow_map")
+                         for i in range(len(spots), MAX_SHADOWED_LIGHTS)]
             if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
-                self._bind_texture(self.transmittance, "transmittance_maps", program)
-                program.set_uniform("transmittance_layout", np.array(self.transmittance.layout, np.int32))
+                textures.append((self.transmittance, "transmittance_maps"))
+                uniforms.append(("transmittance_layout", np.array(self.transmittance.layout, np.int32)))
+        return uniforms, textures
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]
 
     def _configure_forward_pass_viewport(self, flags) -> None:
-        """pyrender's forward-pass state (it binds framebuffer 0 for drawing), then our framebuffer."""
+        """pyrender's forward-pass state (it binds framebuffer 0 for drawing), then our framebuffer;
+        the pass's lighting is not computed yet."""
         super()._configure_forward_pass_viewport(flags)
         self._target.begin_drawing()
+        self._pass_lighting = None  # computed at the pass's first lit draw (_bind_lighting)
+        self._lit_programs = set()  # programs holding the pass's lighting uniforms
 
     def _get_camera_matrices(self, scene: pyrender.Scene) -> tuple[np.ndarray, np.ndarray]:
         """pyrender's view and projection matrices, the projection flipped to draw upside down."""
