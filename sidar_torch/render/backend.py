@@ -28,15 +28,11 @@ from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .framebuffer import FLIP_Y, Framebuffer
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
+from .shadow_array import ShadowMapArray
 from .transmittance import TransmittanceMaps, vertex_defines
 
-__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "add_node", "frustum_projection", "transmits"]
-
-SHADOW_SAMPLER = pyrender.Sampler(
-    magFilter=GL.GL_LINEAR, minFilter=GL.GL_LINEAR, wrapS=GL.GL_CLAMP_TO_EDGE, wrapT=GL.GL_CLAMP_TO_EDGE,
-)
-"""Linear filtering of a depth-compare texture is the hardware's 2 x 2 percentage-closer filter."""
-
+__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection",
+           "transmits"]
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
     """OpenGL projection ``(4, 4)`` of a frustum from :func:`~.visibility.light_frustum`.
@@ -79,6 +75,15 @@ def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) 
     node = RankedNode(len(scene.nodes), matrix=pose, **obj)
     scene.add_node(node)
     return node
+
+
+class ShadowedSpotLight(pyrender.SpotLight):
+    """A pyrender spot light whose shadow map is layer :attr:`shadow_layer` of the renderer's
+    :class:`~.shadow_array.ShadowMapArray` (pyrender's ``shadow_texture`` stays unused)."""
+
+    def __init__(self, shadow_layer: int, **kwargs: Any):
+        super().__init__(**kwargs)
+        self.shadow_layer = shadow_layer
 
 
 class _PatchedProgram(ShaderProgram):
@@ -197,9 +202,8 @@ class GLRenderer(pyrender.Renderer):
         self._program_cache = ProgramCache(shadow_taps)
         self._target = Framebuffer(width, height)
         self.shadow_map_size = shadow_map_size
-        self._unused_shadow_map = self.new_shadow_map()
-        self._unused_shadow_map._add_to_context()
-        self._make_depth_compare(self._unused_shadow_map)
+        self.shadow_maps = ShadowMapArray(shadow_map_size)
+        """The :class:`ShadowedSpotLight` s' shadow maps, one layer each."""
         self.shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
         """Light node -> fitted frustum (``visibility.light_frustum``) for the next draws; a light
         not in it gets pyrender's frustum, fitted to its cone."""
@@ -208,20 +212,6 @@ class GLRenderer(pyrender.Renderer):
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
         self._lit_programs: set[ShaderProgram] = set()
-
-    def new_shadow_map(self) -> pyrender.Texture:
-        """A depth texture for one light's shadow map (uploaded at first use)."""
-        return pyrender.Texture(width=self.shadow_map_size, height=self.shadow_map_size, source_channels="D",
-                                data_format=GL.GL_FLOAT, sampler=SHADOW_SAMPLER)
-
-    @staticmethod
-    def _make_depth_compare(texture: pyrender.Texture) -> None:
-        """Turn an uploaded depth texture into a depth-compare sampler (the patched shader reads it
-        with hardware filtering)."""
-        texture._bind()
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_MODE, GL.GL_COMPARE_REF_TO_TEXTURE)
-        GL.glTexParameteri(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_COMPARE_FUNC, GL.GL_LEQUAL)
-        texture._unbind()
 
     def _update_context(self, scene: pyrender.Scene, flags: int) -> None:
         for mesh in scene.meshes - self._meshes:
@@ -235,11 +225,6 @@ class GLRenderer(pyrender.Renderer):
             for texture in self._mesh_textures - textures:
                 texture.delete()
             self._mesh_textures = textures
-        for light in scene.lights:
-            if light.shadow_texture not in self._shadow_textures:
-                light.shadow_texture._add_to_context()
-                self._make_depth_compare(light.shadow_texture)
-                self._shadow_textures.add(light.shadow_texture)
 
     def __del__(self) -> None:
         pass
@@ -272,11 +257,10 @@ class GLRenderer(pyrender.Renderer):
         """The lighting uniforms of a forward pass, as pyrender's ``_bind_lighting`` sets them, and
         its textures: ``([(uniform, value)], [(texture, sampler uniform)])``, textures in unit order.
 
-        With spot-light shadows, the samplers of absent lights are bound to one spare map and the
-        transmittance maps (when the pass reads them) come after them. llvmpipe compiles a
-        fragment-shader variant for every distinct layout of bound textures (about 1 s each);
-        pyrender binds only the lights present, so every light count was a new layout. With
-        every sampler bound, the layout is the same for every lit draw.
+        With spot-light shadows the textures are the shadow maps (one array) and, when the pass
+        reads them, the transmittance maps: the same layout in every lit draw whatever the number
+        of lights (llvmpipe compiles a fragment-shader variant, about 1 s, per layout of bound
+        textures).
 
         Raises:
             ValueError: the scene holds a light that is not a spot light, or more spot lights
@@ -298,12 +282,10 @@ class GLRenderer(pyrender.Renderer):
                          (name + "light_angle_offset", -np.cos(light.outerConeAngle) * scale),
                          (name + "color", light.color), (name + "intensity", light.intensity)]
             if shadowed:
-                textures.append((light.shadow_texture, name + "shadow_map"))
                 V, P = self._get_light_cam_matrices(scene, light_node, flags)
-                uniforms.append((name + "light_matrix", P.dot(V)))
+                uniforms += [(name + "light_matrix", P.dot(V)), (name + "shadow_layer", light.shadow_layer)]
         if shadowed:
-            textures += [(self._unused_shadow_map, f"spot_lights[{i}].shadow_map")
-                         for i in range(len(spots), MAX_SHADOWED_LIGHTS)]
+            textures.append((self.shadow_maps, "spot_shadow_maps"))
             if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
                 textures.append((self.transmittance, "transmittance_maps"))
                 uniforms.append(("transmittance_layout", np.array(self.transmittance.layout, np.int32)))
@@ -344,9 +326,21 @@ class GLRenderer(pyrender.Renderer):
         near = light_node.light._get_shadow_camera(scene.scale).znear
         return V, frustum_projection(np.array([*frustum[:4], min(near, frustum[4]), frustum[5]]))
 
-    def _configure_shadow_mapping_viewport(self, light, flags) -> None:
-        super()._configure_shadow_mapping_viewport(light, flags)
+    def _configure_shadow_mapping_viewport(self, light: ShadowedSpotLight, flags: int) -> None:
+        """pyrender's shadow-pass state, drawing into the light's layer of :attr:`shadow_maps` (cleared)."""
+        self._configure_shadow_framebuffer()
+        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._shadow_fb)
+        self.shadow_maps.attach(light.shadow_layer)
+        GL.glDrawBuffer(GL.GL_NONE)
+        GL.glReadBuffer(GL.GL_NONE)
+        GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthRange(0.0, 1.0)
+        GL.glDisable(GL.GL_CULL_FACE)
+        GL.glDisable(GL.GL_BLEND)
 
     def _transmittance_pass(self, scene: pyrender.Scene, light_node: pyrender.Node, k: int,
                             filters: list[pyrender.Node], flags: int) -> None:

@@ -105,11 +105,11 @@ _MAIN = "\nvoid main()\n"
 
 SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
     "mesh.frag": [
-        # Quirk 3: spot-light shadow maps are depth-compare samplers, read by spot_shadow.
+        # Quirk 3: spot-light shadow maps are layers of one depth-compare array, read by spot_shadow.
         ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
-         "sampler2DShadow shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
-        ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,",
-         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,"),
+         "int shadow_layer;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
+        ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_map,",
+         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_layer,"),
         # Quirk 6: only the first n_shadowed_spot_lights lights can shadow what the camera sees: the
         # others run in a second loop without the lookup, which would return "lit".
         (glsl("pyrender_spot_loop_head.glsl"), glsl("shadowed_spot_loop_head.glsl")),
@@ -119,7 +119,7 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("for (int i = 0; i < n_point_lights; i++) {", "for (int i = 0; i < 0; i++) {  // none (quirk 6)"),
         _before(_MAIN, "spot_shadow.glsl", "spot_light.glsl", "surface_output.glsl"),
         # Quirk 7: coloured shadows of transparent casters, in the shadowed loop only.
-        _after("            spot_lights[i].shadow_map,\n            nl\n        );\n"
+        _after("            spot_lights[i].shadow_layer,\n            nl\n        );\n"
                "        res = res * (1.0 - shadow);\n",
                "#ifdef TRANSMITTANCE_SHADOWS\n"
                "        res *= spot_transmittance(spot_lights[i].light_matrix, i);  // in the shadowed loop only\n"

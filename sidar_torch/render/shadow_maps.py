@@ -14,7 +14,7 @@ from pyrender.constants import RenderFlags
 
 from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
 from ..scene import Camera, Light, SceneSequence, ViewScene
-from .backend import GLRenderer, add_node
+from .backend import GLRenderer, ShadowedSpotLight, add_node
 from .scene_graph import gl_pose
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, cube_corners, light_frustum
@@ -78,12 +78,13 @@ class ShadowMaps:
                 shadowed.add(node)
         return shadowed
 
-    def _light(self, k: int) -> pyrender.SpotLight:
-        """The ``k``-th pooled spot light, with its own shadow map (allocated once)."""
+    def _light(self, k: int) -> ShadowedSpotLight:
+        """The ``k``-th pooled spot light, with its own shadow map: layer ``k`` of the renderer's
+        ``shadow_maps`` (growing them loses what the maps held)."""
         while len(self.lights) <= k:
-            light = pyrender.SpotLight(outerConeAngle=np.pi / 4)
-            light.shadow_texture = self._gl.new_shadow_map()
-            self.lights.append(light)
+            self.lights.append(ShadowedSpotLight(len(self.lights), outerConeAngle=np.pi / 4))
+        if self._gl.shadow_maps.reserve(len(self.lights)):
+            self._held.clear()
         return self.lights[k]
 
     def frusta(self, shadowed: set[pyrender.Node], view: ViewScene,

@@ -1,7 +1,8 @@
 
 uniform int n_shadowed_spot_lights;
+uniform sampler2DArrayShadow spot_shadow_maps;  // spot light i's map: layer spot_lights[i].shadow_layer
 
-float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
+float spot_shadow(mat4 light_matrix, int layer, float nl)
 {
     vec4 proj_coords = light_matrix * vec4(frag_position.xyz, 1.0);
     vec3 light_coords = proj_coords.xyz / proj_coords.w * 0.5 + 0.5;
@@ -10,13 +11,13 @@ float spot_shadow(mat4 light_matrix, sampler2DShadow shadow_map, float nl)
     }
     float compare = light_coords.z - max(0.001 * (1.0 - nl), 0.0001) / proj_coords.w;
 #if SIDAR_SHADOW_TAPS == 1
-    float lit = 4.0 * texture(shadow_map, vec3(light_coords.xy, compare));
+    float lit = 4.0 * texture(spot_shadow_maps, vec4(light_coords.xy, float(layer), compare));
 #else
-    vec2 texel = 0.5 / vec2(textureSize(shadow_map, 0));
-    float lit = texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, -texel.y), compare))
-              + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, -texel.y), compare))
-              + texture(shadow_map, vec3(light_coords.xy + vec2(-texel.x, texel.y), compare))
-              + texture(shadow_map, vec3(light_coords.xy + vec2(texel.x, texel.y), compare));
+    vec2 texel = 0.5 / vec2(textureSize(spot_shadow_maps, 0).xy);
+    float lit = texture(spot_shadow_maps, vec4(light_coords.xy + vec2(-texel.x, -texel.y), float(layer), compare))
+              + texture(spot_shadow_maps, vec4(light_coords.xy + vec2(texel.x, -texel.y), float(layer), compare))
+              + texture(spot_shadow_maps, vec4(light_coords.xy + vec2(-texel.x, texel.y), float(layer), compare))
+              + texture(spot_shadow_maps, vec4(light_coords.xy + vec2(texel.x, texel.y), float(layer), compare));
 #endif
     return 1.0 - 0.25 * lit;
 }
