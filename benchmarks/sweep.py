@@ -122,10 +122,11 @@ class SweepSettings:
         sizes: output sizes ``(H, W)``.
         shadow_map_sizes: shadow-map sides, texels (powers of two).
         supersampling: factors ``s`` (1: none).
-        shadow_frusta: frusta crossed with the sizes and factors.
+        shadow_frusta: frusta crossed with the sizes, factors and shadow filters.
         mesh_errors: ``mesh_error_px`` values tried (``mesh_detail`` "auto") at the base setting.
         texture_filters: filters tried at the base setting (``"trilinear"`` is every setting's).
-        shadow_filters: shadow filters tried at the base setting (``"tent"`` is every setting's).
+        shadow_filters: shadow filters crossed with the sizes, factors and frusta (the one-at-a-time
+            variations keep ``"tent"``).
         base_shadow_map_size: shadow map of the base setting (fitted frusta, no supersampling)
             from which mesh detail and texture filtering vary.
         reference: ``(shadow_map_size, supersampling)`` of the reference render (fitted frusta,
@@ -195,11 +196,11 @@ class SweepSettings:
 
     def settings(self) -> list[Setting]:
         """Every setting measured at each size: the grid, the one-at-a-time variations, the reference."""
-        grid = [Setting(m, s, f) for f in self.shadow_frusta for s in self.supersampling for m in self.shadow_map_sizes]
+        grid = [Setting(m, s, f, shadow_filter=sf) for sf in self.shadow_filters for f in self.shadow_frusta
+                for s in self.supersampling for m in self.shadow_map_sizes]
         base = Setting(self.base_shadow_map_size, 1, "fitted")
         grid += [replace(base, mesh_error_px=e) for e in self.mesh_errors]
         grid += [replace(base, texture_filter=f) for f in self.texture_filters if f != "trilinear"]
-        grid += [replace(base, shadow_filter=f) for f in self.shadow_filters if f != "tent"]
         grid = list(dict.fromkeys(grid))
         return grid + [self.reference_setting] * (self.reference_setting not in grid)
 
@@ -440,6 +441,18 @@ def write_outputs(report: dict[str, Any], out_dir: str | os.PathLike) -> dict[st
     return paths
 
 
+def _map_and_factor(text: str) -> tuple[int, int]:
+    """``"4096x1"`` -> ``(4096, 1)``.
+
+    Raises:
+        ValueError: ``text`` is not two positive integers joined by ``x``.
+    """
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.isdigit() and int(p) > 0 for p in parts):
+        raise ValueError(f"--reference: expected MAPxS such as 4096x1, got {text!r}")
+    return int(parts[0]), int(parts[1])
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m benchmarks.sweep",
@@ -457,11 +470,19 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a config field of the scenes (repeatable, value read as YAML), e.g. "
                              "--set n_occluders=[1,3]; image_size and the swept knobs come from the sweep")
+    parser.add_argument("--supersampling", type=int, nargs="+", default=None, metavar="S",
+                        help="supersampling factors of the grid (default 1 2)")
+    parser.add_argument("--reference", default=None, metavar="MAPxS",
+                        help="shadow map and supersampling of the reference (default 4096x2); 4096x1 measures the "
+                             "shadow knobs alone, without the aliasing that dominates the error against a "
+                             "supersampled reference")
     parser.add_argument("--out-dir", default="out", help="output folder (default out)")
     args = parser.parse_args(argv)
     try:
         changes = {"preset": args.config, "overrides": parse_set(args.set),
-                   **({"scenes": args.scenes} if args.scenes is not None else {})}
+                   **({"scenes": args.scenes} if args.scenes is not None else {}),
+                   **({"supersampling": tuple(args.supersampling)} if args.supersampling else {}),
+                   **({"reference": _map_and_factor(args.reference)} if args.reference else {})}
         settings = (SweepSettings.quick if args.quick else SweepSettings)(**changes)
     except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"sweep: {error}") from error
