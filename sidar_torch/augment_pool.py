@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 from .config import SidarConfig
+from .render import preload
 from .sample import SampleArrays, render_arrays
 from .scene import sample_sequence
 from .sources import TensorPaintings
@@ -68,6 +69,7 @@ class RenderPool:
 
     def __init__(self, config: SidarConfig, crop: str, num_workers: int):
         context = multiprocessing.get_context("fork")
+        preload()  # the workers inherit the renderer's imports
         self.pid = os.getpid()
         self._connections: list[Connection] = []
         processes = []

@@ -16,6 +16,7 @@ import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
 from .config import SidarConfig, as_int, load_config
+from .render import preload
 from .sample import SampleArrays, render_arrays
 from .scene import SceneSequence, sample_sequence
 from .sources import PaintingSource, make_source
@@ -85,6 +86,7 @@ class SidarDataset(IterableDataset):
         self.seed = as_int("seed", seed, 0)
         self.length = None if length is None else as_int("length", length, 1)
         self.epoch = 0
+        preload()  # DataLoader workers forked from here inherit the renderer's imports
 
     def set_epoch(self, epoch: int) -> None:
         """Draw epoch ``epoch``'s indices from now on (see "Epochs" in the class docstring)."""

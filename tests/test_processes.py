@@ -210,3 +210,20 @@ def test_ranks_and_workers_draw_disjoint_shards_covering_length_once(tmp_path):
     ds = SidarDataset(config=TINY, seed=11)
     assert {i: digest for drawn in gathered for i, digest in drawn} == {i: sample_digest(ds.sample(i))
                                                                          for i in range(length)}
+
+
+PRELOAD = """
+import sys
+from sidar_torch import SidarDataset
+assert "pyrender" not in sys.modules
+SidarDataset()
+from sidar_torch.render import renderer
+assert "pyrender" in sys.modules and "OpenGL.GL" in sys.modules
+assert not renderer._SHARED, renderer._SHARED
+print("preloaded without a context")
+"""
+
+
+def test_the_dataset_imports_the_renderer_for_its_workers_and_creates_no_context():
+    result = subprocess.run([sys.executable, "-c", PRELOAD], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip() == "preloaded without a context", result.stderr[-2000:]

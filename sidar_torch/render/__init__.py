@@ -25,7 +25,7 @@ os.environ.setdefault("LP_NUM_THREADS", "0")
 
 from .settings import RenderSettings  # noqa: E402  (GL-free)
 
-__all__ = ["RenderSettings", "RenderedSequence", "SceneRenderer", "shared_renderer"]
+__all__ = ["RenderSettings", "RenderedSequence", "SceneRenderer", "preload", "shared_renderer"]
 
 
 @functools.cache
@@ -41,6 +41,20 @@ def _renderer():
     from . import renderer
 
     return renderer
+
+
+def preload() -> None:
+    """Import the renderer's modules (pyrender, PyOpenGL, trimesh) now, if the GL libraries are there.
+
+    Processes forked afterwards (DataLoader workers, a render pool) inherit them instead of
+    importing them at their first render, about 1 s each. It creates no GL context, so forking
+    stays safe. Without the libraries it does nothing: the first render raises the error that
+    says what to install.
+    """
+    try:
+        _renderer()
+    except RuntimeError:
+        pass
 
 
 def shared_renderer(settings):
