@@ -56,10 +56,15 @@ def transmits(node: pyrender.Node) -> bool:
 
 
 class RankedNode(pyrender.Node):
-    """A scene node whose hash is its insertion rank in the scene, not its memory address.
+    """A scene node whose hash is its insertion rank in the scene, not its memory address, and
+    whose pose is stored as given.
 
     pyrender keeps nodes in sets and sums the lights in set order; address-based hashes make
     that order, and so the float rounding of the sum, change from one render to the next.
+
+    pyrender decomposes a pose into a quaternion, scale and translation whenever it is set (half a
+    millisecond, about 20 times per sample), although drawing reads only the pose itself; here
+    the decomposition is made only if ``rotation``, ``scale`` or ``translation`` is read or set.
     """
 
     def __init__(self, rank: int, **kwargs: Any):
@@ -68,6 +73,43 @@ class RankedNode(pyrender.Node):
 
     def __hash__(self) -> int:
         return self._rank
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``(4, 4)`` float object-to-parent pose (a copy, as pyrender's)."""
+        return pyrender.Node.matrix.fget(self)
+
+    @matrix.setter
+    def matrix(self, value: np.ndarray) -> None:
+        value = np.asanyarray(value)
+        if value.shape != (4, 4) or not np.allclose(value[3], [0.0, 0.0, 0.0, 1.0]):
+            raise ValueError(f"matrix: expected a (4, 4) pose with bottom row [0, 0, 0, 1], got {value!r}")
+        self._rotation = self._scale = self._translation = None  # derived on demand (_decompose)
+        self._matrix = value
+
+    def _decompose(self) -> None:
+        if self._rotation is None:
+            self._rotation, self._scale, self._translation = (
+                self._q_from_m(self._matrix), self._s_from_m(self._matrix), self._t_from_m(self._matrix))
+
+    def _derived(field: str) -> property:  # noqa: N805 (a helper of the class body, deleted below)
+        inherited = getattr(pyrender.Node, field)
+
+        def get(self: "RankedNode") -> np.ndarray:
+            self._decompose()
+            return inherited.fget(self)
+
+        def set_(self: "RankedNode", value: np.ndarray) -> None:
+            if self._matrix is not None:
+                self._decompose()
+            inherited.fset(self, value)
+
+        return property(get, set_, doc=inherited.__doc__)
+
+    rotation = _derived("rotation")
+    scale = _derived("scale")
+    translation = _derived("translation")
+    del _derived
 
 
 def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) -> pyrender.Node:
@@ -204,9 +246,8 @@ class GLRenderer(pyrender.Renderer):
         self.shadow_map_size = shadow_map_size
         self.shadow_maps = ShadowMapArray(shadow_map_size)
         """The :class:`ShadowedSpotLight` s' shadow maps, one layer each."""
-        self.shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
-        """Light node -> fitted frustum (``visibility.light_frustum``) for the next draws; a light
-        not in it gets pyrender's frustum, fitted to its cone."""
+        self._shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
+        self._light_matrices: dict[pyrender.Node, tuple[np.ndarray, np.ndarray]] = {}
         self.transmittance = TransmittanceMaps(shadow_map_size // 2)
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
@@ -307,13 +348,31 @@ class GLRenderer(pyrender.Renderer):
         V, P = super()._get_camera_matrices(scene)
         return V, FLIP_Y @ P
 
+    @property
+    def shadow_frusta(self) -> dict[pyrender.Node, np.ndarray]:
+        """Light node -> fitted frustum (``visibility.light_frustum``) for the next draws; a light
+        not in it gets pyrender's frustum, fitted to its cone. Assign a new dict for each view."""
+        return self._shadow_frusta
+
+    @shadow_frusta.setter
+    def shadow_frusta(self, frusta: dict[pyrender.Node, np.ndarray]) -> None:
+        self._shadow_frusta = frusta
+        self._light_matrices = {}
+
     def _get_light_cam_matrices(self, scene, light_node, flags) -> tuple[np.ndarray, np.ndarray]:
         """The light's view and projection: pyrender's (a square frustum 2 outer cone + pi / 16
         wide, depths from 1 % to 10x the scene's size), or the fitted :attr:`shadow_frusta` one.
 
         The shadow pass and the lit shader's lookup both take the matrices from here, so the map
-        is always read with the projection it was drawn with.
+        is always read with the projection it was drawn with. They are computed once per light
+        node until :attr:`shadow_frusta` is assigned again (a node belongs to one scene, whose
+        meshes, and so pyrender's frustum, are all added before its first draw).
         """
+        if light_node not in self._light_matrices:
+            self._light_matrices[light_node] = self._light_view_projection(scene, light_node, flags)
+        return self._light_matrices[light_node]
+
+    def _light_view_projection(self, scene, light_node, flags) -> tuple[np.ndarray, np.ndarray]:
         V, P = super()._get_light_cam_matrices(scene, light_node, flags)
         frustum = self.shadow_frusta.get(light_node)
         if frustum is None:
