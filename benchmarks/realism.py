@@ -21,7 +21,7 @@ Definitions (every threshold is a named constant below):
   light (0..1), used wherever light is compared as a ratio.
 * *cast shadow* (ours, exact): a painting pixel whose luminance is less than :data:`SHADOW_RATIO`
   times its luminance in the render of the same scene with ``shadows=False`` (same scene, same
-  draws: only the sequence's ``shadows`` flag differs), among pixels at least :data:`MIN_LIT` bright
+  draws: only the renderer's ``shadows`` setting differs), among pixels at least :data:`MIN_LIT` bright
   there. (Blender's and ours, estimated): the label warped into the view is the painting's albedo
   there; the shading ratio ``view / albedo`` (luminances, both blurred by :data:`SMOOTH_SIGMA` px) is
   compared with the light level: a quadratic in the view's pixel coordinates fitted to the log ratio,
@@ -382,7 +382,7 @@ def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tupl
         rng = dataset.generator(index)
         scene = sample_sequence(dataset.config, rng)
         free_scene = sample_sequence(free_config, dataset.generator(index))
-        if free_scene != dataclasses.replace(scene, shadows=False):
+        if free_scene != scene:
             raise RuntimeError(f"sample {index}: shadows=False drew a different scene")
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
         lit = render_sample(scene, painting, dataset.config, index, rng=rng)
