@@ -1,17 +1,19 @@
 """The paper's painting and occluders (issue 15, items 2 and 3): the painting's transmission, glass
-that casts an opaque shadow, and the paper's fixed-size torus.
+that casts an opaque shadow, the paper's fixed-size torus and its area lights'
+spread.
 
 Transmission and opaque glass shadows are proved by rendering them against a version without them.
 """
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.render.scene_graph import transmission_factors
-from sidar_torch.scene import PAPER_TORUS_SCALE, Material, sample_sequence
+from sidar_torch.scene import PAPER_TORUS_SCALE, Material, spread_beam, sample_sequence
 
 from conftest import small_config
 from test_realism import render
@@ -93,3 +95,24 @@ def test_paper_torus_has_the_paper_size_and_other_shapes_keep_their_draw():
     assert tori and spheres and all(np.array_equal(o.scale, PAPER_TORUS_SCALE) for o in tori)
     low, high = cfg.occluder_size
     assert all(((low <= o.scale) & (o.scale <= high)).all() for o in spheres)
+
+
+@pytest.mark.parametrize("spread", [10.0, 30.0, 60.0, 90.0])
+def testspread_beam_keeps_the_power_and_nearly_cycles_peak(spread):
+    inner, outer, irradiance = spread_beam(spread, 1.0)
+    assert inner == 0.0 and outer == pytest.approx(math.radians(spread) / 2)
+    theta = np.linspace(0.0, outer, 20001)
+    falloff = ((np.cos(theta) - math.cos(outer)) / (1 - math.cos(outer))) ** 2  # the renderer's spot profile
+    power = 2 * math.pi * np.trapezoid(irradiance * falloff * np.sin(theta), theta)
+    assert power == pytest.approx(math.pi, rel=1e-6)  # a unit Lambertian emitter's: pi
+    cycles_peak = math.tan(outer) / (math.tan(outer) - outer)  # Cycles' area_light_spread_attenuation at 0
+    assert abs(irradiance / cycles_peak - 1) < 0.1
+
+
+def test_area_spread_makes_area_lights_beams_and_180_keeps_them_covering():
+    cfg = small_config(n_views=6, light_types=("area",), n_lights=(2, 2), area_spread_deg=(20.0, 60.0))
+    lights = [light for v in sample_sequence(cfg, np.random.default_rng(3)).views for light in v.lights]
+    assert all(light.inner_cone == 0 and math.radians(10) <= light.outer_cone <= math.radians(30) for light in lights)
+    covering = [light for v in sample_sequence(small_config(light_types=("area",)), np.random.default_rng(3)).views
+                for light in v.lights]
+    assert all(light.inner_cone > math.radians(20) for light in covering)  # the painting's corners inside

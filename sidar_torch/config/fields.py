@@ -111,6 +111,12 @@ class SidarConfig:
     light_saturation_max: float = _field(0.3, meaning="colour is HSV(U(0, 1), U(0, this), 1).")
     spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
     area_light_size: float = _field(0.3, meaning="side of a square area light.")
+    area_spread_deg: Range = _field((180.0, 180.0), bounds=(1.0, 180.0), meaning=(
+        "range of an area light's spread (Blender's), the full angle of the cone it emits into. ``(180, 180)``: "
+        "the whole half-space, lighting the painting evenly (no draw then, so such configs draw the same scenes "
+        "as before the field existed); below 180, a beam aimed at the painting's centre with no inner cone and "
+        "the same power, so the narrower the brighter its centre (``sidar_torch.scene.spread_beam``; cones "
+        "wider than 114 degrees are capped there)."))
     area_light_samples: int = _field(4, meaning="jittered shadow-casting samples an area light is made of.")
     ambient: Range = _field((0.0, 0.02), bounds=(0.0, UNBOUNDED), meaning=(
         "range of the ambient light level (linear, 1 reproduces the texture)."))
