@@ -21,7 +21,7 @@ Definitions (every threshold is a named constant below):
   light (0..1), used wherever light is compared as a ratio.
 * *cast shadow* (ours, exact): a painting pixel whose luminance is less than :data:`SHADOW_RATIO`
   times its luminance in the render of the same scene with ``shadows=False`` (same scene, same
-  draws: only the sequence's ``shadows`` flag differs), among pixels at least :data:`MIN_LIT` bright
+  draws: only the renderer's ``shadows`` setting differs), among pixels at least :data:`MIN_LIT` bright
   there. (Blender's and ours, estimated): the label warped into the view is the painting's albedo
   there; the shading ratio ``view / albedo`` (luminances, both blurred by :data:`SMOOTH_SIGMA` px) is
   compared with the light level: a quadratic in the view's pixel coordinates fitted to the log ratio,
@@ -68,6 +68,10 @@ BLACK_VIEW = 0.30
 
 SHADOW_RATIO = 0.5
 """A painting pixel is in cast shadow when its light is less than this fraction of the unshadowed light."""
+
+DARKENED = 0.9
+"""A painting pixel counts towards shadow darkness when its light is below this fraction of the unshadowed
+light (umbrae, penumbrae and faint shadows alike)."""
 
 MIN_LIT = 0.02
 """Least unshadowed luminance (linear, 0..1) at which a pixel's darkening is judged."""
@@ -168,18 +172,33 @@ def warp_label(label: np.ndarray, H: np.ndarray) -> np.ndarray:
     return out
 
 
-def cast_shadow_fraction(lit: np.ndarray, unshadowed: np.ndarray, painting: np.ndarray) -> float:
-    """Fraction of painting pixels in cast shadow, from a render and its ``shadows=False`` twin.
+def exact_light_ratio(lit: np.ndarray, unshadowed: np.ndarray, painting: np.ndarray) -> np.ndarray:
+    """Light ratio (shadowed over unshadowed luminance) of each judged painting pixel, ``(N,)``, from a
+    render and its ``shadows=False`` twin.
 
     Args:
         lit, unshadowed: ``(H, W, 3)`` uint8 sRGB renders of the same scene with and without shadows.
         painting: ``(H, W)`` bool, True where the painting is visible (mask 0).
+
+    Pixels darker than :data:`MIN_LIT` in the twin are not judged and count as 1 (unshadowed).
     """
-    if not painting.any():
+    y_lit, y_free = luminance(lit)[painting], luminance(unshadowed)[painting]
+    judged = y_free >= MIN_LIT
+    return np.where(judged, y_lit / np.where(judged, y_free, 1.0), 1.0)
+
+
+def shadow_fraction(ratio: np.ndarray | None) -> float:
+    """Fraction of pixels whose light ratio ``(N,)`` is below :data:`SHADOW_RATIO` (NaN for None or none)."""
+    return float((ratio < SHADOW_RATIO).mean()) if ratio is not None and ratio.size else float("nan")
+
+
+def shadow_darkness(ratio: np.ndarray | None) -> float:
+    """Median light ratio of the pixels darkened below :data:`DARKENED` (NaN with fewer than
+    :data:`MIN_JUDGED` such pixels): how dark a view's shadows are, not how many there are."""
+    if ratio is None:
         return float("nan")
-    y_lit, y_free = luminance(lit), luminance(unshadowed)
-    shadow = (y_free >= MIN_LIT) & (y_lit < SHADOW_RATIO * y_free)
-    return float(shadow[painting].mean())
+    dark = ratio[ratio < DARKENED]
+    return float(np.median(dark)) if dark.size >= MIN_JUDGED else float("nan")
 
 
 def smoothed(values: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -204,8 +223,9 @@ def light_level(log_ratio: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.nda
     return fit
 
 
-def estimated_shadow_fraction(view: np.ndarray, albedo: np.ndarray, painting: np.ndarray) -> float:
-    """Fraction of judged painting pixels in cast shadow, estimated from one render and the label.
+def estimated_light_ratio(view: np.ndarray, albedo: np.ndarray, painting: np.ndarray) -> np.ndarray | None:
+    """Light ratio (light over the fitted unshadowed level) of each judged painting pixel, ``(N,)``,
+    estimated from one render and the label.
 
     Args:
         view: ``(H, W, 3)`` uint8 sRGB render.
@@ -213,19 +233,18 @@ def estimated_shadow_fraction(view: np.ndarray, albedo: np.ndarray, painting: np
         painting: ``(H, W)`` bool, True where the painting is visible.
 
     Returns:
-        the fraction, NaN when fewer than :data:`MIN_JUDGED` pixels can be judged.
+        the ratios, None when fewer than :data:`MIN_JUDGED` pixels can be judged.
     """
     valid = painting & np.isfinite(albedo).all(-1) & (luma(view) < WHITE)
     lit, weight = smoothed(luminance(view), valid)
     reflectance, _ = smoothed(srgb_to_linear(np.nan_to_num(albedo, nan=0.0).round()) @ LUMA, valid)
     judged = valid & (weight > 0.5) & (reflectance >= MIN_ALBEDO) & (lit > 0)
     if judged.sum() < MIN_JUDGED:
-        return float("nan")
+        return None
     ys, xs = np.nonzero(judged)
     h, w = judged.shape
     log_ratio = np.log(lit[judged] / reflectance[judged])
-    level = light_level(log_ratio, xs / w - 0.5, ys / h - 0.5)
-    return float((log_ratio < level + np.log(SHADOW_RATIO)).mean())
+    return np.exp(log_ratio - light_level(log_ratio, xs / w - 0.5, ys / h - 0.5))
 
 
 def occluder_coverage(mask: np.ndarray, region: np.ndarray) -> float:
@@ -278,6 +297,9 @@ class ViewStats:
     near_black: np.ndarray
     shadow_exact: np.ndarray
     shadow_estimated: np.ndarray
+    shadow_estimated_twin: np.ndarray
+    darkness_exact: np.ndarray
+    darkness_estimated: np.ndarray
     coverage: np.ndarray
     occluders_scene: np.ndarray
     occluders_mask: np.ndarray
@@ -301,16 +323,21 @@ def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: 
     """
     exposure = view_exposure(views, masks)
     nan = np.full(len(views), np.nan)
-    exact, estimated, coverage, components, sharpness = [], [], [], [], []
+    shadows = []  # per view: exact, estimated and twin's estimated fractions, exact and estimated darkness
+    coverage, components, sharpness = [], [], []
     for j, (view, mask) in enumerate(zip(views, masks)):
         region = painting_region(H0[j], view.shape[:2])
         painting = ~mask
-        exact.append(nan[j] if unshadowed is None else cast_shadow_fraction(view, unshadowed[j], painting))
-        estimated.append(estimated_shadow_fraction(view, warp_label(label, H0[j]), painting & region))
+        albedo = warp_label(label, H0[j])
+        exact = None if unshadowed is None or not painting.any() else exact_light_ratio(view, unshadowed[j], painting)
+        estimated = estimated_light_ratio(view, albedo, painting & region)
+        twin = None if unshadowed is None else estimated_light_ratio(unshadowed[j], albedo, painting & region)
+        shadows.append([shadow_fraction(exact), shadow_fraction(estimated), shadow_fraction(twin),
+                        shadow_darkness(exact), shadow_darkness(estimated)])
         coverage.append(occluder_coverage(mask, region))
         components.append(occluder_components(mask, region))
         sharpness.append(edge_sharpness(view, mask, region))
-    return ViewStats(exposure.median, exposure.white, exposure.black, np.array(exact), np.array(estimated),
+    return ViewStats(exposure.median, exposure.white, exposure.black, *np.array(shadows).T,
                      np.array(coverage), nan if occluders_scene is None else np.asarray(occluders_scene, float),
                      np.array(components, float), np.array(sharpness))
 
@@ -382,7 +409,7 @@ def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tupl
         rng = dataset.generator(index)
         scene = sample_sequence(dataset.config, rng)
         free_scene = sample_sequence(free_config, dataset.generator(index))
-        if free_scene != dataclasses.replace(scene, shadows=False):
+        if free_scene != scene:
             raise RuntimeError(f"sample {index}: shadows=False drew a different scene")
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
         lit = render_sample(scene, painting, dataset.config, index, rng=rng)
@@ -459,6 +486,12 @@ STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats],
     ("cast-shadow fraction (estimated from view / label)", lambda s: per_view(s.shadow_estimated), None),
     ("cast-shadow fraction (ours exact: vs shadows=False)", lambda s: per_view(s.shadow_exact),
      lambda s: per_view(s.shadow_estimated)),
+    ("cast-shadow fraction (ours estimated on the shadows=False twin: the estimator's false shadows)",
+     lambda s: per_view(s.shadow_estimated_twin), lambda s: per_view(s.shadow_estimated)),
+    (f"shadow darkness (estimated: median light ratio where below {DARKENED})",
+     lambda s: per_view(s.darkness_estimated), None),
+    (f"shadow darkness (ours exact: median light ratio where below {DARKENED})",
+     lambda s: per_view(s.darkness_exact), lambda s: per_view(s.darkness_estimated)),
     ("occluder coverage of the painting region", lambda s: per_view(s.coverage), None),
     ("views with an occluder over the painting", lambda s: of_views(s.occluders_mask > 0), None),
     ("occluders per view (mask components)", lambda s: per_view(s.occluders_mask), None),

@@ -31,6 +31,7 @@ __all__ = [
     "SceneSequence",
     "ViewScene",
     "sample_sequence",
+    "spread_beam",
 ]
 
 MAX_EMITTER_CONE = 1.0
@@ -79,6 +80,13 @@ class Material(_Plain):
             convention; 0.5 is glTF's 4 %, 0 a purely diffuse dielectric).
         coat, coat_roughness: weight and roughness of a clear coat, a second specular lobe of 4 %
             reflectance over the base.
+        transmission: the share of the dielectric base's diffuse light that passes through the
+            surface instead (Blender's Principled ``Transmission Weight``): in the black world of a
+            SIDAR scene it is lost, so the diffuse light is scaled by ``1 - transmission``; the
+            specular lobes and the metallic part are unchanged.
+        opaque_shadow: a blended (transparent) material whose shadow is as dark as an opaque one's
+            (Cycles' glass and refraction: refracted light from a light source carries no direct
+            light), instead of the tinted, lighter shadow of ``render.transmittance``.
     """
 
     base_color: np.ndarray
@@ -87,6 +95,8 @@ class Material(_Plain):
     specular: float = 0.5
     coat: float = 0.0
     coat_roughness: float = 0.0
+    transmission: float = 0.0
+    opaque_shadow: bool = False
 
     @property
     def transparent(self) -> bool:
@@ -264,13 +274,16 @@ def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[i
 
 def _plane_material(config: SidarConfig, rng: np.random.Generator) -> Material:
     """The painting's material: white base (the texture gives its colour), the rest from the
-    ``plane_*`` ranges, or purely diffuse when ``plane_diffuse`` is set (no draws then)."""
+    ``plane_*`` ranges, or purely diffuse when ``plane_diffuse`` is set (no draws then).
+    Transmission is drawn only when ``plane_transmission`` is not ``(0, 0)``, so configs without
+    it draw the same numbers as before the field existed."""
     if config.plane_diffuse:
         return Material(np.ones(4), 0.0, 1.0, specular=0.0)
     metallic, roughness, specular, coat, coat_roughness = (rng.uniform(*r) for r in (
         config.plane_metallic, config.plane_roughness, config.plane_specular, config.plane_coat,
         config.plane_coat_roughness))
-    return Material(np.ones(4), metallic, roughness, specular, coat, coat_roughness)
+    transmission = rng.uniform(*config.plane_transmission) if any(config.plane_transmission) else 0.0
+    return Material(np.ones(4), metallic, roughness, specular, coat, coat_roughness, transmission)
 
 
 def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]) -> Light:
@@ -290,11 +303,28 @@ def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int
         position, emitters = _covering_emitters(position, offsets, size)
         inner = max(_cover_angle(e, size) for e in emitters)
         outer = inner + CONE_MARGIN
+        if kind == "area" and config.area_spread_deg != (180.0, 180.0):
+            inner, outer, irradiance = spread_beam(rng.uniform(*config.area_spread_deg), irradiance)
         # Emitters share the light's intensity so the total irradiance is the sampled one.
         irradiance /= n
     distance = np.linalg.norm(position)
     intensity = irradiance * distance**2 / (position[2] / distance)
     return Light(kind, emitters, color, float(intensity), float(inner), float(outer))
+
+
+def spread_beam(spread_deg: float, irradiance: float) -> tuple[float, float, float]:
+    """Inner and outer cone (rad) and centre irradiance of an area light narrowed by Blender's
+    ``spread`` (full angle, degrees) whose unnarrowed centre irradiance is ``irradiance``.
+
+    Cycles keeps a spread light's power and concentrates it within ``a = spread / 2`` of its axis,
+    with a profile falling linearly in ``tan`` to 0 at ``a`` (peak ``tan a / (tan a - a)`` times the
+    unnarrowed light). Here the beam is a spot with no inner cone (the renderer's quadratic falloff
+    ``((cos t - cos a) / (1 - cos a))**2``), the same power: the centre irradiance times
+    ``3 / (2 (1 - cos a))`` (within 10 % of Cycles' peak for spreads of 10-90 degrees). ``a`` is capped
+    at :data:`MAX_EMITTER_CONE`.
+    """
+    outer = min(math.radians(spread_deg) / 2, MAX_EMITTER_CONE)
+    return 0.0, outer, irradiance * 3.0 / (2.0 * (1.0 - math.cos(outer)))
 
 
 def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:
@@ -331,6 +361,12 @@ PRISM_VARIANTS = 8
 SHAPE_VARIANTS = {"hull": HULL_VARIANTS, "prism": PRISM_VARIANTS}
 """Shapes that come in several fixed variants, and how many; every other shape has one (variant 0)."""
 
+PAPER_TORUS_SCALE = np.array([1.25, 1.25, 0.25 / 0.3]) / 7
+"""Per-axis scale of the unit torus (outer radius 1, tube 0.3 thick along z) that gives it the size of
+the paper's torus, Blender's default one, never scaled (major radius 1, minor 0.25 Blender units;
+``SidarConfig.paper_torus``): the same outer radius 1.25 / 7 and half-thickness 0.25 / 7 painting
+units. Its tube is wider in the plane (0.3 of the outer radius against the paper's 0.2)."""
+
 OCCLUDER_ATTEMPTS = 100
 """Placements tried for an occluder before it is left out of the view."""
 
@@ -348,10 +384,11 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
     """
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
     rotation = _random_rotation(rng)
-    scale = rng.uniform(*config.occluder_size, size=3)
+    fixed = shape == "torus" and config.paper_torus
+    scale = PAPER_TORUS_SCALE if fixed else rng.uniform(*config.occluder_size, size=3)
     variant = int(rng.integers(SHAPE_VARIANTS[shape])) if shape in SHAPE_VARIANTS else 0
     kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
-    material = _occluder_material(kind, rng)
+    material = _occluder_material(kind, rng, opaque_glass_shadow=config.glass_shadows_opaque)
     radius = float(np.linalg.norm(scale))  # the unit primitive lies within the box |x_k| <= 1
     for _ in range(OCCLUDER_ATTEMPTS):
         xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
@@ -371,19 +408,20 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
     ])
 
 
-def _occluder_material(kind: str, rng: np.random.Generator) -> Material:
+def _occluder_material(kind: str, rng: np.random.Generator, opaque_glass_shadow: bool = False) -> Material:
     """An occluder material of one of ``config.OCCLUDER_MATERIALS``:
 
     * ``diffuse``: Lambertian (no specular); ``glossy``: dielectric with a sharp highlight;
       ``metallic``: metal tinted by its colour;
     * ``transparent``: alpha 0.2-0.7, tinted; ``glass``: nearly clear (alpha 0.05-0.25, pale
-      tint) with a sharp clear-coat highlight; both get more opaque towards grazing angles;
+      tint) with a sharp clear-coat highlight, and an opaque shadow if ``opaque_glass_shadow``;
+      both get more opaque towards grazing angles;
     * ``principled``: every factor random (base colour, metallic, roughness, specular, coat).
     """
     if kind == "glass":
         rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
         return Material(np.array([*rgb, rng.uniform(0.05, 0.25)]), 0.0, rng.uniform(0.02, 0.1), 0.5,
-                        1.0, rng.uniform(0.02, 0.08))
+                        1.0, rng.uniform(0.02, 0.08), opaque_shadow=opaque_glass_shadow)
     rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
     if kind == "principled":
         metallic, roughness, specular, coat = rng.uniform(size=4)

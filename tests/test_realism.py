@@ -197,6 +197,8 @@ def test_paper_presets_load_and_render(preset):
     ("mask_min_opacity", 1.5), ("spot_irradiance", (2.0, 1.0)), ("area_irradiance", (-1.0, 1.0)),
     ("plane_specular", (0.0, 2.0)), ("plane_coat", (0.5, 0.2)), ("plane_coat_roughness", (0.0, 1.5)),
     ("plane_diffuse", "yes"), ("occluder_materials", ("wood",)), ("occluder_shapes", ("teapot",)),
+    ("plane_transmission", (0.0, 1.5)), ("plane_transmission", (0.6, 0.2)), ("paper_torus", "yes"),
+    ("glass_shadows_opaque", 1), ("area_spread_deg", (0.5, 90.0)), ("area_spread_deg", (90.0, 200.0)),
 ])
 def test_bad_realism_values_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):

@@ -111,6 +111,12 @@ class SidarConfig:
     light_saturation_max: float = _field(0.3, meaning="colour is HSV(U(0, 1), U(0, this), 1).")
     spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
     area_light_size: float = _field(0.3, meaning="side of a square area light.")
+    area_spread_deg: Range = _field((180.0, 180.0), bounds=(1.0, 180.0), meaning=(
+        "range of an area light's spread (Blender's), the full angle of the cone it emits into. ``(180, 180)``: "
+        "the whole half-space, lighting the painting evenly (no draw then, so such configs draw the same scenes "
+        "as before the field existed); below 180, a beam aimed at the painting's centre with no inner cone and "
+        "the same power, so the narrower the brighter its centre (``sidar_torch.scene.spread_beam``; cones "
+        "wider than 114 degrees are capped there)."))
     area_light_samples: int = _field(4, meaning="jittered shadow-casting samples an area light is made of.")
     ambient: Range = _field((0.0, 0.02), bounds=(0.0, UNBOUNDED), meaning=(
         "range of the ambient light level (linear, 1 reproduces the texture)."))
@@ -122,6 +128,14 @@ class SidarConfig:
     occluder_height: Range = _field((1 / 7, 5 / 7), bounds=(0.0, UNBOUNDED), meaning=_OCCLUDER_BOX)
     occluder_size: Range = _field((0.1 / 7, 1.1 / 7), bounds=(1e-4, UNBOUNDED), meaning=(
         "range of an occluder's half-extent along each of its axes."))
+    paper_torus: bool = _field(False, meaning=(
+        "every torus at the size of the paper's, Blender's default torus, which it never scales (major radius 1, "
+        "minor 0.25 Blender units): outer radius 1.25 / 7 and half-thickness 0.25 / 7, with no draw from "
+        "``occluder_size`` (see ``sidar_torch.scene.PAPER_TORUS_SCALE``)."))
+    glass_shadows_opaque: bool = _field(False, meaning=(
+        "``glass`` occluders cast shadows as dark as opaque ones, as the paper's glass and refraction materials "
+        "do in Cycles (refracted light from a light source carries no direct light); false: a tinted, lighter "
+        "shadow like a ``transparent`` occluder's."))
     occluders_visible: bool = _field(True, meaning=(
         "false makes occluders invisible to cameras; they still cast shadows."))
     mask_min_opacity: float = _field(0.0, meaning=(
@@ -140,6 +154,11 @@ class SidarConfig:
         "Blender's convention: 0.5 is 4 %)."))
     plane_coat: Range = _field((0.0, 1.0), bounds=(0.0, 1.0), meaning=_COAT)
     plane_coat_roughness: Range = _field((0.03, 0.3), bounds=(0.0, 1.0), meaning=_COAT)
+    plane_transmission: Range = _field((0.0, 0.0), bounds=(0.0, 1.0), meaning=(
+        "range of the painting's transmission (Blender's Principled ``Transmission Weight``): the share of its "
+        "diffuse light that passes through the painting into the black world below and is lost, so the diffuse "
+        "light is scaled by ``1 - transmission`` (the specular lobes and the metallic part are unchanged). "
+        "``(0, 0)`` draws nothing, so a config without it draws the same scenes as before the field existed."))
     plane_diffuse: bool = _field(False, meaning=(
         "a purely diffuse painting (metallic 0, roughness 1, no specular, no coat), overriding the other "
         "``plane_*`` ranges."))

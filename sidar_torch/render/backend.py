@@ -31,8 +31,8 @@ from .shader_patches import SHADER_SOURCES, glsl, patch_source
 from .shadow_array import ShadowMapArray
 from .transmittance import TransmittanceMaps, vertex_defines
 
-__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection",
-           "transmits"]
+__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection"]
+
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
     """OpenGL projection ``(4, 4)`` of a frustum from :func:`~.visibility.light_frustum`.
@@ -48,11 +48,6 @@ def frustum_projection(frustum: np.ndarray) -> np.ndarray:
         [0.0, 0.0, -(f + n) / (f - n), -2 * f * n / (f - n)],
         [0.0, 0.0, -1.0, 0.0],
     ])
-
-
-def transmits(node: pyrender.Node) -> bool:
-    """Whether a mesh node is blended (transparent): it casts a tinted shadow, not a dark one."""
-    return any(p.material.alphaMode == "BLEND" for p in node.mesh.primitives)
 
 
 class RankedNode(pyrender.Node):
@@ -418,16 +413,18 @@ class GLRenderer(pyrender.Renderer):
         return program
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
-             shadowed: set = frozenset(), seg_node_map: dict | None = None,
+             transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
         """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
             seen: mesh nodes the camera sees.
-            casters: mesh nodes that cast shadows: opaque ones go into the depth maps, blended
-                (transparent) ones into the transmittance maps, which are drawn and looked up
-                only when there is one.
+            casters: mesh nodes that cast shadows: those of ``transmitting`` go into the
+                transmittance maps (drawn and looked up only when there is one), the others into
+                the depth maps.
+            transmitting: the blended (transparent) casters whose shadows let light through,
+                tinted (``scene.Material.opaque_shadow`` false).
             shadowed: light nodes that get a shadow map and lookup (with ``SHADOWS_SPOT``); they
                 must be the first spot lights in the scene's order.
             seg_node_map: node -> grey level, for ``RenderFlags.SEG`` draws.
@@ -446,7 +443,7 @@ class GLRenderer(pyrender.Renderer):
         """
         with timed(timings, "upload", GL.glFinish):
             self._update_context(scene, flags)
-        filters = sorted((n for n in casters if transmits(n)), key=hash)  # hash: rank in the scene
+        filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
         if flags & RenderFlags.SHADOWS_SPOT:
             with timed(timings, "shadow", GL.glFinish):

@@ -219,16 +219,18 @@ class SceneRenderer:
             self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
             shadowed = self._shadows.add_lights(scene, view.lights, plan.order, plan.n_shadowed)
             casters = {nodes[i] for i in plan.casters}
+            transmitting = {nodes[i] for i in plan.casters
+                            if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow}
             self._gl.shadow_frusta = self._shadows.frusta(shadowed, view, sequence)
-            map_keys = self._shadows.map_keys(scene, shadowed, casters)
+            map_keys = self._shadows.map_keys(scene, shadowed, casters - transmitting)
             stale = self._shadows.stale(map_keys)
             self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
         drawn = {nodes[i] for i in plan.drawn}
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, shadowed=shadowed,
-                              timings=timings, step="colour", stale=stale)
+        image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
+                              shadowed=shadowed, timings=timings, step="colour", stale=stale)
         self._shadows.drawn(map_keys)
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}

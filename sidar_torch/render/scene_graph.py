@@ -15,7 +15,8 @@ from ..scene import CAMERA_CLEARANCE, Camera, Material
 from .backend import add_node
 from .shader_patches import surface_factors
 
-__all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene"]
+__all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene",
+           "transmission_factors"]
 
 GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
@@ -74,14 +75,41 @@ def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, floa
 
 
 def gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
+    base_color, metallic, specular = transmission_factors(material)
     return pyrender.MetallicRoughnessMaterial(
-        baseColorFactor=material.base_color.astype(np.float64),  # floats: ints would be read as 0-255
-        metallicFactor=float(material.metallic),
+        baseColorFactor=base_color,
+        metallicFactor=metallic,
         roughnessFactor=float(material.roughness),
-        emissiveFactor=surface_factors(material.specular, material.coat, material.coat_roughness),
+        emissiveFactor=surface_factors(specular, material.coat, material.coat_roughness),
         alphaMode="BLEND" if material.transparent else "OPAQUE",
         baseColorTexture=texture,
     )
+
+
+MAX_TRANSMISSION = 1.0 - 1e-6
+"""The largest transmission :func:`transmission_factors` renders (1 is drawn as this)."""
+
+
+def transmission_factors(material: Material) -> tuple[np.ndarray, float, float]:
+    """The base colour factor ``(4,)`` float64, metallic and specular level the shader is given so that
+    it draws ``material`` with its ``transmission`` ``t``: the diffuse light times ``1 - t``, the rest
+    unchanged (the identity for ``t = 0``).
+
+    The lit shader reads a material only through its diffuse colour ``c = 0.96 b (1 - m)`` and its
+    normal-incidence reflectance ``f0 = 0.08 s (1 - m) + m b`` (``b`` the base colour, factor times
+    texture, ``m`` metallic, ``s`` specular level; roughness and coat apart). With ``k = 1 - t (1 - m)``
+    the factors ``b' = k b``, ``m' = m / k``, ``s' = s k / (1 - t)`` give ``c' = (1 - t) c`` and
+    ``f0' = f0`` exactly, so no shader change is needed. ``t`` is capped at ``1 - 1e-6`` (a millionth of
+    the diffuse light left, far below one 8-bit level), where ``k`` and ``1 - t`` are still positive and
+    the float32 uniforms keep the dielectric reflectance to within a few per cent. The ambient term, ``b``
+    times the ambient level, is scaled by ``k``; the paper's presets have no ambient light. Alpha is kept.
+    """
+    t = min(float(material.transmission), MAX_TRANSMISSION)
+    m, s = float(material.metallic), float(material.specular)
+    k = 1.0 - t * (1.0 - m)
+    base = material.base_color.astype(np.float64)  # floats: ints would be read as 0-255
+    base[:3] *= k
+    return base, m / k, s * k / (1.0 - t)
 
 
 def new_scene(camera: Camera, ambient: float, painting: pyrender.Mesh, material: Material,

@@ -130,7 +130,7 @@ class ShadowMaps:
     def map_keys(self, scene: pyrender.Scene, shadowed: set[pyrender.Node],
                      casters: set[pyrender.Node]) -> dict[pyrender.Node, tuple[int, tuple]]:
         """For each node of ``shadowed``, its pooled light's index and the key of the shadow map
-        this scene draws for it.
+        this scene draws for it, ``casters`` being the nodes drawn into the depth maps.
 
         A map is a function of the light's view and projection matrices (as the shadow pass
         computes them), its size, and each caster's mesh, pose and material (the depth pass is

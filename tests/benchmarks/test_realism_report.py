@@ -59,6 +59,10 @@ def test_paper_homographies_are_conjugated_to_pixel_centres():
     assert np.allclose((S @ points)[:2, :2], [[0, w - 1], [0, 0]])  # the image's edges are 0 and W - 1 there
 
 
+def exact_fraction(lit, unshadowed, painting):
+    return realism.shadow_fraction(realism.exact_light_ratio(lit, unshadowed, painting))
+
+
 def test_cast_shadow_fraction_counts_pixels_darkened_by_more_than_half():
     unshadowed = grey(200)
     lit = unshadowed.copy()
@@ -66,10 +70,19 @@ def test_cast_shadow_fraction_counts_pixels_darkened_by_more_than_half():
     lit[:, : w // 4] = encode(0.2 * realism.luminance(grey(200))[0, 0])  # to 20 % of the light: shadow
     lit[:, w // 4: w // 2] = encode(0.6 * realism.luminance(grey(200))[0, 0])  # to 60 %: not a shadow
     painting = np.ones(SIZE, bool)
-    assert realism.cast_shadow_fraction(lit, unshadowed, painting) == pytest.approx(0.25)
+    assert exact_fraction(lit, unshadowed, painting) == pytest.approx(0.25)
     painting[:, w // 8: w // 4] = False  # an occluder over half the shadow
-    assert realism.cast_shadow_fraction(lit, unshadowed, painting) == pytest.approx((w // 8) / (w - w // 8))
-    assert realism.cast_shadow_fraction(grey(0), grey(0), np.ones(SIZE, bool)) == 0  # black: nothing judged dark
+    assert exact_fraction(lit, unshadowed, painting) == pytest.approx((w // 8) / (w - w // 8))
+    assert exact_fraction(grey(0), grey(0), np.ones(SIZE, bool)) == 0  # black: nothing judged dark
+
+
+def test_shadow_darkness_is_the_median_light_ratio_of_darkened_pixels_only():
+    unshadowed = grey(200)
+    lit = unshadowed.copy()
+    lit[:, :40] = encode(0.3 * realism.luminance(grey(200))[0, 0])  # a shadow passing 30 % of the light
+    ratio = realism.exact_light_ratio(lit, unshadowed, np.ones(SIZE, bool))
+    assert realism.shadow_darkness(ratio) == pytest.approx(0.3, abs=0.01)  # the lit rest does not count
+    assert np.isnan(realism.shadow_darkness(realism.exact_light_ratio(unshadowed, unshadowed, np.ones(SIZE, bool))))
 
 
 def test_estimated_shadow_fraction_finds_a_shadow_under_uneven_light_on_a_texture():
@@ -82,9 +95,11 @@ def test_estimated_shadow_fraction_finds_a_shadow_under_uneven_light_on_a_textur
     view = encode(albedo * (light * np.where(shadow, 0.25, 1.0))[..., None])
     label = encode(albedo).astype(np.float64)
     painting = np.ones((h, w), bool)
-    assert realism.estimated_shadow_fraction(view, label, painting) == pytest.approx(shadow.mean(), abs=0.02)
+    ratio = realism.estimated_light_ratio(view, label, painting)
+    assert realism.shadow_fraction(ratio) == pytest.approx(shadow.mean(), abs=0.02)
+    assert realism.shadow_darkness(ratio) == pytest.approx(0.25, abs=0.05)  # the blur widens the edge a little
     no_shadow = encode(albedo * light[..., None])
-    assert realism.estimated_shadow_fraction(no_shadow, label, painting) < 0.005
+    assert realism.shadow_fraction(realism.estimated_light_ratio(no_shadow, label, painting)) < 0.005
 
 
 def test_occluder_coverage_and_components():
