@@ -99,7 +99,7 @@ def _export(args: argparse.Namespace) -> None:
 
             summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
                                      workers=args.workers, progress=not args.no_progress)
-    except (ValueError, OSError, RuntimeError, ImportError) as error:  # bad arguments, a refused folder, the lock, no Ray
+    except (ValueError, OSError, RuntimeError, ImportError) as error:  # bad arguments, refused folder, lock, no Ray
         raise UsageError(str(error)) from error
     print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
           f"({summary.present} of the {args.count} requested were already there); "

@@ -102,7 +102,8 @@ class ExportPlan:
 
     def shards(self) -> list[tuple[int, list[int]]]:
         """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence (shard layout)."""
-        return [(shard, list(new)) for shard, new in itertools.groupby(self.missing, key=lambda i: i // self.shard_size)]
+        groups = itertools.groupby(self.missing, key=lambda i: i // self.shard_size)
+        return [(shard, list(new)) for shard, new in groups]
 
 
 @contextmanager
