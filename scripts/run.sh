@@ -21,7 +21,7 @@ fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 # torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).
 .venv/bin/python -m pip install -q torch==2.13.0
-.venv/bin/python -m pip install -q -e ".[test]"
+.venv/bin/python -m pip install -q -e ".[test,ray]"
 
 task="${1:-}"; shift || true
 case "$task" in

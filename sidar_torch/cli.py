@@ -82,13 +82,24 @@ def _preview(args: argparse.Namespace) -> None:
 
 
 def _export(args: argparse.Namespace) -> None:
-    from .io import export_dataset
-
+    if args.ray_address is not None and not args.ray:
+        raise UsageError(f"--ray-address {args.ray_address!r}: add --ray to export on a Ray cluster")
+    if args.ray and args.workers:
+        raise UsageError(f"--workers {args.workers}: renders in DataLoader workers of this process; with --ray "
+                         f"Ray's workers render (drop --workers)")
     dataset = _dataset(args)
     try:
-        summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
-                                 workers=args.workers, progress=not args.no_progress)
-    except (ValueError, OSError, RuntimeError) as error:  # bad arguments, a refused folder, the lock
+        if args.ray:
+            from .cluster import ray_export
+
+            summary = ray_export(dataset, args.out, args.count, start=args.start, shards=args.shards,
+                                 address=args.ray_address, progress=not args.no_progress)
+        else:
+            from .io import export_dataset
+
+            summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
+                                     workers=args.workers, progress=not args.no_progress)
+    except (ValueError, OSError, RuntimeError, ImportError) as error:  # bad arguments, refused folder, lock, no Ray
         raise UsageError(str(error)) from error
     print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
           f"({summary.present} of the {args.count} requested were already there); "
@@ -142,6 +153,11 @@ def _parser() -> argparse.ArgumentParser:
                              "<i>.homographies.npy) instead of one folder per sequence")
     export.add_argument("--workers", type=int, default=0,
                         help="render in this many DataLoader worker processes (default 0: in this process)")
+    export.add_argument("--ray", action="store_true",
+                        help="render and write in Ray tasks (pip install \"sidar_torch[ray]\"): joins the cluster "
+                             "in RAY_ADDRESS, else starts a local one; OUT must be a folder every node sees")
+    export.add_argument("--ray-address", default=None, metavar="ADDRESS",
+                        help="with --ray: the Ray cluster to join, e.g. auto or ray://head:10001")
     export.add_argument("--no-progress", action="store_true", help="do not print the progress line on stderr")
     export.set_defaults(run=_export)
     schema = commands.add_parser("schema", help="print every config field with its default, allowed values "

@@ -14,7 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 DOCS = ROOT / "docs"
-SNIPPET_PAGES = (README, DOCS / "usage.md", DOCS / "distributed.md")
+SNIPPET_PAGES = (README, DOCS / "usage.md", DOCS / "distributed.md", DOCS / "ray.md")
 """Where the Python snippets are, in the order a reader meets them."""
 
 
@@ -30,8 +30,9 @@ def run(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
 
 def test_every_snippet_is_checked_here():
     blocks = python_blocks()
-    assert len(blocks) == 4
+    assert len(blocks) == 5
     assert "torchrun" in blocks[3] and "torchrun" not in "".join(blocks[:3])
+    assert "ray_dataset" in blocks[4] and "ray_dataset" not in "".join(blocks[:4])
 
 
 @pytest.mark.gl
@@ -52,6 +53,14 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
     env = {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port)}
     code = python_blocks()[3] + "\nassert list(ds.indices())[:3] == [0, 1, 2]\ntorch.distributed.destroy_process_group()\n"
     result = run(code, env)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+@pytest.mark.gl
+def test_ray_snippet_runs_on_a_local_cluster():
+    pytest.importorskip("ray")
+    code = python_blocks()[4] + "\nassert images.shape == (4, 6, 3, 192, 256)\nray.shutdown()\n"
+    result = run(code)
     assert result.returncode == 0, result.stderr[-2000:]
 
 

@@ -12,6 +12,7 @@ import os
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator, TextIO
 
@@ -68,11 +69,57 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         RuntimeError: another export holds the lock on ``out_dir``.
     """
     begin = time.perf_counter()
+    workers = as_int("workers", workers, 0)
+    with planned_export(dataset, out_dir, count, start, shards) as plan:
+        bar = Progress(len(plan.missing), sys.stderr if progress else None)
+        samples = _render(dataset, plan.missing, workers)
+        if plan.shard_size is None:
+            for arrays in samples:
+                folders.write_sequence(plan.out, arrays)
+                bar.advance()
+        else:
+            for shard, new in plan.shards():
+                tar_shards.write_shard(plan.out, shard, new, samples, bar.advance)
+        bar.close()
+    return ExportSummary(plan.out, tuple(plan.missing), len(plan.present), time.perf_counter() - begin)
+
+
+@dataclasses.dataclass(frozen=True)
+class ExportPlan:
+    """What an export into a prepared folder has to write (see :func:`planned_export`).
+
+    Attributes:
+        out: the export folder.
+        shard_size: ``None`` for the folder layout, else sequences per tar shard.
+        present: the requested indices an earlier run already wrote.
+        missing: the requested indices to render and write, ascending.
+    """
+
+    out: Path
+    shard_size: int | None
+    present: set[int]
+    missing: list[int]
+
+    def shards(self) -> list[tuple[int, list[int]]]:
+        """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence (shard layout)."""
+        groups = itertools.groupby(self.missing, key=lambda i: i // self.shard_size)
+        return [(shard, list(new)) for shard, new in groups]
+
+
+@contextmanager
+def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int,
+                   shards: int | None) -> Iterator[ExportPlan]:
+    """The part every export shares, local or distributed: check the arguments, create ``out_dir``,
+    hold its lock for the block, write (or check) the manifest, delete stale temporaries and find what
+    is missing. The block writes the :class:`ExportPlan`'s ``missing`` sequences with the layout's writer.
+
+    Raises:
+        the exceptions of :func:`export_dataset` (but for ``workers``).
+    """
     if not isinstance(dataset, SidarDataset):
         raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
     count, start = as_int("count", count, 1), as_int("start", start, 0)
     shard_size = None if shards is None else as_int("shards", shards, 1)
-    workers = as_int("workers", workers, 0)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")
@@ -82,18 +129,7 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         remove_stale(out)
         wanted = range(start, start + count)
         present = folders.present(out, wanted) if shard_size is None else tar_shards.present(out, wanted, shard_size)
-        missing = [i for i in wanted if i not in present]
-        bar = _Progress(len(missing), sys.stderr if progress else None)
-        samples = _render(dataset, missing, workers)
-        if shard_size is None:
-            for arrays in samples:
-                folders.write_sequence(out, arrays)
-                bar.advance()
-        else:
-            for shard, new in itertools.groupby(missing, key=lambda i: i // shard_size):
-                tar_shards.write_shard(out, shard, list(new), samples, bar.advance)
-        bar.close()
-    return ExportSummary(out, tuple(missing), len(present), time.perf_counter() - begin)
+        yield ExportPlan(out, shard_size, present, [i for i in wanted if i not in present])
 
 
 class _Renders(Dataset):
@@ -139,7 +175,7 @@ def _exit_with_parent(worker_id: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-class _Progress:
+class Progress:
     """``export: 12/100 sequences, 0.41 s each, 36 s left`` on ``stream``: redrawn in place on a
     terminal, else printed every 10 s and at the end; ``stream=None`` prints nothing."""
 

@@ -1,0 +1,282 @@
+"""Rendering on a Ray cluster: a lazy ``ray.data`` dataset of samples, and a distributed export.
+
+Ray is an optional dependency (``pip install "sidar_torch[ray]"``): importing this module needs no
+Ray; each function imports it when called and raises ``ImportError`` naming the extra if it is missing.
+
+* :func:`ray_dataset`: a ``ray.data.Dataset`` with one row per dataset index, rendered by a pool
+  of Ray actors (``map_batches``), to stream into training without writing files;
+  :func:`torch_batches` iterates it as batches of the tensors :class:`~sidar_torch.SidarDataset` hands out.
+* :func:`ray_export`: :func:`~sidar_torch.export_dataset` with Ray tasks rendering and writing:
+  the same files, the same resumption.
+
+Same bytes as one machine: a Ray worker renders index ``i`` with :meth:`SidarDataset.sample_arrays`
+(a pure function of ``(seed, i)``), so rows and files do not depend on the number of nodes,
+actors or retries, given the same rasteriser on every node (llvmpipe, the OSMesa/EGL CPU path,
+gives the bytes of this machine; a GPU driver gives other, equally valid pixels).
+
+Ray workers: every actor or task takes one CPU (``num_cpus=1``): llvmpipe rasterises in the calling
+thread (``LP_NUM_THREADS=0``, set by ``import sidar_torch``) and torch works on one thread there
+(Ray sets ``OMP_NUM_THREADS=1``). A worker process keeps its renderer (GL context, compiled
+shaders: about a second to make) for all the batches or tasks it runs. The GL platform is the
+worker's ``PYOPENGL_PLATFORM`` (default ``osmesa``); a local cluster inherits the driver's
+environment, a remote one takes it from ``ray.init(runtime_env={"env_vars": {"PYOPENGL_PLATFORM":
+"egl"}})`` (GPU nodes) or the nodes' own environment. Every node needs ``sidar_torch`` and the GL
+libraries installed, and an image-folder source must be readable at the same path on every node.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from types import ModuleType
+from typing import Any, Iterator
+
+import numpy as np
+import torch
+
+from .config import as_int
+from .dataset import SidarDataset
+from .io import folders
+from .io import shards as tar_shards
+from .io.export import ExportPlan, ExportSummary, Progress, planned_export
+from .io.layout import TMP_PREFIX, sequence_name
+from .sample import KEYS, SampleArrays, stack_samples
+
+__all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
+
+INSTALL_HINT = 'Ray is not installed: pip install "sidar_torch[ray]"'
+
+MAX_FOLDERS_PER_TASK = 16
+"""Folder layout: most sequences one export task renders (fewer when there are few per CPU, so that
+the last tasks do not leave CPUs idle); a task costs Ray a few milliseconds, a sequence 0.1-1 s."""
+
+MAX_INDEX_BLOCKS = 10_000
+""":func:`ray_dataset`: most blocks the indices are cut into (each an object the driver puts in Ray's store)."""
+
+
+def _ray() -> ModuleType:
+    """The ``ray`` module with ``ray.data`` loaded, or ``ImportError`` with the install hint."""
+    try:
+        import ray
+        import ray.data
+    except ImportError as error:
+        raise ImportError(INSTALL_HINT) from error
+    return ray
+
+
+def _connect(ray: ModuleType, address: str | None) -> bool:
+    """Join the cluster at ``address`` (``None``: ``RAY_ADDRESS`` if set, else a new local cluster of
+    this machine's CPUs) unless this process already called ``ray.init``; True if this call started Ray."""
+    if ray.is_initialized():
+        if address is not None:
+            raise ValueError(f"address: Ray is already initialised in this process, so {address!r} cannot be "
+                             f"joined; pass address=None to use the running cluster")
+        return False
+    ray.init(address=address)
+    return True
+
+
+def _check_address(address: Any) -> str | None:
+    if address is not None and (not isinstance(address, str) or not address):
+        raise TypeError(f"address: expected a Ray address such as 'auto' or 'ray://head:10001', or None, "
+                        f"got {address!r}")
+    return address
+
+
+# --------------------------------------------------------------------------- streaming
+
+
+def _columns(samples: list[SampleArrays]) -> dict[str, np.ndarray]:
+    """Samples -> a batch of columns: every :data:`~sidar_torch.sample.KEYS` field the samples hold,
+    stacked (``images`` ``(B, V, H, W, 3)`` uint8, ..., ``homography_error`` ``(B,)`` float64,
+    ``index`` ``(B,)`` int64)."""
+    return {key.name: np.stack([getattr(s, key.name) for s in samples]) for key in KEYS
+            if getattr(samples[0], key.name) is not None}
+
+
+class _Renderer:
+    """``map_batches`` class: one instance per Ray actor, for the actor's life; the renderer it uses
+    is the actor process's shared one, made at its first sample and reused."""
+
+    def __init__(self, dataset: SidarDataset):
+        self.dataset = dataset
+
+    def __call__(self, batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        return _columns([self.dataset.sample_arrays(int(index)) for index in batch["data"]])
+
+
+def _index_blocks(ray: ModuleType, start: int, count: int, batch_size: int) -> Any:
+    """A ``ray.data.Dataset`` of the indices (column ``data``, int64) in blocks of about ``batch_size``
+    (at most :data:`MAX_INDEX_BLOCKS` blocks). Made here and put in the object store, not read by a
+    Ray task: a read task needs a CPU, which a pool of one actor per CPU never frees (Ray Data then
+    waits for ever)."""
+    blocks = min(math.ceil(count / batch_size), MAX_INDEX_BLOCKS)
+    return ray.data.from_numpy(np.array_split(np.arange(start, start + count, dtype=np.int64), blocks))
+
+
+def ray_dataset(dataset: SidarDataset, count: int, start: int = 0, actors: int = 2, batch_size: int = 1,
+                address: str | None = None) -> Any:
+    """Samples ``start .. start + count - 1`` of ``dataset`` as a lazy ``ray.data.Dataset``, rendered
+    by a pool of ``actors`` Ray actors of one CPU each when it is consumed.
+
+    One row per index, with the :class:`~sidar_torch.sample.SampleArrays` fields as columns
+    (``V`` views of ``H x W``): ``images`` ``(V, H, W, 3)`` uint8, ``masks`` ``(V, H, W)`` uint8 (255 where
+    the painting is not visible), ``opacities`` ``(V, H, W)`` uint8 (only with ``opacity_output``),
+    ``label`` ``(H, W, 3)`` uint8, ``homographies`` ``(V, V, 3, 3)`` float64, ``homography_error``
+    float64 (pixels), ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float64 (OpenCV camera frame),
+    ``index`` int64. 8-bit pixels cross the cluster at a quarter of the size of float32 views. Row
+    ``i`` is byte for byte ``dataset.sample_arrays(i)`` (``SampleArrays(**row)`` rebuilds it);
+    :func:`torch_batches` iterates batches of the tensors of ``dataset.sample``. Rows arrive in any
+    order (Ray Data does not keep it unless ``DataContext.get_current().execution_options.preserve_order``
+    is set): use ``index``.
+
+    Args:
+        dataset: the :class:`SidarDataset` to render (pickled to every actor).
+        count: number of samples, ``>= 1``.
+        start: first dataset index, ``>= 0``.
+        actors: size of the actor pool, ``>= 1``; each actor makes its renderer once.
+        batch_size: samples per ``map_batches`` call, ``>= 1``.
+        address: the cluster to join if this process has not called ``ray.init``: ``None`` joins
+            ``RAY_ADDRESS`` if set, else starts a local cluster; ``"auto"``, ``"HOST:PORT"`` or
+            ``"ray://HOST:10001"`` name one.
+
+    Raises:
+        ImportError: Ray is not installed (the message says how to install it).
+        TypeError: ``dataset`` is not a :class:`SidarDataset`, or a bad ``address``.
+        ValueError: a bad ``count``, ``start``, ``actors`` or ``batch_size``; ``address`` given
+            while Ray is already initialised.
+    """
+    ray = _ray()
+    if not isinstance(dataset, SidarDataset):
+        raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
+    count, start = as_int("count", count, 1), as_int("start", start, 0)
+    actors, batch_size = as_int("actors", actors, 1), as_int("batch_size", batch_size, 1)
+    _connect(ray, _check_address(address))
+    return _index_blocks(ray, start, count, batch_size).map_batches(
+        _Renderer, fn_constructor_args=(dataset,), batch_size=batch_size, num_cpus=1,
+        compute=ray.data.ActorPoolStrategy(size=actors), batch_format="numpy")
+
+
+def torch_batch(batch: dict[str, np.ndarray], geometry_dtype: str = "float32") -> dict[str, torch.Tensor]:
+    """A batch of :func:`ray_dataset` rows (a dict of NumPy columns) -> the batch of their samples as
+    :class:`SidarDataset` makes them: :meth:`SampleArrays.to_tensors` of each row, stacked by
+    :func:`~sidar_torch.sample.stack_samples` (``images`` ``(B, V, 3, H, W)`` float32 in [0, 1], ...,
+    homographies and cameras in ``geometry_dtype``, ``homography_error`` ``(B,)`` float32,
+    ``index`` ``(B,)`` int64)."""
+    # Copies: Ray hands out read-only arrays, which torch.from_numpy would wrap as they are.
+    rows = [SampleArrays(**{name: np.array(column[b]) for name, column in batch.items()})
+            for b in range(len(batch["index"]))]
+    return stack_samples([row.to_tensors(geometry_dtype) for row in rows])
+
+
+def torch_batches(rows: Any, batch_size: int, geometry_dtype: str = "float32",
+                  **iter_batches_options: Any) -> Iterator[dict[str, torch.Tensor]]:
+    """Iterate a :func:`ray_dataset` (or a Ray Train dataset shard of one) as batches of tensors:
+    ``rows.iter_batches(batch_size=batch_size, batch_format="numpy", **iter_batches_options)``
+    through :func:`torch_batch`. Pass ``dataset.config.geometry_dtype`` for a float64 config.
+    (Ray's ``iter_torch_batches`` would convert the 8-bit columns as they are, not as
+    :class:`SidarDataset` does.)"""
+    batch_size = as_int("batch_size", batch_size, 1)
+    for batch in rows.iter_batches(batch_size=batch_size, batch_format="numpy", **iter_batches_options):
+        yield torch_batch(batch, geometry_dtype)
+
+
+# --------------------------------------------------------------------------- export
+
+
+def _write(dataset: SidarDataset, out: Path, shard_size: int | None, indices: list[int]) -> list[int]:
+    """Ray task: render ``indices`` and write them into ``out`` with the layout's writer; returns ``indices``.
+
+    Safe to run again after an attempt died part-way (Ray retries a task whose worker died): a
+    sequence folder already there is kept, the attempt's stale ``.tmp-<name>`` is removed (the
+    driver holds the export's lock, so no one else writes it), and a shard is rewritten from what
+    it holds plus what it lacks, as a local rerun does."""
+    if shard_size is None:
+        for index in indices:
+            name = sequence_name(index)
+            if (out / name).is_dir():
+                continue
+            shutil.rmtree(out / (TMP_PREFIX + name), ignore_errors=True)
+            folders.write_sequence(out, dataset.sample_arrays(index))
+    else:
+        shard = indices[0] // shard_size
+        held = tar_shards.shard_contents(tar_shards.shard_path(out, shard))
+        new = [i for i in indices if i not in held]
+        if new:
+            tar_shards.write_shard(out, shard, new, (dataset.sample_arrays(i) for i in new), lambda: None)
+    return indices
+
+
+def _folder_tasks(missing: list[int], cpus: int) -> list[list[int]]:
+    """``missing`` cut into runs of consecutive items, at least 4 per CPU when there are enough items
+    and at most :data:`MAX_FOLDERS_PER_TASK` items each."""
+    size = max(1, min(MAX_FOLDERS_PER_TASK, math.ceil(len(missing) / (4 * max(cpus, 1)))))
+    return [missing[k:k + size] for k in range(0, len(missing), size)]
+
+
+def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
+               shards: int | None = None, address: str | None = None, progress: bool = True) -> ExportSummary:
+    """:func:`~sidar_torch.export_dataset` on a Ray cluster: the same files, byte for byte.
+
+    This process checks the arguments, holds the export's lock, writes the manifest and finds what
+    is missing, exactly as :func:`export_dataset` does; then Ray tasks of one CPU render and write
+    straight into ``out_dir``: one task per tar shard (``shards=N``), or per run of up to
+    :data:`MAX_FOLDERS_PER_TASK` sequence folders. So ``out_dir`` must be the same shared folder
+    on every node (a local cluster: any folder). Resumption is the local export's: each folder or
+    shard appears complete or not at all, a rerun renders only what is missing; a task whose
+    worker dies is retried by Ray (up to 3 times) without writing anything twice. If this process
+    dies, Ray ends its tasks; rerun the same call. Nothing is rendered, and Ray is not started,
+    when every sequence is already there.
+
+    Args:
+        dataset, out_dir, count, start, shards, progress: as for :func:`export_dataset` (the
+            progress line counts finished tasks' sequences).
+        address: the cluster to join if this process has not called ``ray.init`` (see
+            :func:`ray_dataset`); a cluster this call starts is shut down at its end.
+
+    Returns:
+        An :class:`~sidar_torch.io.ExportSummary`.
+
+    Raises:
+        ImportError: Ray is not installed (the message says how to install it).
+        TypeError, ValueError, RuntimeError: as :func:`export_dataset`; a bad ``address``.
+    """
+    ray = _ray()
+    address = _check_address(address)
+    begin = time.perf_counter()
+    with planned_export(dataset, out_dir, count, start, shards) as plan:
+        if plan.missing:
+            started = _connect(ray, address)
+            try:
+                _run_tasks(ray, dataset, plan, progress)
+            finally:
+                if started:
+                    ray.shutdown()
+    return ExportSummary(plan.out, tuple(plan.missing), len(plan.present), time.perf_counter() - begin)
+
+
+def _run_tasks(ray: ModuleType, dataset: SidarDataset, plan: ExportPlan, progress: bool) -> None:
+    """Submit the tasks writing ``plan.missing`` and wait for all, advancing the progress line; if one
+    fails (or this process is interrupted), the others are cancelled before the lock is released."""
+    if plan.shard_size is None:
+        jobs = _folder_tasks(plan.missing, int(ray.cluster_resources().get("CPU", 1)))
+    else:
+        jobs = [new for _, new in plan.shards()]
+    task = ray.remote(_write).options(num_cpus=1, max_retries=3)
+    dataset_ref, out = ray.put(dataset), plan.out.absolute()
+    pending = [task.remote(dataset_ref, out, plan.shard_size, job) for job in jobs]
+    bar = Progress(len(plan.missing), sys.stderr if progress else None)
+    try:
+        while pending:
+            done, pending = ray.wait(pending, num_returns=1)
+            for _ in ray.get(done[0]):
+                bar.advance()
+    except BaseException:
+        for ref in pending:
+            ray.cancel(ref, force=True)
+        raise
+    bar.close()
