@@ -35,21 +35,23 @@ def test_report_structure_and_outputs(report, tmp_path):
     rows = report["rows"]
     knobs = [(r["shadow_map_size"], r["shadow_frustum"], r["mesh_detail"], r["texture_filter"], r["shadow_filter"])
              for r in rows]
+    assert [r["antialias"] for r in rows] == [1] * 9 + [4, 1]
     assert knobs == [
         (32, "cone", "fixed", "trilinear", "tent"), (128, "cone", "fixed", "trilinear", "tent"),
         (512, "cone", "fixed", "trilinear", "tent"), (32, "fitted", "fixed", "trilinear", "tent"),
         (128, "fitted", "fixed", "trilinear", "tent"), (512, "fitted", "fixed", "trilinear", "tent"),
         (128, "fitted", "<= 1 px", "trilinear", "tent"), (128, "fitted", "fixed", "bilinear", "tent"),
-        (128, "fitted", "fixed", "trilinear", "bilinear"), (2048, "fitted", "finest", "trilinear", "tent")]
+        (128, "fitted", "fixed", "trilinear", "bilinear"), (128, "fitted", "fixed", "trilinear", "tent"),
+        (2048, "fitted", "finest", "trilinear", "tent")]
     assert all(r["size"] == "96x128" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
-    assert [r["reference"] for r in rows] == [False] * 9 + [True]
+    assert [r["reference"] for r in rows] == [False] * 10 + [True]
     assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
     assert any(r["pareto"] for r in rows[:-1])
     assert [r["supersampling"] for r in report["residuals"]] == [1]
     assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
     assert report["labels"][0]["min_psnr_db"] >= 45
     paths = sweep.write_outputs(report, tmp_path / "out")
-    assert "| 96x128 | 512 | fitted | tent | 1x | fixed | trilinear |" in paths["md"].read_text()
+    assert "| 96x128 | 512 | fitted | tent | 1x | fixed | trilinear | 1x |" in paths["md"].read_text()
     assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
     with Image.open(paths["png"]) as image:
         assert image.size == (900, 600)
@@ -129,6 +131,24 @@ def test_shadow_filter_is_swept_at_the_base_setting(report):
     rows = [r for r in report["rows"] if r["shadow_filter"] == "bilinear"]
     assert len(rows) == 1 and rows[0]["shadow_map_size"] == TINY.base_shadow_map_size
     assert math.isfinite(rows[0]["image_psnr_db"])
+
+
+def test_antialiasing_comes_closer_to_a_supersampled_reference():
+    """Against a 2 x 2 supersampled reference the multisampled colour pass must gain: its edges are
+    blended as the reference's average blends them (the occluders are visible here)."""
+    settings = replace(TINY, only="antialias", reference=(512, 2), preset="misaligned", scenes=2)
+    base, msaa, reference = sweep.run_sweep(settings, log=lambda line: None)["rows"]
+    assert (base["antialias"], msaa["antialias"], reference["reference"]) == (1, 4, True)
+    assert msaa["image_psnr_db"] > base["image_psnr_db"] + 1.0, (base, msaa)
+
+
+def test_only_one_knob_measures_the_base_its_variations_and_the_reference():
+    settings = replace(TINY, only="antialias").settings()
+    assert [(s.shadow_map_size, s.antialias) for s in settings] == [(128, 1), (128, 4), (2048, 1)]
+    with pytest.raises(ValueError, match="only"):
+        replace(TINY, only="exposure")
+    with pytest.raises(ValueError, match="antialias"):
+        replace(TINY, antialias=(3,))
 
 
 def test_bad_settings_name_the_field():
