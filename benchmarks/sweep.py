@@ -8,8 +8,10 @@ the error it leaves:
   supersampling ``s`` (views drawn at ``s`` times the resolution, then area-averaged ``s x s``
   in linear light, see :func:`render_views`); then, one at a time from a base setting (fitted
   frusta, no supersampling), occluder mesh detail (``mesh_detail`` "auto" at each
-  ``mesh_error_px``) and the painting's texture filter (``texture_filter``). Every other setting
-  uses fixed meshes and trilinear filtering;
+  ``mesh_error_px``), the painting's texture filter (``texture_filter``), the shadow filter
+  (``shadow_filter``) and multisample antialiasing of the colour pass (``antialias`` samples per
+  pixel). Every other setting uses fixed meshes, trilinear filtering and one sample per pixel
+  (``--only KNOB``: the base setting, that knob's variations and the reference, nothing else);
 * **time per view**: median over the same ``scenes`` sequences of the default preset, in this
   process (one untimed warm-up sequence per setting first), of the renderer's whole call
   (views, masks and label; for ``s > 1`` the larger draw and the downsampling) divided by the
@@ -20,7 +22,8 @@ the error it leaves:
   nearly the same work differed up to 3x);
 * **image PSNR** (dB) of the views against a high-quality reference render of the same scenes at
   the same output size: largest shadow maps with fitted frusta, supersampled, the finest occluder
-  meshes, trilinear filtering (:attr:`SweepSettings.reference`).
+  meshes, trilinear filtering, one sample per pixel of the large draw
+  (:attr:`SweepSettings.reference`).
   One PSNR per setting, from the mean squared error over every pixel of every view of every
   scene (occluders and background included);
 * **warp residual** (median / max Lucas-Kanade displacement, pixels; see
@@ -60,7 +63,7 @@ import torch
 import torch.nn.functional as F
 
 from sidar_torch.artifacts import linear_to_srgb, srgb_to_linear
-from sidar_torch.config import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
+from sidar_torch.config import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from sidar_torch.dataset import SidarDataset
 from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals
 from sidar_torch.render import RenderSettings, SceneRenderer
@@ -68,10 +71,13 @@ from sidar_torch.sample import sequence_homographies
 from sidar_torch.scene import SceneSequence
 
 from .accuracy_report import label_row
-from .common import DEFAULT_PRESET, one_thread, parse_set, size_label
+from .common import DEFAULT_PRESET, one_thread, parse_set, parse_size, size_label
 
 __all__ = ["Setting", "SweepSettings", "format_report", "main", "pareto_front", "plot_front", "render_views",
            "run_sweep", "supersampled_sequence", "write_outputs"]
+
+KNOBS = ("mesh_detail", "texture_filter", "shadow_filter", "antialias")
+"""The knobs varied one at a time from the base setting (``SweepSettings.only`` picks one)."""
 
 _WARMUP_INDEX = 1_000_000
 """Index of each setting's untimed warm-up sequence, apart from the measured ``0 .. scenes - 1``."""
@@ -89,6 +95,7 @@ class Setting:
             ``mesh_error_px`` (0: the finest level).
         texture_filter: ``"trilinear"`` or ``"bilinear"`` (``SidarConfig.texture_filter``).
         shadow_filter: ``"tent"`` or ``"bilinear"`` (``SidarConfig.shadow_filter``).
+        antialias: samples per pixel of the colour pass (``SidarConfig.antialias``; 1: none).
     """
 
     shadow_map_size: int
@@ -97,6 +104,7 @@ class Setting:
     mesh_error_px: float | None = None
     texture_filter: str = "trilinear"
     shadow_filter: str = "tent"
+    antialias: int = 1
 
     @property
     def mesh_detail(self) -> str:
@@ -110,7 +118,8 @@ class Setting:
         parts = [f"{self.shadow_map_size}/{self.supersampling}x", "fit" if self.shadow_frustum == "fitted" else ""]
         parts += ["" if self.mesh_error_px is None else f"mesh {self.mesh_detail}",
                   "" if self.texture_filter == "trilinear" else self.texture_filter,
-                  "" if self.shadow_filter == "tent" else f"{self.shadow_filter} shadows"]
+                  "" if self.shadow_filter == "tent" else f"{self.shadow_filter} shadows",
+                  "" if self.antialias == 1 else f"msaa {self.antialias}"]
         return " ".join(p for p in parts if p)
 
 
@@ -127,6 +136,9 @@ class SweepSettings:
         texture_filters: filters tried at the base setting (``"trilinear"`` is every setting's).
         shadow_filters: shadow filters crossed with the sizes, factors and frusta (the one-at-a-time
             variations keep ``"tent"``).
+        antialias: samples per pixel tried at the base setting (1 is every setting's).
+        only: ``None``: every setting; one of :data:`KNOBS`: only the base setting, that knob's
+            variations and the reference.
         base_shadow_map_size: shadow map of the base setting (fitted frusta, no supersampling)
             from which mesh detail and texture filtering vary.
         reference: ``(shadow_map_size, supersampling)`` of the reference render (fitted frusta,
@@ -148,6 +160,7 @@ class SweepSettings:
     mesh_errors: tuple[float, ...] = (0.25, 1.0, 4.0)
     texture_filters: tuple[str, ...] = ("trilinear", "bilinear")
     shadow_filters: tuple[str, ...] = ("tent", "bilinear")
+    antialias: tuple[int, ...] = (1, 4)
     base_shadow_map_size: int = 1024
     reference: tuple[int, int] = (4096, 2)
     scenes: int = 6
@@ -157,6 +170,7 @@ class SweepSettings:
     n_views: int | None = None
     seed: int = 0
     overrides: dict[str, Any] = field(default_factory=dict)
+    only: str | None = None
 
     def __post_init__(self) -> None:
         if "image_size" in self.overrides:
@@ -175,6 +189,10 @@ class SweepSettings:
             raise ValueError(f"shadow_filters: expected a subset of {SHADOW_FILTERS}, got {self.shadow_filters}")
         if not set(self.texture_filters) <= set(TEXTURE_FILTERS):
             raise ValueError(f"texture_filters: expected a subset of {TEXTURE_FILTERS}, got {self.texture_filters}")
+        if not set(self.antialias) <= set(ANTIALIAS_SAMPLES):
+            raise ValueError(f"antialias: expected a subset of {ANTIALIAS_SAMPLES}, got {self.antialias}")
+        if self.only is not None and self.only not in KNOBS:
+            raise ValueError(f"only: expected None or one of {KNOBS}, got {self.only!r}")
         if any(not e >= 0 for e in self.mesh_errors):
             raise ValueError(f"mesh_errors: expected pixels >= 0, got {self.mesh_errors}")
         if any(s < 1 for s in (*self.supersampling, self.reference[1])):
@@ -195,12 +213,21 @@ class SweepSettings:
         return Setting(*self.reference, "fitted", 0.0)
 
     def settings(self) -> list[Setting]:
-        """Every setting measured at each size: the grid, the one-at-a-time variations, the reference."""
-        grid = [Setting(m, s, f, shadow_filter=sf) for sf in self.shadow_filters for f in self.shadow_frusta
-                for s in self.supersampling for m in self.shadow_map_sizes]
+        """Every setting measured at each size: the grid, the one-at-a-time variations, the reference
+        (with :attr:`only`: the base setting, that knob's variations, the reference)."""
         base = Setting(self.base_shadow_map_size, 1, "fitted")
-        grid += [replace(base, mesh_error_px=e) for e in self.mesh_errors]
-        grid += [replace(base, texture_filter=f) for f in self.texture_filters if f != "trilinear"]
+        variations = {
+            "mesh_detail": [replace(base, mesh_error_px=e) for e in self.mesh_errors],
+            "texture_filter": [replace(base, texture_filter=f) for f in self.texture_filters if f != "trilinear"],
+            "shadow_filter": [replace(base, shadow_filter=f) for f in self.shadow_filters if f != "tent"],
+            "antialias": [replace(base, antialias=a) for a in self.antialias if a != 1],
+        }
+        if self.only is None:
+            grid = [Setting(m, s, f, shadow_filter=sf) for sf in self.shadow_filters for f in self.shadow_frusta
+                    for s in self.supersampling for m in self.shadow_map_sizes]
+            grid += [s for knob in KNOBS for s in variations[knob]]
+        else:
+            grid = [base, *variations[self.only]]
         grid = list(dict.fromkeys(grid))
         return grid + [self.reference_setting] * (self.reference_setting not in grid)
 
@@ -255,7 +282,7 @@ def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tu
     renderer = SceneRenderer(replace(RenderSettings.from_config(dataset.config), image_size=(factor * h, factor * w),
                                      shadow_map_size=setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
                                      mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
-                                     shadow_filter=setting.shadow_filter))
+                                     shadow_filter=setting.shadow_filter, antialias=setting.antialias))
     try:
         seconds, views = [], []
         for index in [_WARMUP_INDEX, *range(scenes)]:
@@ -325,6 +352,7 @@ def run_sweep(settings: SweepSettings, log: Callable[[str], None] = print) -> di
                     "size": label, "shadow_map_size": setting.shadow_map_size, "supersampling": setting.supersampling,
                     "shadow_frustum": setting.shadow_frustum, "mesh_detail": setting.mesh_detail,
                     "texture_filter": setting.texture_filter, "shadow_filter": setting.shadow_filter,
+                    "antialias": setting.antialias,
                     "label": setting.label(), "reference": setting == ref,
                     "ms_per_view": 1e3 * statistics.median(seconds) / dataset.config.n_views,
                     "image_psnr_db": psnr(torch.stack([v for vs in views for v in vs]), reference)})
@@ -353,13 +381,13 @@ def format_report(report: dict[str, Any]) -> str:
     lines = [f"Speed against error: '{s['preset']}' preset, {s['scenes']} scenes of {report['views_per_scene']} "
              f"views per setting; image PSNR against the reference render ({ref}) at the same size. "
              "* = Pareto-optimal at its size.", "",
-             "| size (H x W) | shadow map | frustum | shadow filter | supersampling | meshes | texture | ms per view "
-             "| image PSNR (dB) | Pareto |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| size (H x W) | shadow map | frustum | shadow filter | supersampling | meshes | texture | MSAA "
+             "| ms per view | image PSNR (dB) | Pareto |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in report["rows"]:
         lines.append(f"| {r['size']} | {r['shadow_map_size']} | {r['shadow_frustum']} | {r['shadow_filter']} "
                      f"| {r['supersampling']}x "
-                     f"| {r['mesh_detail']} | {r['texture_filter']} | {r['ms_per_view']:.1f} "
+                     f"| {r['mesh_detail']} | {r['texture_filter']} | {r['antialias']}x | {r['ms_per_view']:.1f} "
                      f"| {_db(r['image_psnr_db'])} | {'*' if r['pareto'] else ''} |")
     lines += ["", "Warp residual (ambient speckle scenes, 4 views; shadow maps play no part):", "",
               "| size (H x W) | supersampling | patches | median px | max px |", "|---|---|---|---|---|"]
@@ -457,8 +485,9 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
         prog="python -m benchmarks.sweep",
         description="For output sizes 192x256 and 384x512 (H x W), shadow maps of 256 to 4096 texels, cone and fitted "
-                    "shadow frusta and 1x / 2x supersampling, and from a base setting mesh detail, texture filter and "
-                    "shadow filter: time per view (median CPU time over the same scenes of the preset, this process) "
+                    "shadow frusta and 1x / 2x supersampling, and from a base setting mesh detail, texture filter, "
+                    "shadow filter and multisample antialiasing: time per view (median CPU time over the same scenes "
+                    "of the preset, this process) "
                     "against image PSNR versus a reference render (4096 shadow maps, fitted frusta, 2x supersampling, "
                     "finest meshes); warp residual and label PSNR per size. Prints the table and writes sweep.md, "
                     "sweep.json and sweep.png (Pareto front) into --out-dir. About ten minutes on 2 cores.")
@@ -476,13 +505,19 @@ def main(argv: list[str] | None = None) -> None:
                         help="shadow map and supersampling of the reference (default 4096x2); 4096x1 measures the "
                              "shadow knobs alone, without the aliasing that dominates the error against a "
                              "supersampled reference")
+    parser.add_argument("--only", choices=KNOBS, default=None,
+                        help="measure only the base setting, this knob's variations and the reference")
+    parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
+                        help="output sizes (default 192x256 384x512; quick 192x256)")
     parser.add_argument("--out-dir", default="out", help="output folder (default out)")
     args = parser.parse_args(argv)
     try:
         changes = {"preset": args.config, "overrides": parse_set(args.set),
                    **({"scenes": args.scenes} if args.scenes is not None else {}),
                    **({"supersampling": tuple(args.supersampling)} if args.supersampling else {}),
-                   **({"reference": _map_and_factor(args.reference)} if args.reference else {})}
+                   **({"reference": _map_and_factor(args.reference)} if args.reference else {}),
+                   **({"only": args.only} if args.only else {}),
+                   **({"sizes": tuple(args.sizes)} if args.sizes else {})}
         settings = (SweepSettings.quick if args.quick else SweepSettings)(**changes)
     except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"sweep: {error}") from error

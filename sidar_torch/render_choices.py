@@ -7,7 +7,7 @@ names live here, under both: this module imports nothing, loads no GL, and ``con
 them for users.
 """
 
-__all__ = ["MAX_SHADOWED_LIGHTS", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS"]
+__all__ = ["ANTIALIAS_SAMPLES", "MAX_SHADOWED_LIGHTS", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS"]
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
@@ -20,3 +20,7 @@ SHADOW_FRUSTA = ("cone", "fitted")
 
 TEXTURE_FILTERS = ("trilinear", "bilinear")
 """How the painting's texture is filtered (``SidarConfig.texture_filter``)."""
+
+ANTIALIAS_SAMPLES = (1, 2, 4, 8)
+"""Samples per pixel of a view's colour pass (``SidarConfig.antialias``); the GL context must offer
+the count (llvmpipe offers only 4 besides 1), which the renderer checks when it is created."""

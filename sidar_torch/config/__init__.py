@@ -10,14 +10,14 @@
 * ``schema``: the table of fields ``python -m sidar_torch schema`` prints.
 """
 
-from .allowed import (BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_GL_SIZE, MAX_SHADOWED_LIGHTS, MESH_DETAILS, OCCLUDER_MATERIALS,
+from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_GL_SIZE, MAX_SHADOWED_LIGHTS, MESH_DETAILS, OCCLUDER_MATERIALS,
                       OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .fields import SidarConfig, field_meaning
 from .loader import PRESET_DIR, available_presets, load_config
 from .numbers import as_float, as_int
 
 __all__ = [
-    "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
+    "ANTIALIAS_SAMPLES", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
     "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "PRESET_DIR", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
     "SidarConfig", "as_float", "as_int", "available_presets", "field_meaning", "load_config",
 ]

@@ -209,6 +209,11 @@ class SidarConfig:
         "stay within ``mesh_error_px`` of the true surface."))
     mesh_error_px: float = _field(0.25, meaning=(
         'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level).'))
+    antialias: int = _field(1, meaning=(
+        "samples per pixel of each view's lit colour pass: 1 (none, the default: jagged silhouettes) or 2, 4, 8 "
+        "(multisample antialiasing, resolved to one colour per pixel; the OpenGL context must offer the count, "
+        "Mesa's llvmpipe offers only 4). Masks stay binary (drawn single-sampled, by the paper's rule); "
+        "opacities and the label are drawn single-sampled too. Cost and gain: docs/rendering.md, \"Edges\"."))
     texture_filter: str = _field("trilinear", choices=TEXTURE_FILTERS, meaning=(
         'the painting texture\'s filter, ``"trilinear"`` (mipmapped) or ``"bilinear"`` (full-size texture only; '
         "aliases where a view shrinks the painting)."))

@@ -11,7 +11,7 @@ import difflib
 import math
 from typing import Any, Mapping
 
-from .allowed import MAX_GL_SIZE, MAX_SHADOWED_LIGHTS
+from .allowed import ANTIALIAS_SAMPLES, MAX_GL_SIZE, MAX_SHADOWED_LIGHTS
 from .numbers import as_float, as_int
 
 __all__ = ["check_names", "coerce", "validate"]
@@ -92,6 +92,7 @@ def validate(config: Any) -> None:
     need(size <= MAX_GL_SIZE, "shadow_map_size",
          f"a power of two <= {MAX_GL_SIZE} (the largest texture side of Mesa's llvmpipe)")
     need(c.mesh_error_px >= 0, "mesh_error_px", ">= 0 (pixels)")
+    need(c.antialias in ANTIALIAS_SAMPLES, "antialias", f"one of {ANTIALIAS_SAMPLES} (samples per pixel)")
     for f in dataclasses.fields(c):
         value = getattr(c, f.name)
         if "choices" in f.metadata and isinstance(value, tuple):

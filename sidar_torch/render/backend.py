@@ -225,7 +225,7 @@ class GLRenderer(pyrender.Renderer):
     * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
       to the 4 nearest);
     * shadow maps may be any power-of-two size, drawn with the fitted frusta of :attr:`shadow_frusta`;
-    * forward passes draw upside down into its own single-sampled :class:`Framebuffer` (EGL
+    * forward passes draw upside down into its own :class:`Framebuffer` (single-sampled unless a pass asks for its multisampled buffers) (EGL
       contexts have no default framebuffer; ``framebuffer`` explains the orientation);
     * transparent casters tint and lighten their shadows through transmittance maps instead of
       darkening the depth maps (``render.transmittance``);
@@ -234,10 +234,10 @@ class GLRenderer(pyrender.Renderer):
       their context, which :class:`~.renderer.SceneRenderer` destroys.
     """
 
-    def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int):
+    def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
-        self._target = Framebuffer(width, height)
+        self._target = Framebuffer(width, height, samples)
         self.shadow_map_size = shadow_map_size
         self.shadow_maps = ShadowMapArray(shadow_map_size)
         """The :class:`ShadowedSpotLight` s' shadow maps, one layer each."""

@@ -1,4 +1,4 @@
-"""The renderer's own single-sampled offscreen framebuffer: where every forward pass draws.
+"""The renderer's own offscreen framebuffer: where every forward pass draws.
 
 Why not the context's default framebuffer (framebuffer 0): a surfaceless or device EGL
 context has none (drawing to it is ``GL_INVALID_FRAMEBUFFER_OPERATION``). Why not pyrender's
@@ -13,16 +13,25 @@ drawn upright, about 1-3 % of lit pixels come out 1-6 levels different from what
 buffer gave. Drawn upside down, every view, mask and label is byte-identical to rendering into
 OSMesa's buffer, and rows need no reversal on readback.
 
+With ``samples > 1`` (config ``antialias``) it also holds a multisampled colour and depth pair of
+the same size. A pass drawn inside :meth:`Framebuffer.multisampled` (the lit colour pass) draws
+into that pair, and :meth:`Framebuffer.end_drawing` resolves it into the single-sampled colour
+buffer (``glBlitFramebuffer``, the average of each pixel's samples) before reading back. Every other
+pass (masks, opacity, label) draws single-sampled, exactly as without antialiasing.
+
 Like every other GL object of a renderer, it is freed with its context (framebuffers and
 renderbuffers belong to that context alone); it issues no GL call when collected.
 """
 
 from __future__ import annotations
 
+import contextlib
+from typing import Iterator
+
 import numpy as np
 from OpenGL import GL
 
-__all__ = ["FLIP_Y", "Framebuffer", "size_limits"]
+__all__ = ["FLIP_Y", "Framebuffer", "sample_counts", "size_limits"]
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 """Left-multiplies a projection matrix so that clip-space y, and so the image, is drawn upside down."""
@@ -34,40 +43,86 @@ def size_limits() -> tuple[int, int]:
     return int(GL.glGetIntegerv(GL.GL_MAX_RENDERBUFFER_SIZE)), int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_SIZE))
 
 
+def sample_counts() -> tuple[int, ...]:
+    """The sample counts above 1 the current context offers for an RGBA8 renderbuffer, largest
+    first (``glGetInternalformativ``; llvmpipe offers only 4). A driver may silently round another
+    count up to one of these, so the renderer accepts only these."""
+    n = int(np.ravel(GL.glGetInternalformativ(GL.GL_RENDERBUFFER, GL.GL_RGBA8, GL.GL_NUM_SAMPLE_COUNTS, 1))[0])
+    if n == 0:
+        return ()
+    return tuple(int(c) for c in np.ravel(GL.glGetInternalformativ(GL.GL_RENDERBUFFER, GL.GL_RGBA8, GL.GL_SAMPLES, n)))
+
+
+def _new_framebuffer(width: int, height: int, samples: int) -> int:
+    """A framebuffer with an RGBA8 colour and a 24-bit depth renderbuffer, ``samples`` per pixel
+    (1: single-sampled). Raises RuntimeError if the driver reports it incomplete."""
+    framebuffer = GL.glGenFramebuffers(1)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
+    for attachment, storage in ((GL.GL_COLOR_ATTACHMENT0, GL.GL_RGBA8),
+                                (GL.GL_DEPTH_ATTACHMENT, GL.GL_DEPTH_COMPONENT24)):
+        renderbuffer = GL.glGenRenderbuffers(1)
+        GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
+        if samples > 1:
+            GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, storage, width, height)
+        else:
+            GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, storage, width, height)
+        GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, attachment, GL.GL_RENDERBUFFER, renderbuffer)
+    status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
+    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, 0)
+    GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
+    if status != GL.GL_FRAMEBUFFER_COMPLETE:
+        raise RuntimeError(f"offscreen framebuffer {width} x {height}, {samples} sample(s), incomplete "
+                           f"(status 0x{int(status):04x})")
+    return framebuffer
+
+
 class Framebuffer:
     """An RGBA8 colour renderbuffer and a 24-bit depth renderbuffer of ``width`` x ``height``
-    pixels, single-sampled, in the current context.
+    pixels, single-sampled, in the current context; with ``samples > 1`` also a multisampled
+    pair for the passes drawn inside :meth:`multisampled`.
 
     Raises:
-        RuntimeError: the driver reports the framebuffer incomplete.
+        ValueError: ``samples`` is neither 1 nor a count of :func:`sample_counts` (naming the
+            config field ``antialias``).
+        RuntimeError: the driver reports a framebuffer incomplete.
     """
 
-    def __init__(self, width: int, height: int):
-        self.width, self.height = width, height
-        self.id = GL.glGenFramebuffers(1)
-        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self.id)
-        for attachment, storage in ((GL.GL_COLOR_ATTACHMENT0, GL.GL_RGBA8),
-                                    (GL.GL_DEPTH_ATTACHMENT, GL.GL_DEPTH_COMPONENT24)):
-            renderbuffer = GL.glGenRenderbuffers(1)
-            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
-            GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, storage, width, height)
-            GL.glFramebufferRenderbuffer(GL.GL_FRAMEBUFFER, attachment, GL.GL_RENDERBUFFER, renderbuffer)
-        status = GL.glCheckFramebufferStatus(GL.GL_FRAMEBUFFER)
-        GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, 0)
-        GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, 0)
-        if status != GL.GL_FRAMEBUFFER_COMPLETE:
-            raise RuntimeError(f"offscreen framebuffer {width} x {height} incomplete (status 0x{int(status):04x})")
+    def __init__(self, width: int, height: int, samples: int = 1):
+        self.width, self.height, self.samples = width, height, samples
+        if samples != 1 and samples not in sample_counts():
+            raise ValueError(f"antialias: {samples} samples per pixel is not offered by this OpenGL context "
+                             f"(GL_MAX_SAMPLES = {int(GL.glGetIntegerv(GL.GL_MAX_SAMPLES))}): expected 1 or one of "
+                             f"{sample_counts()}")
+        self.id = _new_framebuffer(width, height, 1)
+        self._multisampled_id = _new_framebuffer(width, height, samples) if samples > 1 else None
+        self._multisample = False
+
+    @contextlib.contextmanager
+    def multisampled(self) -> Iterator[None]:
+        """Passes drawn in this block draw into the multisampled buffers (if ``samples > 1``; else
+        nothing changes); :meth:`end_drawing` resolves them."""
+        self._multisample = self._multisampled_id is not None
+        try:
+            yield
+        finally:
+            self._multisample = False
 
     def begin_drawing(self) -> None:
         """Make it the draw framebuffer, with clockwise front faces: the winding a projection
         flipped by :data:`FLIP_Y` gives counter-clockwise triangles."""
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._multisampled_id if self._multisample else self.id)
         GL.glFrontFace(GL.GL_CW)
 
     def end_drawing(self) -> np.ndarray:
-        """Restore counter-clockwise front faces (shadow passes cull with them) and return the
-        colour buffer as ``(height, width, 4)`` uint8, top row first."""
+        """Restore counter-clockwise front faces (shadow passes cull with them), resolve a
+        multisampled pass into the single-sampled colour buffer, and return that buffer as
+        ``(height, width, 4)`` uint8, top row first."""
         GL.glFrontFace(GL.GL_CCW)
+        if self._multisample:
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._multisampled_id)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
+            GL.glBlitFramebuffer(0, 0, self.width, self.height, 0, 0, self.width, self.height,
+                                 GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
         GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)

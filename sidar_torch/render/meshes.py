@@ -129,7 +129,72 @@ _FLAT: dict[str, Callable[[int], trimesh.Trimesh]] = {
 """Primitives that are exactly polyhedra: one level, no gap."""
 
 _SMOOTH = {"sphere", "torus", "capsule"}
-"""Shapes shaded with smooth vertex normals; the others keep sharp edges (flat face normals)."""
+"""Shapes shaded with smooth vertex normals; the cylinder and cone get :func:`_revolution_normals`,
+the others keep sharp edges (flat face normals)."""
+
+_SIDE_SLOPE = {"cylinder": 0.0, "cone": 0.5}
+"""Solids of revolution about z (radius 1, height 2): the z component of their side's outward
+normal before normalising, radius / height (the cylinder's side is vertical)."""
+
+
+_APEX_RINGS = 6
+"""A cone's side facets are cut into strips at ``1 - 2 ** -j`` of the way to the apex, ``j = 1 ..
+_APEX_RINGS`` (see :func:`_revolution_normals`)."""
+
+
+def _revolution_normals(mesh: trimesh.Trimesh, slope: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-corner positions and normals, each ``(3 F', 3)`` float32, of a cylinder or cone mesh
+    (``slope``: :data:`_SIDE_SLOPE`): the side shaded with the true surface normal at each corner,
+    the caps flat.
+
+    A corner of a side face gets ``(cos a, sin a, slope)`` normalised, ``a`` its angle about z, so
+    light varies smoothly around the side: no band per facet, and no seam along a quad's diagonal
+    (both corners of an edge along the side share a normal, so each triangle interpolates in
+    angle only). Cap faces (normal along z, ``|n_z| > 0.99``; a side's is at most
+    ``0.5 / sqrt(1.25) = 0.45``) keep their face normal, so the rim stays sharp.
+
+    A cone's apex has no normal of its own: a facet's apex corner can only take one angle (its
+    middle), and across a row the normal would jump between facets by the apex's share of the
+    interpolation. So each cone facet (base ``a``, ``b``, apex ``p``) is cut into strips at
+    ``1 - 2 ** -j`` of the way from the base to the apex; every strip corner lies on a facet
+    edge, where the angle is exact, and only the last triangle (the last ``2 ** -_APEX_RINGS`` of
+    the height) meets the apex. The cuts lie on the facets' own edges, shared by both neighbours,
+    so the surface, outline, masks and shadows are those of the flat-shaded mesh.
+    """
+    corners = mesh.vertices[mesh.faces]  # (F, 3, 3)
+    cap = np.abs(mesh.face_normals[:, 2]) > 0.99
+    on_axis = np.hypot(corners[..., 0], corners[..., 1]) < 1e-9  # (F, 3): a cone's apex corners
+    pointed = ~cap & on_axis.any(axis=1)
+    # Rotate each pointed facet's corners (keeping the winding) so that the apex comes last.
+    apex_first = np.argmax(on_axis[pointed], axis=1)
+    order = (apex_first[:, None] + np.array([1, 2, 3])) % 3
+    a, b, apex = np.moveaxis(np.take_along_axis(corners[pointed], order[..., None], axis=1), 1, 0)
+    cuts = 1.0 - 0.5 ** np.arange(_APEX_RINGS + 1)  # 0, 1/2, 3/4, ...
+    lo, hi = cuts[:-1, None, None], cuts[1:, None, None]
+    a0, b0, a1, b1 = (v + t * (apex - v) for v, t in ((a, lo), (b, lo), (a, hi), (b, hi)))
+    strips = np.concatenate([np.stack([a0, b0, b1], axis=2), np.stack([a0, b1, a1], axis=2)]).reshape(-1, 3, 3)
+    tips = np.stack([a + cuts[-1] * (apex - a), b + cuts[-1] * (apex - b), apex], axis=1)
+    faces = np.concatenate([corners[~pointed], strips, tips])
+    face_normals = np.concatenate([mesh.face_normals[~pointed], np.tile(mesh.face_normals[pointed], (2 * _APEX_RINGS, 1)),
+                                   mesh.face_normals[pointed]])
+    angles = np.arctan2(faces[..., 1], faces[..., 0])
+    at_axis = np.hypot(faces[..., 0], faces[..., 1]) < 1e-9
+    centroid = faces.mean(axis=1)
+    angles = np.where(at_axis, np.arctan2(centroid[:, 1], centroid[:, 0])[:, None], angles)
+    side = np.stack([np.cos(angles), np.sin(angles), np.full_like(angles, slope)], axis=-1)
+    side /= np.linalg.norm(side, axis=-1, keepdims=True)
+    flat = np.abs(face_normals[:, 2]) > 0.99
+    normals = np.where(flat[:, None, None], face_normals[:, None, :], side)
+    return faces.reshape(-1, 3).astype(np.float32), normals.reshape(-1, 3).astype(np.float32)
+
+
+def _gl_mesh(shape: str, variant: int, level: int) -> pyrender.Mesh:
+    """The pyrender mesh of a unit primitive, with the normals its shape is shaded with."""
+    mesh = unit_primitive(shape, variant, level)
+    if shape in _SIDE_SLOPE:
+        positions, normals = _revolution_normals(mesh, _SIDE_SLOPE[shape])
+        return pyrender.Mesh([pyrender.Primitive(positions=positions, normals=normals)])
+    return pyrender.Mesh.from_trimesh(mesh, smooth=shape in _SMOOTH)
 
 
 def unit_primitive(shape: str, variant: int = 0, level: int = FIXED_LEVEL) -> trimesh.Trimesh:
@@ -196,7 +261,7 @@ class MeshPool:
     def take(self, shape: str, variant: int, k: int, level: int = FIXED_LEVEL) -> pyrender.Mesh:
         meshes = self._meshes[shape, variant, level]
         while len(meshes) <= k:
-            meshes.append(pyrender.Mesh.from_trimesh(unit_primitive(shape, variant, level), smooth=shape in _SMOOTH))
+            meshes.append(_gl_mesh(shape, variant, level))
         return meshes[k]
 
 

@@ -8,6 +8,8 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 
 * the **view**: the painting under the view's ambient level and lights, with occluders and
   shadows; 8-bit sRGB (the shader's output encoding is exact sRGB, see ``shader_patches``);
+  with ``settings.antialias`` > 1 drawn multisampled and resolved (``framebuffer``), the only
+  pass that is;
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
   (black) with depth testing, so occluder parts behind the painting never count; background
   and occluders are 1. Occluders less opaque than ``settings.mask_min_opacity`` are left out
@@ -105,7 +107,8 @@ class SceneRenderer:
 
     Raises:
         ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context
-            (:meth:`~.settings.RenderSettings.check_gl_limits`).
+            (:meth:`~.settings.RenderSettings.check_gl_limits`), or the context offers no
+            ``settings.antialias`` samples per pixel (:class:`~.framebuffer.Framebuffer`).
     """
 
     def __init__(self, settings: RenderSettings):
@@ -122,7 +125,7 @@ class SceneRenderer:
         self.gl_limits = size_limits()
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
-        self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps)
+        self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
@@ -229,8 +232,9 @@ class SceneRenderer:
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
-        image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
-                              shadowed=shadowed, timings=timings, step="colour", stale=stale)
+        with self._gl._target.multisampled():  # settings.antialias samples; the other passes single-sampled
+            image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
+                                  shadowed=shadowed, timings=timings, step="colour", stale=stale)
         self._shadows.drawn(map_keys)
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}

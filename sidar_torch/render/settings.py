@@ -13,7 +13,7 @@ import operator
 from dataclasses import dataclass
 from typing import Any
 
-from ..render_choices import SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
+from ..render_choices import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
 
 __all__ = ["RenderSettings"]
 
@@ -36,6 +36,9 @@ class RenderSettings:
         occluders_visible: false: occluders cast shadows but cameras do not see them.
         mask_min_opacity: occluders whose ``material.base_color[3]`` is below this are left out
             of the masks (0: every occluder is masked).
+        antialias: samples per pixel of each view's lit colour pass (1: none; 2, 4 or 8:
+            multisampled, then resolved to one colour per pixel). Masks, opacities and the label are
+            drawn single-sampled either way (config ``antialias``).
         opacities: also render each view's opacity (``RenderedSequence.opacities``); the other
             outputs are the same either way (config ``opacity_output``).
         skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: the skips of
@@ -56,6 +59,7 @@ class RenderSettings:
     occluders_visible: bool = True
     mask_min_opacity: float = 0.0
     opacities: bool = False
+    antialias: int = 1
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
     masks_from_outline: bool = True
@@ -78,6 +82,8 @@ class RenderSettings:
                 raise ValueError(f"{field}: expected one of {choices}, got {getattr(self, field)!r}")
         if self.mesh_error_px is not None and not self.mesh_error_px >= 0:
             raise ValueError(f"mesh_error_px: expected None or a number >= 0, got {self.mesh_error_px!r}")
+        if self.antialias not in ANTIALIAS_SAMPLES or isinstance(self.antialias, bool):
+            raise ValueError(f"antialias: expected one of {ANTIALIAS_SAMPLES} samples per pixel, got {self.antialias!r}")
         if not 0 <= self.mask_min_opacity <= 1:
             raise ValueError(f"mask_min_opacity: expected a value in [0, 1], got {self.mask_min_opacity!r}")
 
@@ -90,7 +96,7 @@ class RenderSettings:
             mesh_error_px=config.mesh_error_px if config.mesh_detail == "auto" else None,
             texture_filter=config.texture_filter, shadows=config.shadows,
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
-            opacities=config.opacity_output,
+            opacities=config.opacity_output, antialias=config.antialias,
         )
 
     def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:

@@ -35,19 +35,20 @@ def test_report_structure_and_outputs(report, tmp_path):
     rows = report["rows"]
     knobs = [(r["shadow_map_size"], r["shadow_frustum"], r["mesh_detail"], r["texture_filter"], r["shadow_filter"])
              for r in rows]
+    assert [r["antialias"] for r in rows] == [1] * 14 + [4, 1]
     grid = [(m, f, "fixed", "trilinear", sf) for sf in ("tent", "bilinear") for f in ("cone", "fitted")
             for m in (32, 128, 512)]
     assert knobs == grid + [(128, "fitted", "<= 1 px", "trilinear", "tent"), (128, "fitted", "fixed", "bilinear", "tent"),
-                            (2048, "fitted", "finest", "trilinear", "tent")]
+                            (128, "fitted", "fixed", "trilinear", "tent"), (2048, "fitted", "finest", "trilinear", "tent")]
     assert all(r["size"] == "96x128" and r["supersampling"] == 1 and r["ms_per_view"] > 0 for r in rows)
-    assert [r["reference"] for r in rows] == [False] * 14 + [True]
+    assert [r["reference"] for r in rows] == [False] * 15 + [True]
     assert math.isinf(rows[-1]["image_psnr_db"]) and not rows[-1]["pareto"]
     assert any(r["pareto"] for r in rows[:-1])
     assert [r["supersampling"] for r in report["residuals"]] == [1]
     assert report["residuals"][0]["patches"] > 0 and report["residuals"][0]["max_px"] < 0.5
     assert report["labels"][0]["min_psnr_db"] >= 45
     paths = sweep.write_outputs(report, tmp_path / "out")
-    assert "| 96x128 | 512 | fitted | tent | 1x | fixed | trilinear |" in paths["md"].read_text()
+    assert "| 96x128 | 512 | fitted | tent | 1x | fixed | trilinear | 1x |" in paths["md"].read_text()
     assert json.loads(paths["json"].read_text())["rows"][0]["shadow_map_size"] == 32
     with Image.open(paths["png"]) as image:
         assert image.size == (900, 600)
@@ -130,3 +131,34 @@ def test_shadow_filter_is_crossed_with_map_sizes_and_frusta(report):
     assert sorted((r["shadow_map_size"], r["shadow_frustum"]) for r in rows) == sorted(
         (m, f) for m in TINY.shadow_map_sizes for f in TINY.shadow_frusta)
     assert all(math.isfinite(r["image_psnr_db"]) for r in rows)
+def test_antialiasing_comes_closer_to_a_supersampled_reference():
+    """Against a 2 x 2 supersampled reference the multisampled colour pass must gain: its edges are
+    blended as the reference's average blends them (the occluders are visible here)."""
+    settings = replace(TINY, only="antialias", reference=(512, 2), preset="misaligned", scenes=2)
+    base, msaa, reference = sweep.run_sweep(settings, log=lambda line: None)["rows"]
+    assert (base["antialias"], msaa["antialias"], reference["reference"]) == (1, 4, True)
+    assert msaa["image_psnr_db"] > base["image_psnr_db"] + 1.0, (base, msaa)
+
+
+def test_only_one_knob_measures_the_base_its_variations_and_the_reference():
+    settings = replace(TINY, only="antialias").settings()
+    assert [(s.shadow_map_size, s.antialias) for s in settings] == [(128, 1), (128, 4), (2048, 1)]
+    with pytest.raises(ValueError, match="only"):
+        replace(TINY, only="exposure")
+    with pytest.raises(ValueError, match="antialias"):
+        replace(TINY, antialias=(3,))
+
+
+def test_bad_settings_name_the_field():
+    with pytest.raises(ValueError, match="shadow_map_sizes"):
+        sweep.SweepSettings(shadow_map_sizes=(300,))
+    with pytest.raises(ValueError, match="supersampling"):
+        sweep.SweepSettings(supersampling=(0,))
+    with pytest.raises(ValueError, match="shadow_frusta"):
+        sweep.SweepSettings(shadow_frusta=("tight",))
+    with pytest.raises(ValueError, match="texture_filters"):
+        sweep.SweepSettings(texture_filters=("nearest",))
+    with pytest.raises(ValueError, match="shadow_filters"):
+        sweep.SweepSettings(shadow_filters=("box",))
+    with pytest.raises(ValueError, match="mesh_errors"):
+        sweep.SweepSettings(mesh_errors=(-1.0,))
