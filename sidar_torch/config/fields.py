@@ -168,10 +168,11 @@ class SidarConfig:
     shadow_map_size: int = _field(1024, meaning=(
         f"side of each shadow map in texels (a power of two from 16 to {MAX_GL_SIZE}, the largest texture "
         "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``)."))
-    shadow_filter: str = _field("tent", choices=SHADOW_FILTERS, meaning=(
-        'how a shadow-map lookup is filtered: ``"tent"``, a 3 x 3 tent-weighted percentage-closer filter from 4 '
-        'bilinear depth-compare taps, or ``"bilinear"``, a 2 x 2 filter from one tap (a quarter of the texture '
-        "reads: shadow edges one texel sharper)."))
+    shadow_filter: str = _field("bilinear", choices=SHADOW_FILTERS, meaning=(
+        'how a shadow-map lookup is filtered: ``"bilinear"``, a 2 x 2 percentage-closer filter from one '
+        'depth-compare tap (the default: closer to a 4096-map reference than the tent at every map size, for a '
+        'quarter of the texture reads), or ``"tent"``, a 3 x 3 tent-weighted filter from 4 bilinear taps (shadow '
+        "edges one texel softer)."))
 
     # View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
     # only, drawn after the scene so switching one on changes no scene, mask, label or homography;
@@ -203,10 +204,10 @@ class SidarConfig:
         'or ``"fitted"`` (only what the cameras see of the painting and occluders, within the cone: the same '
         "map size gives finer shadows; the default, as the sweep found it closer to the reference at every map "
         "size for the same time)."))
-    mesh_detail: str = _field("fixed", choices=MESH_DETAILS, meaning=(
-        '``"fixed"``: every curved occluder (sphere, cylinder, cone, torus, capsule) uses one mesh (icosphere '
-        '3, 48 sections); ``"auto"``: per view, the coarsest of 4 pooled levels whose silhouette and shadow '
-        "stay within ``mesh_error_px`` of the true surface."))
+    mesh_detail: str = _field("auto", choices=MESH_DETAILS, meaning=(
+        '``"auto"`` (the default): per view, the coarsest of 4 pooled levels whose silhouette and shadow stay '
+        'within ``mesh_error_px`` of the true surface; ``"fixed"``: every curved occluder (sphere, cylinder, '
+        "cone, torus, capsule) uses one mesh (icosphere 3, 48 sections), which facets close ones."))
     mesh_error_px: float = _field(0.25, meaning=(
         'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level).'))
     antialias: int = _field(1, meaning=(

@@ -22,6 +22,9 @@ __all__ = ["RenderSettings"]
 class RenderSettings:
     """The renderer's settings (``SidarConfig`` documents the fields it sets).
 
+    The defaults here are the plainest renderer (tent filter, fixed meshes), which hand-made test
+    scenes rely on; ``SidarConfig``'s defaults are the settings the sweep chose (``docs/speed.md``).
+
     Attributes:
         image_size: ``(H, W)`` of every view, mask and label, in pixels.
         shadow_map_size: side of each shadow map, texels (a power of two >= 16).
