@@ -79,6 +79,8 @@ class Material(_Plain):
             convention; 0.5 is glTF's 4 %, 0 a purely diffuse dielectric).
         coat, coat_roughness: weight and roughness of a clear coat, a second specular lobe of 4 %
             reflectance over the base.
+        ior: index of refraction of a transparent body (1: none, light passes undeviated). Only a
+            transparent material with ``ior > 1`` refracts (``render.mirror``).
     """
 
     base_color: np.ndarray
@@ -87,6 +89,7 @@ class Material(_Plain):
     specular: float = 0.5
     coat: float = 0.0
     coat_roughness: float = 0.0
+    ior: float = 1.0
 
     @property
     def transparent(self) -> bool:
@@ -377,13 +380,14 @@ def _occluder_material(kind: str, rng: np.random.Generator) -> Material:
     * ``diffuse``: Lambertian (no specular); ``glossy``: dielectric with a sharp highlight;
       ``metallic``: metal tinted by its colour;
     * ``transparent``: alpha 0.2-0.7, tinted; ``glass``: nearly clear (alpha 0.05-0.25, pale
-      tint) with a sharp clear-coat highlight; both get more opaque towards grazing angles;
+      tint) with a sharp clear-coat highlight and an index of refraction in [1, 2] (the paper's
+      glass and refraction materials); both get more opaque towards grazing angles;
     * ``principled``: every factor random (base colour, metallic, roughness, specular, coat).
     """
     if kind == "glass":
         rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
-        return Material(np.array([*rgb, rng.uniform(0.05, 0.25)]), 0.0, rng.uniform(0.02, 0.1), 0.5,
-                        1.0, rng.uniform(0.02, 0.08))
+        alpha, roughness, coat_roughness = rng.uniform(0.05, 0.25), rng.uniform(0.02, 0.1), rng.uniform(0.02, 0.08)
+        return Material(np.array([*rgb, alpha]), 0.0, roughness, 0.5, 1.0, coat_roughness, ior=rng.uniform(1.0, 2.0))
     rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
     if kind == "principled":
         metallic, roughness, specular, coat = rng.uniform(size=4)

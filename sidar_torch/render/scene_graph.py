@@ -13,6 +13,7 @@ from OpenGL import GL
 from ..geometry import plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Material
 from .backend import add_node
+from .mirror import SurfaceMaterial, mirror_define
 from .shader_patches import surface_factors
 
 __all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene"]
@@ -73,8 +74,13 @@ def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, floa
     return min(zfar / 2000.0, nearest / 2), zfar
 
 
-def gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
-    return pyrender.MetallicRoughnessMaterial(
+def gl_material(material: Material, texture: pyrender.Texture | None = None) -> SurfaceMaterial:
+    """pyrender's material for ``material``; untextured (an occluder's) it carries its program
+    variant for reflecting or refracting the painting (``mirror``); the textured painting reflects
+    only what lies above z = 0, never the painting, so it gets none."""
+    return SurfaceMaterial(
+        mirror=mirror_define(material) if texture is None else None,
+        ior=material.ior,
         baseColorFactor=material.base_color.astype(np.float64),  # floats: ints would be read as 0-255
         metallicFactor=float(material.metallic),
         roughnessFactor=float(material.roughness),

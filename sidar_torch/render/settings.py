@@ -38,6 +38,9 @@ class RenderSettings:
             of the masks (0: every occluder is masked).
         opacities: also render each view's opacity (``RenderedSequence.opacities``); the other
             outputs are the same either way (config ``opacity_output``).
+        mirrors: draw the painting reflected in reflective occluders and refracted through glass
+            ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
+            compare). No config field sets it.
         skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: the skips of
             work that cannot change a pixel (``render.plan`` and ``SceneRenderer``), all on; tests
             turn each off to compare. No config field sets them.
@@ -56,6 +59,7 @@ class RenderSettings:
     occluders_visible: bool = True
     mask_min_opacity: float = 0.0
     opacities: bool = False
+    mirrors: bool = True
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
     masks_from_outline: bool = True

@@ -95,7 +95,7 @@ def _after(anchor: str, text: str) -> tuple[str, str]:
     return anchor, anchor + text
 
 
-PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS",)
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION")
 """Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
 
 SHADER_SOURCES = ("transmittance.frag",)
@@ -133,6 +133,9 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("vec3 dialectric_spec = vec3(min_roughness);",
          "vec3 dialectric_spec = vec3(0.08 * material.emissive_factor.x);"),
         ("    color.xyz += emissive * material.emissive_factor;\n", ""),
+        # Quirk 8: the painting reflected and refracted by occluders, in their program variants only.
+        _before(_MAIN, "painting_mirror.glsl"),
+        _before("\n    frag_color = clamp(vec4(", "painting_mirror_main.glsl"),
     ],
     # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
     "flat.frag": [
