@@ -152,3 +152,18 @@ def test_mirror_variants_go_only_to_reflective_and_refractive_occluders():
     assert mirror_define(Material(transparent, 0.0, 0.1, ior=1.5)) == "PAINTING_REFRACTION"
     assert painting_diffuse(Material(np.ones(4), 0.0, 1.0, specular=0.0)) == pytest.approx(0.96)
     assert painting_diffuse(Material(np.ones(4), 1.0, 0.2)) == 0.0
+
+
+def test_views_without_reflective_or_glass_occluders_draw_the_same_pixels():
+    # A diffuse occluder and a transparent one without an index of refraction: no quirk-8 variant is
+    # drawn, so the view is the same with the painting's reflections on or off, and transparent
+    # material stays blended over the undisplaced painting.
+    painting = np.zeros((*SMALL, 3), np.uint8)
+    painting[:, : SMALL[1] // 2, 0] = 255
+    painting[:, SMALL[1] // 2:, 2] = 255
+    for material in (Material(np.array([0.8, 0.8, 0.8, 1.0]), 0.0, 1.0, specular=0.0),
+                     Material(np.array([0.8, 0.8, 0.8, 0.4]), 0.0, 0.2)):
+        assert mirror_define(material) is None
+        on, _ = render(material, painting, 0.15)
+        off, _ = render(material, painting, 0.15, mirrors=False)
+        assert np.array_equal(on, off)
