@@ -16,15 +16,11 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import time
-from dataclasses import replace
 
-from sidar_torch import SidarDataset, load_config
-from sidar_torch.render import RenderSettings, shared_renderer
+from sidar_torch import load_config
 
 from .common import DEFAULT_PRESET, parse_size, size_label
-
-CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+from .paired import paired_view_times, print_paired
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -34,31 +30,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--samples", type=int, default=60, help="measured sequences (after 3 warm-up ones)")
     args = parser.parse_args(argv)
     config = load_config(args.config, image_size=args.size)
-    dataset = SidarDataset(config=config, seed=0)
-    settings = RenderSettings.from_config(config)
-    renderers = {on: shared_renderer(replace(settings, opacities=on)) for on in (False, True)}
-    ms_per_view = {(clock, on): [] for clock in CLOCKS for on in (False, True)}
-    draw_ms: list[float] = []
-    warmup = [10_000 + k for k in range(3)]
-    for index in warmup + list(range(args.samples)):
-        sequence = dataset.scene(index)
-        painting = dataset.source.painting(index % len(dataset.source), config.image_size)
-        for on in ((False, True) if index % 2 else (True, False)):
-            timings: dict[str, float] = {}
-            start = {clock: read() for clock, read in CLOCKS.items()}
-            renderers[on].render(sequence, painting, timings)
-            if index in warmup:
-                continue
-            for clock, read in CLOCKS.items():
-                ms_per_view[clock, on].append(1e3 * (read() - start[clock]) / len(sequence.views))
-            if on:
-                draw_ms.append(1e3 * timings.get("opacity", 0.0) / len(sequence.views))
+    ms_per_view, steps = paired_view_times(config, "opacities", args.samples)
+    draw_ms = [1e3 * on.get("opacity", 0.0) / config.n_views for _, on in steps]
     print(f"{args.config} {size_label(args.size)} (H x W), {args.samples} sequences x {config.n_views} views")
-    for clock in CLOCKS:
-        without, with_ = (statistics.median(ms_per_view[clock, on]) for on in (False, True))
-        paired = statistics.median(b - a for a, b in zip(ms_per_view[clock, False], ms_per_view[clock, True]))
-        print(f"{clock:>4}: median ms / view without {without:.1f}, with {with_:.1f}; "
-              f"median paired difference {paired:+.2f} ms ({100 * paired / without:+.1f} %)")
+    print_paired(ms_per_view)
     print(f"opacity draw (wall): median {statistics.median(draw_ms):.2f} ms / view "
           f"(views without a visible occluder skip it)")
 

@@ -87,6 +87,8 @@ class Material(_Plain):
         opaque_shadow: a blended (transparent) material whose shadow is as dark as an opaque one's
             (Cycles' glass and refraction: refracted light from a light source carries no direct
             light), instead of the tinted, lighter shadow of ``render.transmittance``.
+        ior: index of refraction of a transparent body (1: none, light passes undeviated). Only a
+            transparent material with ``ior > 1`` refracts (``render.mirror``).
     """
 
     base_color: np.ndarray
@@ -97,6 +99,7 @@ class Material(_Plain):
     coat_roughness: float = 0.0
     transmission: float = 0.0
     opaque_shadow: bool = False
+    ior: float = 1.0
 
     @property
     def transparent(self) -> bool:
@@ -414,14 +417,16 @@ def _occluder_material(kind: str, rng: np.random.Generator, opaque_glass_shadow:
     * ``diffuse``: Lambertian (no specular); ``glossy``: dielectric with a sharp highlight;
       ``metallic``: metal tinted by its colour;
     * ``transparent``: alpha 0.2-0.7, tinted; ``glass``: nearly clear (alpha 0.05-0.25, pale
-      tint) with a sharp clear-coat highlight, and an opaque shadow if ``opaque_glass_shadow``;
-      both get more opaque towards grazing angles;
+      tint) with a sharp clear-coat highlight, an index of refraction in [1, 2] (the paper's glass
+      and refraction materials) and an opaque shadow if ``opaque_glass_shadow``; both get more
+      opaque towards grazing angles;
     * ``principled``: every factor random (base colour, metallic, roughness, specular, coat).
     """
     if kind == "glass":
         rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
-        return Material(np.array([*rgb, rng.uniform(0.05, 0.25)]), 0.0, rng.uniform(0.02, 0.1), 0.5,
-                        1.0, rng.uniform(0.02, 0.08), opaque_shadow=opaque_glass_shadow)
+        alpha, roughness, coat_roughness = rng.uniform(0.05, 0.25), rng.uniform(0.02, 0.1), rng.uniform(0.02, 0.08)
+        return Material(np.array([*rgb, alpha]), 0.0, roughness, 0.5, 1.0, coat_roughness, ior=rng.uniform(1.0, 2.0),
+                        opaque_shadow=opaque_glass_shadow)
     rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
     if kind == "principled":
         metallic, roughness, specular, coat = rng.uniform(size=4)

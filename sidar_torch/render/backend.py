@@ -27,6 +27,7 @@ from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .framebuffer import FLIP_Y, Framebuffer
+from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
 from .shadow_array import ShadowMapArray
 from .transmittance import TransmittanceMaps, vertex_defines
@@ -188,7 +189,9 @@ class ProgramCache(ShaderProgramCache):
     ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
 
     While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant
-    that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7).
+    that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7). While
+    :attr:`mirror` names a define of ``mirror.MIRROR_DEFINES``, lit programs are that variant
+    (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``).
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
@@ -198,11 +201,14 @@ class ProgramCache(ShaderProgramCache):
         super().__init__()
         self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
         self.transmittance = False
+        self.mirror: str | None = None
 
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
         defines = {**(defines or {}), **self._extra_defines}
         if self.transmittance and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
             defines["TRANSMITTANCE_SHADOWS"] = 1
+        if self.mirror and fragment_shader == "mesh.frag":
+            defines[self.mirror] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:
@@ -229,6 +235,8 @@ class GLRenderer(pyrender.Renderer):
       contexts have no default framebuffer; ``framebuffer`` explains the orientation);
     * transparent casters tint and lighten their shadows through transmittance maps instead of
       darkening the depth maps (``render.transmittance``);
+    * reflective and glass occluders are drawn with the program variant of their material's
+      ``mirror`` define, with the painting of :attr:`painting` bound (``render.mirror``);
     * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
       whatever context is current, which may be another renderer's): the objects die with
       their context, which :class:`~.renderer.SceneRenderer` destroys.
@@ -248,6 +256,14 @@ class GLRenderer(pyrender.Renderer):
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
         self._lit_programs: set[ShaderProgram] = set()
+        self.painting: PaintingMirror | None = None
+        """The painting that reflective and glass occluders show in the next lit draws."""
+        self._mirror_sampler = GL.glGenSamplers(1)  # trilinear whatever the painting's own filter
+        for name, value in ((GL.GL_TEXTURE_MIN_FILTER, GL.GL_LINEAR_MIPMAP_LINEAR), (GL.GL_TEXTURE_MAG_FILTER, GL.GL_LINEAR),
+                            (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
+            GL.glSamplerParameteri(self._mirror_sampler, name, value)
+        self._mirror_unit: int | None = None  # texture unit the sampler is bound to during a draw
+
 
     def _update_context(self, scene: pyrender.Scene, flags: int) -> None:
         for mesh in scene.meshes - self._meshes:
@@ -326,6 +342,37 @@ class GLRenderer(pyrender.Renderer):
                 textures.append((self.transmittance, "transmittance_maps"))
                 uniforms.append(("transmittance_layout", np.array(self.transmittance.layout, np.int32)))
         return uniforms, textures
+
+    def _get_primitive_program(self, primitive, flags, program_flags):
+        """pyrender's program choice; a lit occluder with a ``mirror`` material gets that variant."""
+        self._program_cache.mirror = getattr(primitive.material, "mirror", None) if self.painting else None
+        try:
+            return super()._get_primitive_program(primitive, flags, program_flags)
+        finally:
+            self._program_cache.mirror = None
+
+    def _bind_and_draw_primitive(self, primitive, pose, program, flags) -> None:
+        """pyrender's draw; in a quirk-8 variant, the painting is bound first (its texture on the next
+        unit with a trilinear sampler, so roughness can pick a mip level even when the painting
+        itself is drawn bilinear), with its size and light and the occluder's index and inverse pose."""
+        if any(name in program.defines for name in MIRROR_DEFINES):
+            self._bind_texture(self.painting.texture, "painting", program)
+            self._mirror_unit = self._texture_alloc_idx - 1
+            GL.glBindSampler(self._mirror_unit, self._mirror_sampler)
+            program.set_uniform("painting_half_size", self.painting.half_size)
+            program.set_uniform("painting_diffuse", self.painting.diffuse)
+            if REFRACTION in program.defines:
+                program.set_uniform("material_ior", primitive.material.ior)
+                program.set_uniform("object_from_world", np.linalg.inv(pose))
+        super()._bind_and_draw_primitive(primitive, pose, program, flags)
+
+    def _reset_active_textures(self) -> None:
+        """pyrender's reset after each primitive, and the painting's sampler unbound (the unit goes
+        to the next primitive's textures, which keep their own filters)."""
+        if self._mirror_unit is not None:
+            GL.glBindSampler(self._mirror_unit, 0)
+            self._mirror_unit = None
+        super()._reset_active_textures()
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:
         return [MAX_N_LIGHTS, MAX_SHADOWED_LIGHTS, MAX_N_LIGHTS]

@@ -60,6 +60,7 @@ from .backend import GLRenderer, add_node
 from .context import open_context
 from .framebuffer import size_limits
 from .meshes import MeshPool, mesh_level, plane_mesh
+from .mirror import PaintingMirror
 from .plan import ViewPlan, plan_views
 from .scene_graph import PAINTING_SAMPLERS, gl_material, new_scene
 from .settings import RenderSettings
@@ -80,8 +81,9 @@ class RenderedSequence:
         label: ``(H, W, 3)`` uint8 sRGB, the painting as view 0's camera sees it, unlit.
         background: ``(V, H, W)`` bool, True where the view's colour draw drew nothing (neither
             the painting nor an occluder): the draw clears to alpha 0 and every surface writes a
-            positive alpha, except glass of opacity under about 0.06 over the background, whose
-            blended alpha rounds to 0 in 8 bits.
+            positive alpha, except transparent material without refraction of opacity under about
+            0.06 over the background, whose blended alpha rounds to 0 in 8 bits (refracting glass
+            writes alpha 1: it blends with the painting it shows itself, see ``render.mirror``).
         opacities: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
             painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
     """
@@ -209,6 +211,8 @@ class SceneRenderer:
         with timed(timings, "graph"):
             scene, plane = new_scene(view.camera, view.ambient, self._plane, view.plane_material, texture,
                                      self.image_size)
+            self._gl.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
+                                 if self.settings.mirrors else None)
             # Every occluder is added, culled or not: the scene's bounds set the depth range of the
             # shadow cameras (pyrender's ``scene.scale``). A culled one is just never drawn.
             nodes = []

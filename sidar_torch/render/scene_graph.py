@@ -13,6 +13,7 @@ from OpenGL import GL
 from ..geometry import plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Material
 from .backend import add_node
+from .mirror import SurfaceMaterial, mirror_define
 from .shader_patches import surface_factors
 
 __all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene",
@@ -74,9 +75,14 @@ def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, floa
     return min(zfar / 2000.0, nearest / 2), zfar
 
 
-def gl_material(material: Material, texture: pyrender.Texture | None = None) -> pyrender.MetallicRoughnessMaterial:
+def gl_material(material: Material, texture: pyrender.Texture | None = None) -> SurfaceMaterial:
+    """pyrender's material for ``material``; untextured (an occluder's) it carries its program
+    variant for reflecting or refracting the painting (``mirror``); the textured painting reflects
+    only what lies above z = 0, never the painting, so it gets none."""
     base_color, metallic, specular = transmission_factors(material)
-    return pyrender.MetallicRoughnessMaterial(
+    return SurfaceMaterial(
+        mirror=mirror_define(material) if texture is None else None,
+        ior=material.ior,
         baseColorFactor=base_color,
         metallicFactor=metallic,
         roughnessFactor=float(material.roughness),

@@ -44,6 +44,9 @@ class RenderSettings:
             drawn single-sampled either way (config ``antialias``).
         opacities: also render each view's opacity (``RenderedSequence.opacities``); the other
             outputs are the same either way (config ``opacity_output``).
+        mirrors: draw the painting reflected in reflective occluders and refracted through glass
+            ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
+            compare). No config field sets it.
         skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: the skips of
             work that cannot change a pixel (``render.plan`` and ``SceneRenderer``), all on; tests
             turn each off to compare. No config field sets them.
@@ -63,6 +66,7 @@ class RenderSettings:
     mask_min_opacity: float = 0.0
     opacities: bool = False
     antialias: int = 1
+    mirrors: bool = True
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
     masks_from_outline: bool = True

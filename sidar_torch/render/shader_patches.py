@@ -35,7 +35,9 @@ pyrender override.
      Fresnel reflectance of the view direction (4 % at normal incidence), so glass reads darker
      or brighter at its silhouette, and specular light (coat and base, unshadowed) raises the
      opacity too, so a highlight on clear glass shows at full strength instead of being blended
-     away. There is no refraction: what lies behind a transparent object is seen undisplaced.
+     away. A transparent object without an index of refraction is blended over what lies behind
+     it, undisplaced; glass (``ior > 1``) is blended in the shader with the refracted painting
+     instead (quirk 8).
      The unlit shader (``flat.frag``) outputs the same Fresnel opacity, highlights aside, for
      the renderer's opacity draw.
 
@@ -58,6 +60,47 @@ pyrender override.
    program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by ``backend.ProgramCache``) drawn
    only in views with a transparent caster; other views run the shader without it, as before
    (a uniform switch cost +50 % CPU time per view without any transparent caster: quirk 6).
+
+8. **pyrender reflects and refracts nothing**, but the world here is black except the painting (a
+   textured rectangle in z = 0) and the occluders, so what a ray leaving an occluder meets is
+   almost always the painting or nothing. ``shaders/painting_mirror.glsl`` follows the first
+   bounce exactly to the plane z = 0 and samples the painting there (black past its edges or
+   going up):
+
+   * **reflection** (program define ``PAINTING_REFLECTION``: opaque materials with a specular layer,
+     i.e. metallic, a specular level or a clear coat; see ``render.mirror.mirror_define``):
+     ``r = reflect(-v, n)``, weighted by Schlick's Fresnel with the material's ``f0`` (dielectric
+     ``0.08 * specular``, metal its base colour) under a clear coat's 4 % layer, which reflects
+     the same point with its own roughness;
+   * **refraction** (``PAINTING_REFRACTION``: transparent materials with ``ior > 1``, i.e. glass;
+     also reflects): Snell's law at the drawn (entry) surface, then at the exit from the
+     occluder's unit sphere in its own frame (``object_from_world``, the inverse pose), analytic:
+     exact for a sphere or ellipsoid, the body's inscribed ellipsoid for other shapes, and a thin
+     plate (exit parallel to the entry face, an undeviated ray) where the refracted ray misses it;
+     total internal reflection at the exit is black. Two interfaces because the exit bends the ray
+     again (one interface, the ray continuing inside the glass down to the plane, moves the painting
+     15 % less at the test's points: 7.1-7.9 instead of 8.3-9.3 texels for a sphere of radius 0.15
+     and index 1.5 at 0.2 above it), and an analytic exit costs one quadratic. The shader then does
+     quirk 5's blend itself, the lit surface over the refracted painting with the same Fresnel
+     opacity, and writes alpha 1;
+   * **the painting's light** at the hit: its albedo (the texture, sRGB-decoded) times the ambient
+     level plus every spot light's unshadowed diffuse irradiance there, cone and distance falloff
+     exact, times ``painting_diffuse`` (the painting material's diffuse factor at normal incidence).
+     Approximated: no shadows, and none of the painting's own specular highlights;
+   * **roughness as blur**: a mip level (``textureLod``; pyrender builds the painting's mipmaps,
+     and a trilinear sampler object on its unit gives the blur even when the painting is drawn
+     bilinear), from the screen footprint (``dFdx``/``dFdy`` of the texture coordinates) combined in
+     quadrature with the disc a cone of half-angle ``roughness^2`` (GGX alpha) covers where it
+     meets the plane;
+   * not modelled: other occluders (or the occluder itself) in the way of the ray, second bounces,
+     dispersion, caustics; the painting reflects nothing of itself (it is a plane), so its
+     reflective materials need nothing here.
+
+   Cost, per fragment of such an occluder only: one plane intersection, one loop over the spot
+   lights (no texture reads) and two ``textureLod`` reads per traced ray; glass traces two rays.
+   They are program variants chosen per primitive by ``backend.ProgramCache`` (quirk 6: a uniform
+   switch would be paid by every fragment), so the painting and other materials run the programs
+   they did before, pixel for pixel.
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
@@ -95,7 +138,7 @@ def _after(anchor: str, text: str) -> tuple[str, str]:
     return anchor, anchor + text
 
 
-PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS",)
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION")
 """Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
 
 SHADER_SOURCES = ("transmittance.frag",)
@@ -133,6 +176,9 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("vec3 dialectric_spec = vec3(min_roughness);",
          "vec3 dialectric_spec = vec3(0.08 * material.emissive_factor.x);"),
         ("    color.xyz += emissive * material.emissive_factor;\n", ""),
+        # Quirk 8: the painting reflected and refracted by occluders, in their program variants only.
+        _before(_MAIN, "painting_mirror.glsl"),
+        _before("\n    frag_color = clamp(vec4(", "painting_mirror_main.glsl"),
     ],
     # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
     "flat.frag": [

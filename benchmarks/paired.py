@@ -1,0 +1,65 @@
+"""Time per view of the same scenes rendered two ways (a boolean ``RenderSettings`` field off and on),
+in one process: what ``opacity_cost`` and ``mirror_cost`` share.
+
+Both renderers are this process's shared ones (one per setting); each sequence is rendered both
+ways, alternating which goes first, after warm-up sequences (shader variants compile at first use).
+Clocks: wall time and this process's CPU time (llvmpipe draws in this thread with
+``LP_NUM_THREADS=0``, so CPU time is what other jobs on the machine disturb least).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import replace
+from typing import Any
+
+from sidar_torch import SidarDataset
+from sidar_torch.render import RenderSettings, shared_renderer
+
+__all__ = ["CLOCKS", "paired_view_times", "print_paired"]
+
+CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
+
+WARMUP = 3
+"""Sequences rendered both ways before measuring (indices 10,000 and up: not measured ones)."""
+
+
+def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
+    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True.
+
+    Returns:
+        ms per view keyed ``(clock, on)`` (lists in sample order), and each measured sequence's
+        ``(timings off, timings on)`` step dicts (seconds, see ``SceneRenderer.render``).
+    """
+    dataset = SidarDataset(config=config, seed=0)
+    settings = RenderSettings.from_config(config)
+    renderers = {on: shared_renderer(replace(settings, **{field: on})) for on in (False, True)}
+    ms_per_view: dict[tuple[str, bool], list[float]] = {(clock, on): [] for clock in CLOCKS for on in (False, True)}
+    steps: list[tuple[dict, dict]] = []
+    warmup = [10_000 + k for k in range(WARMUP)]
+    for index in warmup + list(range(samples)):
+        sequence = dataset.scene(index)
+        painting = dataset.source.painting(index % len(dataset.source), config.image_size)
+        pair: dict[bool, dict[str, float]] = {}
+        for on in ((False, True) if index % 2 else (True, False)):
+            pair[on] = {}
+            start = {clock: read() for clock, read in CLOCKS.items()}
+            renderers[on].render(sequence, painting, pair[on])
+            if index in warmup:
+                continue
+            for clock, read in CLOCKS.items():
+                ms_per_view[clock, on].append(1e3 * (read() - start[clock]) / len(sequence.views))
+        if index not in warmup:
+            steps.append((pair[False], pair[True]))
+    return ms_per_view, steps
+
+
+def print_paired(ms_per_view: dict) -> None:
+    """One line per clock: medians without and with, and the median paired difference (same
+    sequence, with minus without; steadier on a loaded machine)."""
+    for clock in CLOCKS:
+        without, with_ = (statistics.median(ms_per_view[clock, on]) for on in (False, True))
+        paired = statistics.median(b - a for a, b in zip(ms_per_view[clock, False], ms_per_view[clock, True]))
+        print(f"{clock:>4}: median ms / view without {without:.1f}, with {with_:.1f}; "
+              f"median paired difference {paired:+.2f} ms ({100 * paired / without:+.1f} %)")

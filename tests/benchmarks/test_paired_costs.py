@@ -1,0 +1,27 @@
+"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, over ``benchmarks.paired``) on tiny
+settings: what they print and that a wrong override is named, never speed."""
+
+import pytest
+
+from benchmarks import mirror_cost, opacity_cost
+
+pytestmark = pytest.mark.gl  # renders
+
+
+def test_mirror_cost_prints_both_clocks_and_the_share_of_mirrored_views(capsys):
+    mirror_cost.main(["--size", "24x32", "--samples", "2", "--set", "occluder_materials=[metallic]",
+                      "--set", "n_occluders=[1,1]", "--set", "n_views=2"])
+    out = capsys.readouterr().out.splitlines()
+    assert "4 of 4 views have a reflective or glass occluder" in out[0]
+    assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
+
+
+def test_opacity_cost_prints_both_clocks_and_the_draw(capsys):
+    opacity_cost.main(["--size", "24x32", "--samples", "2"])
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0].strip() for line in out[1:]] == ["wall", "cpu", "opacity draw (wall)"]
+
+
+def test_mirror_cost_names_a_wrong_override():
+    with pytest.raises(SystemExit, match="occluder_materials"):
+        mirror_cost.main(["--set", "occluder_materials=[chrome]", "--samples", "1"])
