@@ -414,8 +414,11 @@ def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tupl
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
         lit = render_sample(scene, painting, dataset.config, index, rng=rng)
         free = render_sample(free_scene, painting, free_config, index, rng=dataset.generator(index))
-        if not lit["masks"].equal(free["masks"]):
-            raise RuntimeError(f"sample {index}: shadows changed the masks")
+        # ``mesh_detail: auto`` may pick a finer mesh for an occluder whose shadow is drawn, which moves
+        # its silhouette by less than ``mesh_error_px``: a few edge pixels, never a different scene.
+        changed = float((lit["masks"] != free["masks"]).float().mean())
+        if changed > 1e-3:
+            raise RuntimeError(f"sample {index}: shadows changed {changed:.2%} of the mask pixels")
         views, free_views = (to_uint8(s["images"]) for s in (lit, free))
         masks = lit["masks"][:, 0].numpy() > 0.5
         H0 = lit["homographies"][0].double().numpy()
