@@ -244,7 +244,7 @@ def test_bilinear_filter_aliases_where_the_painting_is_shrunk():
 def test_same_seed_same_sample_with_every_knob():
     config = small_config(shadow_frustum="fitted", mesh_detail="auto", mesh_error_px=0.5, texture_filter="bilinear",
                           shadow_map_size=256)
-    assert RenderSettings.from_config(config) == RenderSettings(SMALL, 256, "tent", "fitted", 0.5, "bilinear")
+    assert RenderSettings.from_config(config) == RenderSettings(SMALL, 256, "bilinear", "fitted", 0.5, "bilinear")
     assert RenderSettings.from_config(replace(config, mesh_detail="fixed")).mesh_error_px is None
     assert sample_digest(SidarDataset(None, config, seed=5).sample(1)) == \
         sample_digest(SidarDataset(None, config, seed=5).sample(1))
