@@ -51,6 +51,16 @@ def tree(path):
             if p.is_file() and p.name != layout.LOCK}
 
 
+
+def wait_for_three_sequences(process: subprocess.Popen, out: Path) -> None:
+    """Wait (up to 120 s) until the export ``process`` has written sequence 2 into ``out``; fail
+    with its stderr if it exits first."""
+    deadline = time.monotonic() + 120
+    while not (out / "000002").exists():
+        assert process.poll() is None, process.stderr.read().decode()
+        assert time.monotonic() < deadline, "the export did not write 3 sequences in 120 s"
+        time.sleep(0.05)
+
 def test_folder_round_trip_is_byte_identical(tmp_path):
     ds = tiny_dataset(seed=5, n_views=3)
     summary = export_dataset(ds, tmp_path, count=3, start=2, progress=False)
@@ -151,11 +161,7 @@ def test_killed_export_resumes(tmp_path):
                "--no-progress", "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 120
-        while not (out / "000002").exists():
-            assert process.poll() is None, process.stderr.read().decode()
-            assert time.monotonic() < deadline, "the export did not write 3 sequences in 120 s"
-            time.sleep(0.05)
+        wait_for_three_sequences(process, out)
     finally:
         if process.poll() is None:
             os.kill(process.pid, signal.SIGKILL)
@@ -335,11 +341,7 @@ def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_by
     command = [sys.executable, "-m", "sidar_torch", "export", "--out", str(out), "--count", "30", "--workers", "2"]
     process = subprocess.Popen(command + settings, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + 120
-        while not (out / "000002").exists():
-            assert process.poll() is None, process.stderr.read().decode()
-            assert time.monotonic() < deadline, "the export did not write 3 sequences in 120 s"
-            time.sleep(0.05)
+        wait_for_three_sequences(process, out)
         workers = child_pids(process.pid)
         assert len(workers) >= 2, workers
     finally:
