@@ -31,6 +31,7 @@ import torch
 
 from .config import SidarConfig
 from .render import preload
+from .render.context import forks_nothing
 from .sample import SampleArrays, render_arrays
 from .scene import sample_sequence
 from .sources import TensorPaintings
@@ -167,6 +168,7 @@ def _shut_down(pid: int, connections: list[Connection], processes: list) -> None
 def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_pid: int) -> None:
     """Render tasks from ``connection`` until it closes or the parent dies."""
     torch.set_num_threads(1)
+    forks_nothing()  # a worker forks nothing: Mesa's disk cache may serve its shader variants
     while True:
         try:
             while not connection.poll(_PARENT_CHECK_S):

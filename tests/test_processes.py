@@ -227,3 +227,20 @@ print("preloaded without a context")
 def test_the_dataset_imports_the_renderer_for_its_workers_and_creates_no_context():
     result = subprocess.run([sys.executable, "-c", PRELOAD], capture_output=True, text=True, timeout=120)
     assert result.stdout.strip() == "preloaded without a context", result.stderr[-2000:]
+
+
+DISK_CACHE = """
+import os, sys
+os.environ.pop("MESA_SHADER_CACHE_DISABLE", None)
+from sidar_torch.render import context
+if sys.argv[1] == "pool-worker":
+    context.forks_nothing()
+context._disable_disk_cache_unless_worker()
+print(os.environ.get("MESA_SHADER_CACHE_DISABLE"))
+"""
+
+
+@pytest.mark.parametrize("role, expected", [("main", "true"), ("pool-worker", "None")])
+def test_only_processes_that_may_fork_turn_mesas_disk_cache_off(role, expected):
+    result = subprocess.run([sys.executable, "-c", DISK_CACHE, role], capture_output=True, text=True, timeout=120)
+    assert result.stdout.strip() == expected, result.stderr[-2000:]

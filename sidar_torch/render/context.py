@@ -68,6 +68,17 @@ def _cannot_open(reason: str) -> RuntimeError:
                         f"it needs {_INSTALL_HINT.get(GL_PLATFORM, 'osmesa or egl')}")
 
 
+_FORKS_NOTHING = False
+
+
+def forks_nothing() -> None:
+    """Declare that this process forks no process that renders (a render-pool worker), so its
+    first context may keep Mesa's on-disk shader cache, as a DataLoader worker's does (see
+    :func:`_disable_disk_cache_unless_worker`)."""
+    global _FORKS_NOTHING
+    _FORKS_NOTHING = True
+
+
 def _disable_disk_cache_unless_worker() -> None:
     """Keep Mesa's on-disk shader cache out of processes that may fork.
 
@@ -75,12 +86,13 @@ def _disable_disk_cache_unless_worker() -> None:
     context inherits the parent's GL screen without that thread, and deadlocks at the first
     draw that compiles a new shader variant. Mesa reads ``MESA_SHADER_CACHE_DISABLE`` when
     the process's first context is created, so it is set here, unless this process is a
-    DataLoader worker (which forks nothing) or the user set it. A worker forked after its
-    parent rendered inherits the parent's screen, created without the cache, and compiles cold.
+    DataLoader worker or declared :func:`forks_nothing` (neither forks) or the user set it. A
+    worker forked after its parent rendered inherits the parent's screen, created without the
+    cache, and compiles cold.
     """
     from torch.utils.data import get_worker_info
 
-    if get_worker_info() is None:
+    if get_worker_info() is None and not _FORKS_NOTHING:
         os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")
 
 
