@@ -8,6 +8,7 @@ so the same sample comes out whatever the number of workers, ranks or the order 
 
 from __future__ import annotations
 
+import itertools
 import os
 from typing import Any, Iterator
 
@@ -71,9 +72,10 @@ class SidarDataset(IterableDataset):
     while keeping every sample a pure function of ``(seed, index)`` and the sharding above exact:
     epoch ``e`` draws ``e * N .. e * N + N - 1`` for a finite ``length = N``, and the endless stream
     starts at ``e * EPOCH_STRIDE`` (``2**40``: no epoch reaches the next). Call it before each
-    ``iter(loader)`` with ``persistent_workers=False`` (the default), which hands workers a fresh copy
-    of the dataset each epoch; persistent workers keep the copy they started with. Without it every
-    ``iter(loader)`` starts again at the same indices: right for validation, wrong for training.
+    ``iter(loader)``: the epoch lives in a one-element shared-memory tensor that DataLoader workers
+    read each time they start an epoch, so it reaches workers that already exist
+    (``persistent_workers=True``) as well as fresh ones, under fork, spawn and forkserver. Without it
+    every ``iter(loader)`` starts again at the same indices: right for validation, wrong for training.
     """
 
     def __init__(self, source: Any = None, config: SidarConfig | str | os.PathLike | None = None,
@@ -85,12 +87,19 @@ class SidarDataset(IterableDataset):
         self.source: PaintingSource = make_source(source, crop=crop, on_bad_image=self.config.on_bad_image)
         self.seed = as_int("seed", seed, 0)
         self.length = None if length is None else as_int("length", length, 1)
-        self.epoch = 0
+        self._epoch = torch.zeros((), dtype=torch.int64).share_memory_()
         preload()  # DataLoader workers forked from here inherit the renderer's imports
 
+    @property
+    def epoch(self) -> int:
+        """The epoch whose indices the next ``iter`` draws (see "Epochs" in the class docstring)."""
+        return int(self._epoch)
+
     def set_epoch(self, epoch: int) -> None:
-        """Draw epoch ``epoch``'s indices from now on (see "Epochs" in the class docstring)."""
-        self.epoch = as_int("epoch", epoch, 0)
+        """Draw epoch ``epoch``'s indices from the next ``iter(loader)`` on, in this process and in
+        every DataLoader worker of this dataset, persistent ones included (see "Epochs" in the class
+        docstring)."""
+        self._epoch.fill_(as_int("epoch", epoch, 0))
 
     def __getitem__(self, index: int) -> dict[str, Any]:
         raise TypeError(f"SidarDataset is an IterableDataset and is not indexed: use ds.sample({index!r}) for "
@@ -130,8 +139,8 @@ class SidarDataset(IterableDataset):
 
     def indices(self) -> Iterator[int]:
         """The indices this process draws: ``o + k, o + k + n, o + k + 2n, ...`` (``k + ...`` below
-        ``length`` if finite) for its shard ``k`` of ``n`` and the epoch's offset ``o`` (see
-        "Sharding" and "Epochs" in the class docstring).
+        ``length`` if finite) for its shard ``k`` of ``n`` and the offset ``o`` of the epoch current
+        at this call (see "Sharding" and "Epochs" in the class docstring).
 
         Raises:
             ValueError: ``RANK``/``WORLD_SIZE`` in the environment are not a valid rank of a world.
@@ -139,11 +148,11 @@ class SidarDataset(IterableDataset):
         rank, world_size = self._rank_and_world_size()
         info = get_worker_info()
         worker, num_workers = (info.id, info.num_workers) if info is not None else (0, 1)
-        offset = self.epoch * (EPOCH_STRIDE if self.length is None else self.length)
-        index, n_shards = rank * num_workers + worker, world_size * num_workers
-        while self.length is None or index < self.length:
-            yield offset + index
-            index += n_shards
+        shard, n_shards = rank * num_workers + worker, world_size * num_workers
+        if self.length is None:
+            return itertools.count(self.epoch * EPOCH_STRIDE + shard, n_shards)
+        offset = self.epoch * self.length
+        return iter(range(offset + shard, offset + self.length, n_shards))
 
     def _rank_and_world_size(self) -> tuple[int, int]:
         """``(rank, world_size)`` of this process, from the first of: the initialised process group,
@@ -174,5 +183,5 @@ class SidarDataset(IterableDataset):
         return state
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
-        for index in self.indices():
-            yield self.sample(index)
+        # indices() runs now, not at the first next(): the epoch is the one set before iter().
+        return map(self.sample, self.indices())

@@ -83,6 +83,38 @@ def test_persistent_workers_serve_every_epoch_with_the_same_content(tmp_path):
     assert epochs[0] == epochs[1] == {i: sample_digest(ds.sample(i)) for i in range(5)}
 
 
+class IndexOnly(SidarDataset):
+    """A SidarDataset whose samples are just their index: tests of who draws what, without rendering."""
+
+    def sample(self, index):
+        return {"index": index}
+
+
+@pytest.mark.parametrize("context", ["fork", "spawn"])
+def test_set_epoch_reaches_persistent_workers_under_torchrun_ranks(monkeypatch, context):
+    """Issue 20 item 3: persistent workers (which keep the dataset they started with) draw each
+    epoch's fresh indices, on a single process and as rank 0 of 2 (torchrun's RANK/WORLD_SIZE)."""
+    ds = IndexOnly(None, TINY, seed=0, length=64)
+    loader = DataLoader(ds, batch_size=16, num_workers=2, persistent_workers=True, timeout=WAIT,
+                        multiprocessing_context=context)
+    epochs = []
+    for epoch in range(3):
+        ds.set_epoch(epoch)
+        epochs.append(sorted(int(i) for batch in loader for i in batch["index"]))
+    assert epochs == [list(range(64 * e, 64 * e + 64)) for e in range(3)]
+
+    monkeypatch.setenv("RANK", "0")
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    ranked = IndexOnly(None, TINY, seed=0, length=16)
+    loader = DataLoader(ranked, batch_size=2, num_workers=2, persistent_workers=True, timeout=WAIT,
+                        multiprocessing_context=context)
+    drawn = []
+    for epoch in range(2):
+        ranked.set_epoch(epoch)
+        drawn.append(sorted(int(i) for batch in loader for i in batch["index"]))
+    assert drawn == [[0, 1, 4, 5, 8, 9, 12, 13], [16, 17, 20, 21, 24, 25, 28, 29]]
+
+
 # --------------------------------------------------------------------------- failure and exit
 
 
