@@ -1,16 +1,16 @@
-"""Stored SHA-256 digests of every file of a folder export and a shard export, recorded with the
-code of ``main`` before the export was split into ``sidar_torch/io/`` (re-recorded when a config default
-changed, which changes the manifests): a guard that the writers change no byte.
+"""Stored records of every file of a folder export and a shard export: a guard that the writers
+change no byte.
 
 ``python tests/export_digests.py --write`` records them (only in a commit whose purpose is to
-change exported files, saying so); ``tests/test_export_digests.py`` compares. As in
-``stored_digests.py``, files holding pixels (PNGs, and the shards, which hold PNGs) are compared
-only where the GL renderer string is the one the digests were recorded on.
+change exported files, saying so); ``tests/test_export.py`` compares. As in ``stored_digests.py``:
+PNGs by SHA-256 digest, compared only where the GL renderer string is the recorded one; files of
+geometry (``H_<i>_<j>.mat``, ``homographies.npy``, ``cameras.json``) by their decoded numbers within
+``recorded.py``'s tolerances; a shard by the names of its entries (each entry is recorded on its
+own); every other file (manifests) by digest, everywhere.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import sys
 import tarfile
@@ -19,32 +19,50 @@ from pathlib import Path
 
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from recorded import digest, environment, geometry_record  # noqa: E402
+
 STORE = HERE / "data" / "export_digests.json"
 CONFIG = dict(image_size=(24, 32), n_views=3, shadow_map_size=256, opacity_output=True, n_occluders=(2, 2))
 SEED, START, COUNT, SHARD_SIZE = 5, 1, 3, 2
 LOCK = ".export.lock"
-def digest(data: bytes) -> str:
-    return hashlib.sha256(data).hexdigest()
+GEOMETRY_FILES = (".mat", ".npy", "cameras.json")
 
 
-def tree_digests(root: Path) -> dict[str, str]:
-    """``{path: sha256}`` of every file under ``root`` (the lock file aside) and, for a tar, ``{"<tar>:<entry>": sha256}`` of each entry, so
-    that a mismatch names the entry."""
-    digests = {}
+def file_record(name: str, data: bytes) -> dict:
+    """``{"fields": {field: geometry_record}}`` for a file of geometry (a JSON file's text fields
+    as ``{"text": ...}``), else ``{"sha256": ...}``."""
+    from sidar_torch.io.layout import decode
+
+    if not name.endswith(GEOMETRY_FILES):
+        return {"sha256": digest(data)}
+    value = decode(name, data)
+    fields = value.items() if isinstance(value, dict) else [("values", value)]
+    return {"fields": {field: {"text": v} if isinstance(v, str) else geometry_record(v) for field, v in fields}}
+
+
+def tree_records(root: Path) -> dict[str, dict]:
+    """``{path: file_record}`` of every file under ``root`` (the lock file aside); a tar as
+    ``{"members": [names]}`` and each of its entries as ``"<tar>:<entry>"``, so that a mismatch
+    names the entry."""
+    records = {}
     for path in sorted(root.rglob("*")):
         if not path.is_file() or path.name == LOCK:
             continue
         name = str(path.relative_to(root))
-        data = path.read_bytes()
-        digests[name] = digest(data)
-        if path.suffix == ".tar":
-            with tarfile.open(path) as tar:
-                for member in tar.getmembers():
-                    digests[f"{name}:{member.name}"] = digest(tar.extractfile(member).read())
-    return digests
+        if path.suffix != ".tar":
+            records[name] = file_record(name, path.read_bytes())
+            continue
+        with tarfile.open(path) as tar:
+            members = tar.getmembers()
+            records[name] = {"members": [member.name for member in members]}
+            for member in members:
+                records[f"{name}:{member.name}"] = file_record(member.name, tar.extractfile(member).read())
+    return records
 
 
-def current_digests() -> dict[str, dict[str, str]]:
+def current_records() -> dict[str, dict[str, dict]]:
     """``{"folders": {...}, "shards": {...}}``: digests of both layouts of the same sequences."""
     from sidar_torch import SidarDataset, export_dataset, load_config
 
@@ -53,20 +71,18 @@ def current_digests() -> dict[str, dict[str, str]]:
     with tempfile.TemporaryDirectory() as tmp:
         for layout, shards in (("folders", None), ("shards", SHARD_SIZE)):
             export_dataset(dataset, Path(tmp) / layout, count=COUNT, start=START, shards=shards, progress=False)
-            out[layout] = tree_digests(Path(tmp) / layout)
+            out[layout] = tree_records(Path(tmp) / layout)
     return out
 
 
 def is_pixel_file(name: str) -> bool:
-    """PNGs and shards (which hold PNGs) depend on the rasteriser."""
-    return name.endswith((".png", ".tar"))
+    """PNGs depend on the rasteriser."""
+    return name.endswith(".png")
 
 
 if __name__ == "__main__":
     if sys.argv[1:] != ["--write"]:
         raise SystemExit("usage: python tests/export_digests.py --write")
-    from stored_digests import gl_renderer
-
-    digests = current_digests()
-    STORE.write_text(json.dumps({"gl_renderer": gl_renderer(), "exports": digests}, indent=1, sort_keys=True) + "\n")
-    print(f"wrote {STORE} ({sum(map(len, digests.values()))} digests)")
+    records = current_records()
+    STORE.write_text(json.dumps({"recorded_with": environment(), "exports": records}, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {STORE} ({sum(map(len, records.values()))} records)")
