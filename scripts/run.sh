@@ -3,7 +3,8 @@
 # (OSMesa from Debian, a virtual environment, torch's CPU build, the package), then runs a task.
 #
 #   bash scripts/run.sh preview [preview options]   render a contact sheet of the built-in paintings
-#   bash scripts/run.sh test [pytest options]       run the test suite (what .ci/run calls)
+#   bash scripts/run.sh test [pytest options]       run the test suite on every core (pytest-xdist);
+#                                                   add --runslow for the slow tests too (what .ci/run calls)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,12 +21,13 @@ if [ -n "$missing" ]; then
 fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 # torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).
+# Then the package with the versions the suite was last checked with (scripts/constraints.txt).
 .venv/bin/python -m pip install -q torch==2.13.0
-.venv/bin/python -m pip install -q -e ".[test,ray]"
+.venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test,ray]"
 
 task="${1:-}"; shift || true
 case "$task" in
   preview) exec .venv/bin/python -m sidar_torch preview --out out/preview.png "$@" ;;
-  test)    exec .venv/bin/python -m pytest -q "$@" ;;
+  test)    exec .venv/bin/python -m pytest -q -n auto "$@" ;;
   *)       echo "usage: bash scripts/run.sh preview|test [options]" >&2; exit 2 ;;
 esac

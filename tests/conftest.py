@@ -13,6 +13,21 @@ from sidar_torch import load_config
 SMALL = (96, 128)
 
 
+def pytest_addoption(parser):
+    parser.addoption("--runslow", action="store_true",
+                     help="also run the tests marked slow (benchmark smoke tests, long process tests); CI does")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked ``slow`` are skipped unless ``--runslow`` is given (``.ci/run`` gives it)."""
+    if config.getoption("--runslow"):
+        return
+    skip = pytest.mark.skip(reason="slow: run with --runslow (as CI does)")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)
+
+
 @pytest.fixture(autouse=True)
 def _no_gl_unless_marked(request, monkeypatch):
     """A test not marked ``gl`` may not render in this process: the renderer's loader raises (every
