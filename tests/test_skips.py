@@ -1,9 +1,9 @@
 """Work the renderer skips because it cannot change a pixel: each skip rendered on and off.
 
-The skips (``sidar_torch.render.plan`` and ``SceneRenderer._render_view``): shadow passes and
-lookups of emitters that shade nothing the camera sees, occluders no camera and no shadow can
-see, the mask draw of a view with no occluder in sight, and shadow maps drawn again for the same
-lights and casters.
+The skips (``sidar_torch.render.plan``, ``render.footprints`` and ``SceneRenderer._render_view``):
+shadow passes and lookups of emitters that shade nothing the camera sees, lookups on the parts of
+the painting no caster can shadow, occluders no camera and no shadow can see, the mask draw of a
+view with no occluder in sight, and shadow maps drawn again for the same lights and casters.
 """
 
 from dataclasses import replace
@@ -13,6 +13,7 @@ import pytest
 
 from sidar_torch import geometry
 from sidar_torch.render import RenderSettings, shared_renderer, visibility
+from sidar_torch.render.backend import RankedNode, ranked
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -56,6 +57,37 @@ def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(preset):
         idle += sum(len(p.order) - p.n_shadowed for p, v in zip(plan_views(seq, settings), seq.views) if v.occluders)
         assert_same_pixels(*render_both(settings, seq, painting, "skip_idle_shadows"))
     assert idle >= 10  # the skip did happen
+
+
+def test_lights_are_summed_in_rank_order_so_the_shadowed_ones_come_first():
+    """A set of ranks 5..8 iterates as 8, 5, 6, 7: the shader's light order must not come from set
+    iteration, or a shadowed emitter lands past ``n_shadowed`` and loses its shadow (a view with 3
+    occluders and 4 emitters did: 6 pixels lit that the unskipped render shadows)."""
+    nodes = {RankedNode(rank) for rank in (5, 6, 7, 8)}
+    assert [hash(n) for n in nodes] != [5, 6, 7, 8]  # what made it necessary
+    assert [hash(n) for n in ranked(nodes)] == [5, 6, 7, 8]
+    cfg = small_config(image_size=(48, 64), n_occluders=(3, 4), n_lights=(1, 3), light_types=("spot", "point"))
+    seq = sample_sequence(cfg, np.random.default_rng(11))
+    assert_same_pixels(*render_both(RenderSettings.from_config(cfg), seq, textured_painting((48, 64)),
+                                    "skip_idle_shadows"))
+
+
+@pytest.mark.parametrize("preset", ["misaligned", "paper_misaligned", "shadows_only"])
+def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(preset):
+    """The painting's lit draw split into screen rectangles with only the lookups each needs
+    (``render.footprints``) gives the same bytes as one draw with every lookup, with tent and
+    bilinear filters, transparent casters (transmittance lookups) and antialiasing (paper preset)."""
+    cfg = small_config(preset, image_size=(160, 224), n_views=3, n_occluders=(2, 4))
+    painting = textured_painting((160, 224))
+    left_out = 0
+    for seed, shadow_filter in zip(range(4), ["tent", "bilinear"] * 2):
+        settings = RenderSettings.from_config(cfg.replace(shadow_filter=shadow_filter))
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        for plan in plan_views(seq, settings):
+            left_out += sum(part.width * part.height * (plan.n_shadowed - part.end + part.begin)
+                            for part in plan.painting_parts)
+        assert_same_pixels(*render_both(settings, seq, painting, "split_shadow_lookups"))
+    assert left_out > 0  # lookups were left out
 
 
 @pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])

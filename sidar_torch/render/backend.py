@@ -7,15 +7,17 @@
 * :class:`ProgramCache` and its programs: the program cache fix (pyrender's never hits on OSMesa),
   linking without PyOpenGL's validation, and pyrender's shaders patched as ``shader_patches``
   says (quirks 1-7 there);
-* :class:`RankedNode`: scene nodes hashed by insertion rank, so lights are summed in a fixed order.
+* :class:`RankedNode`: scene nodes hashed by insertion rank, so lights are summed in a fixed order
+  (:func:`ranked`).
 
 Nothing else in the package subclasses or patches pyrender.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import pyrender
@@ -26,13 +28,14 @@ from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
 from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
+from .footprints import PaintingPart
 from .framebuffer import FLIP_Y, Framebuffer
 from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
 from .shadow_array import ShadowMapArray
 from .transmittance import TransmittanceMaps, vertex_defines
 
-__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection"]
+__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection", "ranked"]
 
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
@@ -55,8 +58,9 @@ class RankedNode(pyrender.Node):
     """A scene node whose hash is its insertion rank in the scene, not its memory address, and
     whose pose is stored as given.
 
-    pyrender keeps nodes in sets and sums the lights in set order; address-based hashes make
-    that order, and so the float rounding of the sum, change from one render to the next.
+    pyrender keeps nodes in sets; address-based hashes would make the order of anything iterated
+    from them change from one render to the next. The lights are summed in rank order
+    (:func:`ranked`), which ``render.plan``'s order of shadowed emitters relies on.
 
     pyrender decomposes a pose into a quaternion, scale and translation whenever it is set (half a
     millisecond, about 20 times per sample), although drawing reads only the pose itself; here
@@ -106,6 +110,14 @@ class RankedNode(pyrender.Node):
     scale = _derived("scale")
     translation = _derived("translation")
     del _derived
+
+
+def ranked(nodes: set[pyrender.Node]) -> list[pyrender.Node]:
+    """A scene's :class:`RankedNode` s in insertion order: the order the shader sums the lights in
+    and ``render.plan`` puts the shadowed emitters first in. Iterating the set itself is not that
+    order: a set of small-integer hashes iterates in hash-table order, which wraps around when
+    ranks reach the table's size (ranks 5..8 in a table of 8 iterate as 8, 5, 6, 7)."""
+    return sorted(nodes, key=hash)
 
 
 def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) -> pyrender.Node:
@@ -237,6 +249,8 @@ class GLRenderer(pyrender.Renderer):
       darkening the depth maps (``render.transmittance``);
     * reflective and glass occluders are drawn with the program variant of their material's
       ``mirror`` define, with the painting of :attr:`painting` bound (``render.mirror``);
+    * the painting's lit draw can be split into screen rectangles, each with only the shadow
+      lookups it needs (``render.footprints``; :meth:`draw`'s ``painting_parts``);
     * garbage collection issues no GL call (pyrender's ``__del__`` deletes its objects by id in
       whatever context is current, which may be another renderer's): the objects die with
       their context, which :class:`~.renderer.SceneRenderer` destroys.
@@ -254,6 +268,7 @@ class GLRenderer(pyrender.Renderer):
         self.transmittance = TransmittanceMaps(shadow_map_size // 2)
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
+        self._split: tuple[Any, Sequence[PaintingPart]] | None = None  # (painting primitive, parts) of a lit draw
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
         self._lit_programs: set[ShaderProgram] = set()
         self.painting: PaintingMirror | None = None
@@ -324,9 +339,9 @@ class GLRenderer(pyrender.Renderer):
                              f"got {len(spots)} spot lights of {len(scene.light_nodes)} lights")
         shadowed = bool(flags & RenderFlags.SHADOWS_SPOT)
         uniforms: list[tuple[str, Any]] = [("ambient_light", scene.ambient_light), ("n_spot_lights", len(spots)),
-                                           ("n_shadowed_spot_lights", self._n_shadowed if shadowed else 0)]
+                                           ("lookup_begin", 0), ("lookup_end", self._n_shadowed if shadowed else 0)]
         textures: list[tuple[Any, str]] = []
-        for k, light_node in enumerate(scene.light_nodes):  # rank order (RankedNode), as pyrender's
+        for k, light_node in enumerate(ranked(scene.light_nodes)):
             light, pose, name = light_node.light, scene.get_pose(light_node), f"spot_lights[{k}]."
             scale = 1.0 / max(0.001, np.cos(light.innerConeAngle) - np.cos(light.outerConeAngle))
             uniforms += [(name + "direction", -pose[:3, 2]), (name + "position", pose[:3, 3]),
@@ -352,7 +367,8 @@ class GLRenderer(pyrender.Renderer):
             self._program_cache.mirror = None
 
     def _bind_and_draw_primitive(self, primitive, pose, program, flags) -> None:
-        """pyrender's draw; in a quirk-8 variant, the painting is bound first (its texture on the next
+        """pyrender's draw, split into the painting's parts for the painting of a lit draw that has
+        them (:meth:`_draw_parts`); in a quirk-8 variant, the painting is bound first (its texture on the next
         unit with a trilinear sampler, so roughness can pick a mip level even when the painting
         itself is drawn bilinear), with its size and light and the occluder's index and inverse pose."""
         if any(name in program.defines for name in MIRROR_DEFINES):
@@ -364,7 +380,37 @@ class GLRenderer(pyrender.Renderer):
             if REFRACTION in program.defines:
                 program.set_uniform("material_ior", primitive.material.ior)
                 program.set_uniform("object_from_world", np.linalg.inv(pose))
-        super()._bind_and_draw_primitive(primitive, pose, program, flags)
+        if self._split is not None and primitive is self._split[0]:
+            self._draw_parts(primitive, pose, program, flags, self._split[1])
+        else:
+            super()._bind_and_draw_primitive(primitive, pose, program, flags)
+
+    def _draw_parts(self, primitive, pose, program, flags, parts: Sequence[PaintingPart]) -> None:
+        """Draw ``primitive`` once per part, under the part's scissor with its lookup range.
+
+        The first draw is pyrender's (it binds the material); the others draw the same bound
+        primitive again. The parts tile the image, so each pixel is drawn once. The program's
+        lookup range is put back to every shadowed light for the next primitives.
+        """
+        GL.glEnable(GL.GL_SCISSOR_TEST)
+        try:
+            for k, part in enumerate(parts):
+                GL.glScissor(part.x, part.y, part.width, part.height)  # upside-down drawing: row 0 is the top
+                program.set_uniform("lookup_begin", part.begin)
+                program.set_uniform("lookup_end", part.end)
+                if k == 0:
+                    super()._bind_and_draw_primitive(primitive, pose, program, flags)
+                    continue
+                primitive._bind()
+                if primitive.indices is not None:
+                    GL.glDrawElements(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0))
+                else:
+                    GL.glDrawArrays(primitive.mode, 0, len(primitive.positions))
+                primitive._unbind()
+        finally:
+            GL.glDisable(GL.GL_SCISSOR_TEST)
+            program.set_uniform("lookup_begin", 0)
+            program.set_uniform("lookup_end", self._n_shadowed)
 
     def _reset_active_textures(self) -> None:
         """pyrender's reset after each primitive, and the painting's sampler unbound (the unit goes
@@ -461,7 +507,8 @@ class GLRenderer(pyrender.Renderer):
 
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
-             timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None) -> np.ndarray:
+             timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None,
+             painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None) -> np.ndarray:
         """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -481,6 +528,8 @@ class GLRenderer(pyrender.Renderer):
                 ``"label"``).
             stale: the nodes of ``shadowed`` whose shadow maps are drawn (default: all); the
                 others' maps must already hold what this scene would draw into them.
+            painting_parts: ``(painting node, parts)``: with ``SHADOWS_SPOT``, the painting is drawn
+                once per part, each with only its lookups (``render.footprints``).
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -505,16 +554,21 @@ class GLRenderer(pyrender.Renderer):
                         self._configure_shadow_mapping_viewport(light_node.light, flags)
                 if self._filtered:
                     # Tile k is read by the shader's k-th spot light: pyrender's binding order.
-                    spots = [n for n in scene.light_nodes if isinstance(n.light, pyrender.SpotLight)]
+                    spots = [n for n in ranked(scene.light_nodes) if isinstance(n.light, pyrender.SpotLight)]
                     tiles = [(k, n) for k, n in enumerate(spots) if n in shadowed]
                     self.transmittance.reserve(tiles[-1][0] + 1)
                     for k, light_node in tiles:
                         self._transmittance_pass(scene, light_node, k, filters, flags)
         self._n_shadowed = len(shadowed)
         self._program_cache.transmittance = self._filtered
+        split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
+        self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1]) if split else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
-            self._forward_pass(scene, flags, seg_node_map=seg_node_map)
+            try:
+                self._forward_pass(scene, flags, seg_node_map=seg_node_map)
+            finally:
+                self._split = None
         with timed(timings, "readback"):
             return self._target.end_drawing()

@@ -21,6 +21,9 @@ Everything else cannot change a pixel and is left out (each test below is conser
 "Reads" includes the lookup's filter footprint (:data:`SHADOW_READ_TEXELS`), turned into an angle
 around the emitter by :func:`shadow_margin`.
 
+And within the painting's colour draw, each shadowed emitter's lookup is made only where a caster
+may be read (``render.footprints``: the draw is split into screen rectangles, ``painting_parts``).
+
 When every view shares the lights and occluders (``scene_per_view`` false) every view gets the
 union of the views' casters, so an emitter's shadow map is the same in every view that shadows
 it, and is drawn once (``SceneRenderer`` keys each map on what it depends on and keeps it with
@@ -37,6 +40,7 @@ import numpy as np
 
 from ..geometry import clip_polygon, plane_corners, visible_halfplanes
 from ..scene import SceneSequence, ViewScene
+from .footprints import PaintingPart, lookup_ranges, painting_parts
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
@@ -85,12 +89,16 @@ class ViewPlan:
         drawn: indices of ``view.occluders`` drawn in the colour pass (and, if opaque enough,
             the mask).
         casters: indices of ``view.occluders`` drawn into the shadow maps.
+        painting_parts: the screen rectangles the painting's colour draw is split into, each with
+            the shadowed emitters it looks up (``render.footprints``); empty: one draw with every
+            lookup.
     """
 
     order: tuple[tuple[int, int], ...]
     n_shadowed: int
     drawn: frozenset[int]
     casters: frozenset[int]
+    painting_parts: tuple[PaintingPart, ...] = ()
 
 
 def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPlan]:
@@ -125,7 +133,23 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
     if shared and settings.cull_occluders:
         casters = frozenset().union(*(p.casters for p in plans))
         plans = [ViewPlan(p.order, p.n_shadowed, p.drawn, casters) for p in plans]
+    if settings.split_shadow_lookups:
+        plans = [_with_painting_parts(view, p, sequence.image_size, settings.shadow_map_size)
+                 for view, p in zip(sequence.views, plans)]
     return plans
+
+
+def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], map_size: int) -> ViewPlan:
+    """``plan`` with the painting's draw split by shadow footprints (``render.footprints``),
+    unless every part would need every lookup."""
+    if not plan.n_shadowed:
+        return plan
+    emitters = list(plan.order[:plan.n_shadowed])
+    margins = np.array([shadow_margin(view.lights[a].outer_cone, map_size) for a, _ in emitters])
+    begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size)
+    if (begin == 0).all() and (end == plan.n_shadowed).all():
+        return plan
+    return ViewPlan(plan.order, plan.n_shadowed, plan.drawn, plan.casters, tuple(painting_parts(begin, end, size)))
 
 
 class _ViewFacts:

@@ -238,7 +238,8 @@ class SceneRenderer:
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
         with self._gl._target.multisampled():  # settings.antialias samples; the other passes single-sampled
             image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
-                                  shadowed=shadowed, timings=timings, step="colour", stale=stale)
+                                  shadowed=shadowed, timings=timings, step="colour", stale=stale,
+                                  painting_parts=(plane, plan.painting_parts))
         self._shadows.drawn(map_keys)
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}

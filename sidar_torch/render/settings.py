@@ -47,9 +47,10 @@ class RenderSettings:
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
-        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps: the skips of
-            work that cannot change a pixel (``render.plan`` and ``SceneRenderer``), all on; tests
-            turn each off to compare. No config field sets them.
+        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps,
+            split_shadow_lookups: the skips of work that cannot change a pixel (``render.plan``,
+            ``render.footprints`` and ``SceneRenderer``), all on; tests turn each off to compare.
+            No config field sets them.
 
     Raises:
         ValueError: a field out of its range, naming the field.
@@ -71,6 +72,7 @@ class RenderSettings:
     cull_occluders: bool = True
     masks_from_outline: bool = True
     reuse_shadow_maps: bool = True
+    split_shadow_lookups: bool = True
 
     def __post_init__(self) -> None:
         try:

@@ -45,11 +45,15 @@ pyrender override.
    vectors and executes both sides of every branch under a lane mask, uniform conditions
    included: only a loop's trip count saves work. pyrender's empty point- and
    directional-light loops cost 13 ms per 512 x 384 view (the renderer makes only spot lights),
-   and a shadow lookup skipped with a branch (``i >= n_shadowed ? 0.0 : lookup``) was still
-   paid in full: the 4 filtered taps per light are two thirds of a lit view. So the point and
-   directional loops are compiled out, and the spot lights run in two loops: the first
-   ``n_shadowed_spot_lights`` with their shadow lookup, the rest without (the renderer orders
-   the lights so; the sum runs in the same order, so the pixels are the same either way).
+   and a shadow lookup skipped with a branch (``i >= n_shadowed ? 0.0 : lookup``, or an ``if`` on a
+   uniform bit mask) was still paid in full: the 4 filtered taps per light are two thirds of a lit
+   view. So the point and directional loops are compiled out, and the spot lights run in three
+   loops, in their order: ``[0, lookup_begin)`` without the lookup, ``[lookup_begin, lookup_end)``
+   with it, ``[lookup_end, n_spot_lights)`` without. A lookup that cannot find a caster returns
+   exactly "lit" (a factor of 1), so the pixels are the same whichever loop adds a light. Occluders
+   draw with the range ``[0, n_shadowed)`` (the renderer puts the shadowed lights first); the
+   painting's draw is split into screen rectangles, each with the narrower range it needs
+   (``render.footprints``).
 
 7. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
    transmittance map per shadowed spot light instead of its depth map (model and limits in
@@ -153,8 +157,8 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
          "int shadow_layer;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_map,",
          "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_layer,"),
-        # Quirk 6: only the first n_shadowed_spot_lights lights can shadow what the camera sees: the
-        # others run in a second loop without the lookup, which would return "lit".
+        # Quirk 6: only the lights in [lookup_begin, lookup_end) may find a caster where this draw
+        # shades: the others run in loops without the lookup, which would return "lit".
         (glsl("pyrender_spot_loop_head.glsl"), glsl("shadowed_spot_loop_head.glsl")),
         ("        color.xyz += res;\n    }\n    color.xyz += base_color.xyz * ambient_light;",
          glsl("unshadowed_spot_loop.glsl")),

@@ -1,5 +1,6 @@
 
-uniform int n_shadowed_spot_lights;
+uniform int lookup_begin;  // spot lights lookup_begin .. lookup_end - 1 look their shadows up
+uniform int lookup_end;
 uniform sampler2DArrayShadow spot_shadow_maps;  // spot light i's map: layer spot_lights[i].shadow_layer
 
 float spot_shadow(mat4 light_matrix, int layer, float nl)
