@@ -39,7 +39,7 @@ from sidar_torch import SidarAugment, SidarDataset, load_config
 from .common import (DEFAULT_PRESET, cpu_seconds, kornia_cpu_seconds, machine, machine_line, median, one_thread,
                      parse_size, size_label)
 
-__all__ = ["BenchSettings", "format_report", "loader_rate", "main", "run_bench", "targets"]
+__all__ = ["BenchSettings", "build_parser", "format_report", "loader_rate", "main", "run_bench", "targets"]
 
 _WARMUP_INDEX = 1_000_000
 """Index of warm-up samples, apart from the measured indices ``0 .. samples - 1``."""
@@ -291,7 +291,8 @@ def format_report(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.bench``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true",
                         help="seconds: one 48x64 size, 2 views, tiny batches (for tests; no target is measured)")
@@ -302,7 +303,11 @@ def main(argv: list[str] | None = None) -> None:
                         help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
     parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 8)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     changes = {k: tuple(v) if isinstance(v, list) else v
                for k, v in {"presets": args.presets, "sizes": args.sizes, "samples": args.samples}.items()
                if v is not None}
