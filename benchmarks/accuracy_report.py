@@ -136,7 +136,7 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
 
 
 def format_report(report: dict[str, Any]) -> str:
-    """The report as markdown tables, with the targets of the accuracy issue beside the figures."""
+    """The report as markdown tables, with the accuracy targets beside the figures."""
     lines = ["Warp residual: view i warped by H[i, j] against view j (ambient, no occluders, speckle paintings)",
              "", "| size (H x W) | pairs | patches | median px | p99 px | max px | photometric MAE (levels) |",
              "|---|---|---|---|---|---|---|"]

@@ -285,3 +285,29 @@ def test_every_file_the_docs_name_exists():
     assert any(path.startswith("tests/") for _, path in paths)
     missing = [f"{where}: {path}" for where, path in paths if not (ROOT / path).exists()]
     assert not missing, missing
+
+
+BENCHMARKS = sorted(p.stem for p in (ROOT / "benchmarks").glob("*.py")
+                    if "build_parser" in p.read_text() and p.stem != "common")
+"""The benchmark modules with a command line."""
+
+
+def test_benchmarks_tell_users_nothing_about_issue_numbers():
+    """What a user reads (``--help`` of every benchmark, the bench's printed report) stands on its own."""
+    from benchmarks import bench
+
+    assert len(BENCHMARKS) >= 10, BENCHMARKS
+    for name in BENCHMARKS:
+        assert "issue" not in importlib.import_module(f"benchmarks.{name}").build_parser().format_help().lower(), name
+    machine = {"cpus": 2, "load": 0.5, "python": "3", "torch": "2", "kornia": "0", "gl_platform": "osmesa",
+               "lp_num_threads": "0"}
+    row = {"preset": "misaligned", "size": "384x512", "views": 6, "s_per_sequence": 0.3, "ms_per_view": 50.0,
+           "kornia_ms_per_image": 40.0, "kornia_ratio": 1.25, "warmup_s": 2.0}
+    report = {"settings": {"samples": 8}, "machine": {"before": machine, "after": machine}, "seconds": 60.0,
+              "views": [row], "augment": {**row, "batch": 8, "size": "192x256", "ms_per_image": 100.0,
+                                          "pool_speedup": 1.1},
+              "loaders": {"preset": "misaligned", "size": "384x512", "views": 6, "scaling": 1.5,
+                          "sequences_per_s": {"1": 2.0, "2": 3.0}}}
+    report["targets"] = bench.targets(report)
+    text = bench.format_report(report)
+    assert "## Targets" in text and "issue" not in text.lower(), text
