@@ -311,3 +311,20 @@ def test_benchmarks_tell_users_nothing_about_issue_numbers():
     report["targets"] = bench.targets(report)
     text = bench.format_report(report)
     assert "## Targets" in text and "issue" not in text.lower(), text
+
+
+def heading_anchors(page: Path) -> set[str]:
+    """The anchors GitHub gives the headings of ``page``: lower case, punctuation dropped, spaces as ``-``."""
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.M | re.S)
+    return {re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+            for heading in re.findall(r"^#+ (.+)$", text, flags=re.M)}
+
+
+def test_every_link_to_a_section_names_a_heading_of_its_page():
+    broken = []
+    for page in COMMAND_PAGES:
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", page.read_text()):
+            linked = page.parent / target if target else page
+            if "://" not in target and linked.suffix == ".md" and anchor not in heading_anchors(linked):
+                broken.append(f"{page.relative_to(ROOT)} -> {target}#{anchor}")
+    assert not broken, broken
