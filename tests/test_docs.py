@@ -208,7 +208,7 @@ def _check_run_sh(args: list[str], inline: bool) -> None:
         raise SystemExit(f"scripts/run.sh has no task {task!r} (tasks: {', '.join(tasks)})")
     if task == "preview":
         fixed = shlex.split(tasks[task].replace('"$@"', ""))[3:]  # the options run.sh itself passes
-        cli._parser().parse_args([*fixed, *args])
+        _check_config(cli._parser().parse_args([*fixed, *args]))
     else:
         _check_pytest(args)
 
@@ -234,7 +234,24 @@ def _check_python(args: list[str], inline: bool) -> None:
     else:
         raise SystemExit(f"python -m {tool}: not a tool of this project")
     if args or not inline:  # a bare `python -m tool` in prose names the tool, whatever it requires
-        parse(args)
+        _check_config(parse(args))
+
+
+def _check_config(options: argparse.Namespace | None) -> None:
+    """The presets (or YAML files) and ``--set`` overrides a command names load, as the tool loads them."""
+    from sidar_torch import load_config
+    from sidar_torch.cli import parse_overrides
+
+    names = [getattr(options, key, None) for key in ("config", "presets", "preset")]
+    names = [name for value in names if value for name in (value if isinstance(value, list) else [value])]
+    for name in names or (["misaligned"] if getattr(options, "set", None) else []):
+        if "<" in name:  # a placeholder such as <preset>
+            continue
+        try:
+            load_config(ROOT / name if name.endswith((".yaml", ".yml")) else name,
+                        **parse_overrides(getattr(options, "set", None) or []))
+        except (ValueError, TypeError, OSError) as error:
+            raise SystemExit(f"config {name!r}: {error}") from None
 
 
 def _check_words(words: list[str], inline: bool) -> None:
@@ -273,6 +290,9 @@ def test_the_command_check_refuses_what_the_tools_refuse():
     assert "unrecognized arguments: --workers" in command_error("python -m benchmarks.bench --workers 0")
     assert "invalid choice" in command_error("python -m sidar_torch preveiw")
     assert "--anchors" in command_error("python -m benchmarks.exposure --samples 2")
+    assert "n_veiws" in command_error("python -m sidar_torch preview --set n_veiws=3")
+    assert "nope" in command_error("python -m benchmarks.bench --presets misaligned nope")
+    assert "no_such.yaml" in command_error("python -m benchmarks.soak --config configs/no_such.yaml")
     assert command_error("python -m benchmarks.exposure", inline=True) is None  # names the tool
     assert "no task" in command_error("bash scripts/run.sh tests")
     assert "--samples" in command_error("bash scripts/run.sh preview --samples two")
