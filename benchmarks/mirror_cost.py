@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 
 from sidar_torch import SidarDataset, load_config
-from sidar_torch.render.mirror import mirror_define
 
 from .common import DEFAULT_PRESET, parse_set, parse_size, size_label
 from .paired import paired_view_times, print_paired
@@ -34,6 +33,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> None:
+    from sidar_torch.render.mirror import mirror_define  # imports pyrender: here, so build_parser() loads no GL
+
     args = build_parser().parse_args(argv)
     try:
         config = load_config(args.config, image_size=args.size, **parse_set(args.set))

@@ -359,3 +359,13 @@ def test_every_link_to_a_section_names_a_heading_of_its_page():
             if "://" not in target and linked.suffix == ".md" and anchor not in heading_anchors(linked):
                 broken.append(f"{page.relative_to(ROOT)} -> {target}#{anchor}")
     assert not broken, broken
+
+
+def test_reading_a_benchmark_command_line_loads_no_gl():
+    """The command checks above run in the fast subset: building every benchmark's parser imports
+    neither pyrender nor PyOpenGL (checked in a fresh process)."""
+    code = (f"import sys, importlib\nfor name in {BENCHMARKS!r}:\n"
+            "    importlib.import_module('benchmarks.' + name).build_parser()\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pyrender', 'OpenGL')))")
+    result = run(code)
+    assert result.returncode == 0 and result.stdout.strip() == "[]", result.stdout[-500:] + result.stderr[-2000:]
