@@ -29,7 +29,7 @@ from sidar_torch.scene import sample_sequence
 
 from .common import DEFAULT_PRESET, one_thread, parse_set, size_label
 
-__all__ = ["AccuracySettings", "format_report", "main", "run_report"]
+__all__ = ["AccuracySettings", "build_parser", "format_report", "main", "run_report"]
 
 
 @dataclass(frozen=True)
@@ -136,7 +136,7 @@ def run_report(settings: AccuracySettings, log: Callable[[str], None] = print) -
 
 
 def format_report(report: dict[str, Any]) -> str:
-    """The report as markdown tables, with the targets of the accuracy issue beside the figures."""
+    """The report as markdown tables, with the accuracy targets beside the figures."""
     lines = ["Warp residual: view i warped by H[i, j] against view j (ambient, no occluders, speckle paintings)",
              "", "| size (H x W) | pairs | patches | median px | p99 px | max px | photometric MAE (levels) |",
              "|---|---|---|---|---|---|---|"]
@@ -159,7 +159,8 @@ def format_report(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.accuracy_report``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(
         prog="python -m benchmarks.accuracy_report",
         description="Warp residual of H[i, j] on rendered views at 131x257 to 768x1024 (H x W), homography error "
@@ -174,6 +175,11 @@ def main(argv: list[str] | None = None) -> None:
                              "--set fov_deg=[20,40]; image_size and n_views come from the report's sizes")
     parser.add_argument("--json", default=None, help="also write the figures as JSON to this path")
     parser.add_argument("--markdown", default=None, help="also write the table as markdown to this path")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = build_parser()
     args = parser.parse_args(argv)
     if args.scenes is not None and args.scenes < 1:
         parser.error(f"--scenes {args.scenes}: expected at least 1")

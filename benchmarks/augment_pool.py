@@ -28,7 +28,7 @@ from sidar_torch import SidarAugment, SidarDataset
 
 from .common import DEFAULT_PRESET, cpu_seconds, machine, machine_line, median, one_thread, parse_size, size_label
 
-__all__ = ["main", "measure"]
+__all__ = ["build_parser", "main", "measure"]
 
 
 def _process_cpu_seconds(pid: int) -> float:
@@ -75,7 +75,8 @@ def measure(preset: str, batch: int, views: int, size: tuple[int, int], workers:
     return figures
 
 
-def main(argv: Sequence[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.augment_pool``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.augment_pool", description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", default=DEFAULT_PRESET)
     parser.add_argument("--batch", type=int, default=8)
@@ -84,7 +85,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--workers", type=int, default=2, help="render processes of the pool (default 2)")
     parser.add_argument("--calls", type=int, default=5, help="measured calls per figure (default 5)")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     before = machine()
     f = measure(args.preset, args.batch, args.views, args.size, args.workers, args.calls, args.seed)
     print(f"SidarAugment({args.preset!r}), batch {args.batch}, {args.views} views at {size_label(args.size)}, "

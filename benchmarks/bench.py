@@ -1,4 +1,4 @@
-"""The speed benchmark of issue 14: ``python -m benchmarks.bench [--quick]`` from the repository root.
+"""The speed benchmark: ``python -m benchmarks.bench [--quick]`` from the repository root (docs/speed.md).
 
 In one process and one run (torch on one thread, llvmpipe in the calling thread), it measures:
 
@@ -14,7 +14,7 @@ In one process and one run (torch on one thread, llvmpipe in the calling thread)
   wall-clock throughput of the pool over the single-process one;
 * **workers**: steady-state sequences/s of the preset at 384x512 through a DataLoader with 1 and
   2 workers (wall clock; see :func:`loader_rate`) and their ratio;
-* **targets**: each target of issue 14, met or not, with its figure.
+* **targets**: each speed goal of :data:`TARGETS`, met or not, with its figure.
 
 The figures are printed as markdown (and written as JSON with ``--json PATH``); nothing is asserted.
 """
@@ -39,17 +39,17 @@ from sidar_torch import SidarAugment, SidarDataset, load_config
 from .common import (DEFAULT_PRESET, cpu_seconds, kornia_cpu_seconds, machine, machine_line, median, one_thread,
                      parse_size, size_label)
 
-__all__ = ["BenchSettings", "format_report", "loader_rate", "main", "run_bench", "targets"]
+__all__ = ["BenchSettings", "build_parser", "format_report", "loader_rate", "main", "run_bench", "targets"]
 
 _WARMUP_INDEX = 1_000_000
 """Index of warm-up samples, apart from the measured indices ``0 .. samples - 1``."""
 
 TARGET_SIZES = {"small": (192, 256), "default": (384, 512), "large": (768, 1024)}
-"""The sizes issue 14's targets name, ``(H, W)``."""
+"""The sizes the speed goals name, ``(H, W)``."""
 
 TARGETS = {"seconds_per_sequence": 0.2, "kornia_ratio": {"small": 1.5, "default": 1.0, "large": 1.0},
            "augment_ratio": 3.0, "pool_speedup": 1.7, "worker_scaling": 1.8}
-"""Issue 14's targets: the default preset at 384x512 (6 views) in 0.2 s of CPU per sequence; per-view
+"""The speed goals: the default preset at 384x512 (6 views) in 0.2 s of CPU per sequence; per-view
 cost at most 1.5x kornia's per image at 192x256 and 1.0x at 384x512 and 768x1024; ``SidarAugment``
 (batch 8, 2 views, 192x256) at most 3x kornia per image on one core, and a pool of 2 render
 processes at least 1.7x its single-process throughput; 2 DataLoader workers at least 1.8x one."""
@@ -219,7 +219,7 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
 
 
 def targets(report: dict[str, Any]) -> list[dict[str, Any]]:
-    """Issue 14's targets against the report: ``{"target", "measured", "met"}`` each; ``met`` is
+    """The speed goals (:data:`TARGETS`) against the report: ``{"target", "measured", "met"}`` each; ``met`` is
     ``None`` (and ``measured`` says why) where the run did not measure what the target names."""
     rows = []
 
@@ -284,14 +284,15 @@ def format_report(report: dict[str, Any]) -> str:
               "| preset | size (H x W) | views | 1 worker seq/s | 2 workers seq/s | scaling |", "|---|---|---|---|---|---|",
               f"| {w['preset']} | {w['size']} | {w['views']} | {rates['1']:.2f} | {rates['2']:.2f} "
               f"| {w['scaling']:.2f}x |",
-              "", "## Targets of issue 14 (reported, never asserted)", "", "| target | measured | met |",
+              "", "## Targets (reported, never asserted)", "", "| target | measured | met |",
               "|---|---|---|"]
     verdict = {True: "met", False: "not met", None: "-"}
     lines += [f"| {t['target']} | {t['measured']} | {verdict[t['met']]} |" for t in report["targets"]]
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.bench``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.bench", description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true",
                         help="seconds: one 48x64 size, 2 views, tiny batches (for tests; no target is measured)")
@@ -302,7 +303,11 @@ def main(argv: list[str] | None = None) -> None:
                         help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
     parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 8)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     changes = {k: tuple(v) if isinstance(v, list) else v
                for k, v in {"presets": args.presets, "sizes": args.sizes, "samples": args.samples}.items()
                if v is not None}

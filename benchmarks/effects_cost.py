@@ -32,14 +32,19 @@ EFFECTS = {
 }
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.effects_cost``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.effects_cost", description=__doc__.split("\n\n")[0])
     parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
     parser.add_argument("--views", type=int, default=6, help="views per sequence (default 6)")
     parser.add_argument("--samples", type=int, default=3, help="rendered sequences (default 3)")
     parser.add_argument("--repeats", type=int, default=5, help="timed passes over them per effect (default 5)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     with one_thread():
         measure(args)
 

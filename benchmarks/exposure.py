@@ -33,7 +33,7 @@ from sidar_torch import SidarDataset, load_config
 
 from .common import DEFAULT_PRESET
 
-__all__ = ["BLACK", "LUMA", "WHITE", "ViewExposure", "anchor_sheet", "main", "view_exposure"]
+__all__ = ["BLACK", "LUMA", "WHITE", "ViewExposure", "anchor_sheet", "build_parser", "main", "view_exposure"]
 
 WHITE = 250
 """Luma (0..255) from which a painting pixel counts as near-white (blown out)."""
@@ -132,13 +132,18 @@ def row(name: str, views: np.ndarray, masks: np.ndarray) -> str:
             + " ".join(f"{p:.2f}" for p in pooled) + " |")
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.exposure``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.exposure", description=__doc__.split("\n\n")[0])
     parser.add_argument("--anchors", required=True, metavar="GLOB",
                         help="glob of the paper generator's contact sheets (784 x 1474 PNGs), quoted")
     parser.add_argument("--config", nargs="+", default=[DEFAULT_PRESET], help="presets or YAML paths to compare")
     parser.add_argument("--samples", type=int, default=20, help="sequences rendered per preset (default 20)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     sheets = [anchor_sheet(p) for p in sorted(glob.glob(args.anchors))]
     if not sheets:
         raise SystemExit(f"--anchors {args.anchors!r}: no contact sheet found")

@@ -16,20 +16,26 @@ from __future__ import annotations
 import argparse
 
 from sidar_torch import SidarDataset, load_config
-from sidar_torch.render.mirror import mirror_define
 
 from .common import DEFAULT_PRESET, parse_set, parse_size, size_label
 from .paired import paired_view_times, print_paired
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.mirror_cost``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.mirror_cost", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a config field (repeatable), e.g. --set occluder_materials=[metallic,glass]")
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
     parser.add_argument("--samples", type=int, default=40, help="measured sequences (after 3 warm-up ones)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sidar_torch.render.mirror import mirror_define  # imports pyrender: here, so build_parser() loads no GL
+
+    args = build_parser().parse_args(argv)
     try:
         config = load_config(args.config, image_size=args.size, **parse_set(args.set))
     except (ValueError, FileNotFoundError) as error:

@@ -23,12 +23,17 @@ from .common import DEFAULT_PRESET, parse_size, size_label
 from .paired import paired_view_times, print_paired
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.opacity_cost``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.opacity_cost", description=__doc__.splitlines()[0])
     parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
     parser.add_argument("--samples", type=int, default=60, help="measured sequences (after 3 warm-up ones)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     config = load_config(args.config, image_size=args.size)
     ms_per_view, steps = paired_view_times(config, "opacities", args.samples)
     draw_ms = [1e3 * on.get("opacity", 0.0) / config.n_views for _, on in steps]

@@ -26,7 +26,7 @@ from sidar_torch import SidarDataset, load_config
 
 from .common import DEFAULT_PRESET, machine, machine_line, median, one_thread, parse_size, size_label
 
-__all__ = ["main", "measure"]
+__all__ = ["build_parser", "main", "measure"]
 
 
 def _arrivals(items: Iterable[object]) -> list[float]:
@@ -86,7 +86,8 @@ def measure(preset: str, size: tuple[int, int], views: int, count: int, repeats:
     return figures
 
 
-def main(argv: Sequence[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.ray_throughput``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.ray_throughput", description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", default=DEFAULT_PRESET)
     parser.add_argument("--size", type=parse_size, default=(192, 256), help="HxW (default 192x256)")
@@ -95,7 +96,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="runs per way (default 3)")
     parser.add_argument("--cpus", type=int, default=2, help="CPUs of the local Ray cluster and DataLoader workers")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     before = machine()
     figures = measure(args.preset, args.size, args.views, args.count, args.repeats, args.cpus, args.seed)
     print(f"{args.preset!r}, {args.views} views at {size_label(args.size)}, {args.count} sequences per run, "

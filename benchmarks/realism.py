@@ -537,10 +537,9 @@ def table(name: str, ours: ViewStats, theirs: ViewStats) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> None:
-    from sidar_torch import load_config
-
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.realism``; parsing it runs nothing."""
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.realism", description=__doc__.split("\n")[0])
     parser.add_argument("--anchors", required=True, type=Path,
                         help="folder of sequences from the paper's generator (one subfolder per sequence)")
     parser.add_argument("--config", nargs="+", default=["paper_misaligned", "misaligned", "aligned"],
@@ -549,7 +548,13 @@ def main(argv: list[str] | None = None) -> None:
                         help="config overrides applied to every preset (values as YAML)")
     parser.add_argument("--samples", type=int, default=12, help="sequences rendered per preset")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sidar_torch import load_config
+
+    args = build_parser().parse_args(argv)
     if args.samples < 1:
         raise SystemExit(f"--samples {args.samples}: expected at least 1")
     sequences = anchor_sequences(args.anchors)

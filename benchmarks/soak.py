@@ -34,8 +34,6 @@ import time
 from sidar_torch import SidarDataset, load_config  # first: it selects the GL platform
 from sidar_torch.render import RenderSettings, shared_renderer
 
-from OpenGL import GL
-
 from .common import DEFAULT_PRESET, parse_size, rss_mb, size_label
 
 NAME_WINDOW = 1024
@@ -56,6 +54,8 @@ def count_gl_names(is_name, gen_names, delete_names) -> int:
 
 def report(samples: int, renderer, started: float) -> dict:
     """One report line's figures; the renderer's context must be current (it is after a render)."""
+    from OpenGL import GL  # here, not at import: reading the command line loads no GL
+
     return {
         "samples": samples,
         "rss_mb": round(rss_mb(), 1),
@@ -66,7 +66,8 @@ def report(samples: int, renderer, started: float) -> dict:
     }
 
 
-def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.soak``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n\n")[0])
     parser.add_argument("--samples", type=int, default=10_000, help="samples to render (default 10000)")
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW",
@@ -80,6 +81,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="cycle through this many sample indices, at most --warmup (default: all new)")
     parser.add_argument("--max-growth-mb", type=float, default=50.0,
                         help="largest allowed growth after the warm-up, MiB (default 50)")
+    return parser
+
+
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    """The options of ``argv``, checked against each other (``--every``, ``--warmup``, ``--samples``,
+    ``--distinct``); a mistake exits as argparse does (code 2, one line)."""
+    parser = build_parser()
     args = parser.parse_args(argv)
     args.warmup = args.every if args.warmup is None else args.warmup
     if args.every < 1 or args.warmup < 1:

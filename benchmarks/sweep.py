@@ -66,15 +66,16 @@ from sidar_torch.artifacts import linear_to_srgb, srgb_to_linear
 from sidar_torch.config import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from sidar_torch.dataset import SidarDataset
 from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals
-from sidar_torch.render import RenderSettings, SceneRenderer
+from sidar_torch import render  # render.SceneRenderer loads the renderer at its first use, not at import
+from sidar_torch.render import RenderSettings
 from sidar_torch.sample import sequence_homographies
 from sidar_torch.scene import SceneSequence
 
 from .accuracy_report import label_row
 from .common import DEFAULT_PRESET, one_thread, parse_set, parse_size, size_label
 
-__all__ = ["Setting", "SweepSettings", "format_report", "main", "pareto_front", "plot_front", "render_views",
-           "run_sweep", "supersampled_sequence", "write_outputs"]
+__all__ = ["Setting", "SweepSettings", "build_parser", "format_report", "main", "pareto_front", "plot_front",
+           "render_views", "run_sweep", "supersampled_sequence", "write_outputs"]
 
 KNOBS = ("mesh_detail", "texture_filter", "shadow_filter", "antialias")
 """The knobs varied one at a time from the base setting (``SweepSettings.only`` picks one)."""
@@ -242,7 +243,7 @@ def supersampled_sequence(sequence: SceneSequence, factor: int) -> SceneSequence
     return replace(sequence, image_size=(factor * h, factor * w), views=views)
 
 
-def render_views(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray,
+def render_views(renderer: render.SceneRenderer, sequence: SceneSequence, painting: np.ndarray,
                  factor: int = 1) -> tuple[torch.Tensor, torch.Tensor]:
     """The views and masks of ``sequence`` at its own size, drawn at ``factor`` times that size.
 
@@ -279,10 +280,11 @@ def _measure_setting(dataset: SidarDataset, setting: Setting, scenes: int) -> tu
     """Seconds per sequence and the views of scenes ``0 .. scenes - 1`` (one warm-up first)."""
     h, w = dataset.config.image_size
     factor = setting.supersampling
-    renderer = SceneRenderer(replace(RenderSettings.from_config(dataset.config), image_size=(factor * h, factor * w),
-                                     shadow_map_size=setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
-                                     mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
-                                     shadow_filter=setting.shadow_filter, antialias=setting.antialias))
+    render_settings = replace(RenderSettings.from_config(dataset.config), image_size=(factor * h, factor * w),
+                              shadow_map_size=setting.shadow_map_size, shadow_frustum=setting.shadow_frustum,
+                              mesh_error_px=setting.mesh_error_px, texture_filter=setting.texture_filter,
+                              shadow_filter=setting.shadow_filter, antialias=setting.antialias)
+    renderer = render.SceneRenderer(render_settings)
     try:
         seconds, views = [], []
         for index in [_WARMUP_INDEX, *range(scenes)]:
@@ -303,7 +305,8 @@ def residual_row(size: tuple[int, int], factor: int, samples: int, seed: int) ->
     drawn with supersampling ``factor`` (shadow maps play no part: no lights)."""
     config = load_config("ambient", image_size=size, n_views=4)
     dataset = SidarDataset(speckle_paintings(samples, size, seed), config, seed=seed)
-    renderer = SceneRenderer(replace(RenderSettings.from_config(config), image_size=(factor * size[0], factor * size[1])))
+    renderer = render.SceneRenderer(replace(RenderSettings.from_config(config),
+                                            image_size=(factor * size[0], factor * size[1])))
     lengths = []
     try:
         for index in range(samples):
@@ -481,7 +484,8 @@ def _map_and_factor(text: str) -> tuple[int, int]:
     return int(parts[0]), int(parts[1])
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.sweep``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(
         prog="python -m benchmarks.sweep",
         description="For output sizes 192x256 and 384x512 (H x W), shadow maps of 256 to 4096 texels, cone and fitted "
@@ -510,7 +514,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
                         help="output sizes (default 192x256 384x512; quick 192x256)")
     parser.add_argument("--out-dir", default="out", help="output folder (default out)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     try:
         changes = {"preset": args.config, "overrides": parse_set(args.set),
                    **({"scenes": args.scenes} if args.scenes is not None else {}),
