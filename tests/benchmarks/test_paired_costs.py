@@ -1,9 +1,9 @@
-"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, over ``benchmarks.paired``) on tiny
+"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``footprint_cost``, over ``benchmarks.paired``) on tiny
 settings: what they print and that a wrong override is named, never speed."""
 
 import pytest
 
-from benchmarks import mirror_cost, opacity_cost
+from benchmarks import footprint_cost, mirror_cost, opacity_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -25,3 +25,11 @@ def test_opacity_cost_prints_both_clocks_and_the_draw(capsys):
 def test_mirror_cost_names_a_wrong_override():
     with pytest.raises(SystemExit, match="occluder_materials"):
         mirror_cost.main(["--set", "occluder_materials=[chrome]", "--samples", "1"])
+
+
+def test_footprint_cost_prints_the_lookups_kept_and_both_clocks(capsys):
+    footprint_cost.main(["--size", "96x128", "--samples", "2", "--set", "n_views=2", "--set", "n_occluders=[2,2]"])
+    out = capsys.readouterr().out.splitlines()
+    share = int(out[0].split("keeps ")[1].split(" %")[0])
+    assert 0 < share < 100  # a split happened and kept some lookups
+    assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
