@@ -188,12 +188,18 @@ def homographies_from_points(points: np.ndarray) -> torch.Tensor:
 
     Returns:
         ``(V, V, 3, 3)`` float64 tensor, ``H[i, j]`` mapping view-i pixels to view-j pixels.
+
+    Raises:
+        RuntimeError: Kornia returned a non-finite homography (kornia < 0.9 does at times).
     """
     pts = torch.as_tensor(points, dtype=torch.float64)
     v = pts.shape[0]
     src = pts[:, None].expand(v, v, 4, 2).reshape(-1, 4, 2)
     dst = pts[None, :].expand(v, v, 4, 2).reshape(-1, 4, 2)
     H = kornia.geometry.homography.find_homography_dlt(src, dst, solver="lu")
+    if not torch.isfinite(H).all():  # kornia < 0.9's "lu" solved a singular normal system: NaN at times
+        raise RuntimeError(f"kornia {kornia.__version__} fitted a non-finite homography to four plane points in front "
+                           f"of every camera: sidar_torch needs kornia >= 0.9 (pip install 'kornia>=0.9')")
     H = normalize_det(H).reshape(v, v, 3, 3)
     H[torch.arange(v), torch.arange(v)] = torch.eye(3, dtype=torch.float64)
     return H

@@ -2,7 +2,9 @@
 
 import math
 
+import kornia
 import numpy as np
+import pytest
 import torch
 
 from sidar_torch import geometry
@@ -59,3 +61,14 @@ def test_reference_camera_sees_the_painting_edge_to_edge():
         K, R, t = geometry.reference_camera(size, 0.9)
         corners = geometry.project(K, R, t, geometry.plane_corners(size))
         np.testing.assert_allclose(corners, geometry.corner_pixels(size), atol=1e-9)
+
+
+def test_a_non_finite_fit_raises_naming_kornia(monkeypatch):
+    """kornia < 0.9's "lu" DLT gave NaN for some pairs of a batch (0.8.3: a 3-view `ambient` scene's
+    H[2, 1]): a NaN homography must never reach a sample."""
+    points = np.array([[[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]] * 2)
+    real = kornia.geometry.homography.find_homography_dlt
+    monkeypatch.setattr(kornia.geometry.homography, "find_homography_dlt",
+                        lambda *args, **kwargs: real(*args, **kwargs) * float("nan"))
+    with pytest.raises(RuntimeError, match=r"kornia .* needs kornia >= 0.9"):
+        geometry.homographies_from_points(points)
