@@ -21,7 +21,7 @@ from sidar_torch.cli import main
 from sidar_torch.cluster import ray_dataset, ray_export, torch_batches
 from sidar_torch.sample import SampleArrays
 
-HINT = r'pip install "sidar_torch\[ray\]"'
+HINT = r'pip install "ray\[data\]>=2.9"'
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +54,7 @@ def test_without_ray_each_entry_point_names_the_extra(monkeypatch, tmp_path, cap
         main(["export", "--out", str(tmp_path / "cli"), "--count", "1", "--ray"])
     assert exit_.value.code == 2
     assert capsys.readouterr().err.strip().splitlines() == [
-        'sidar_torch export: Ray is not installed: pip install "sidar_torch[ray]"']
+        'sidar_torch export: Ray is not installed: pip install "ray[data]>=2.9"']
 
 
 @pytest.mark.parametrize("argv, named", [(["--ray-address", "auto"], "--ray-address 'auto': add --ray"),
@@ -80,7 +80,7 @@ def test_wrong_arguments_are_named(cluster, dataset, tmp_path):
         (lambda: ray_dataset(dataset, 2, batch_size=0), ValueError, "batch_size"),
         (lambda: ray_dataset(dataset, 2, address="auto"), ValueError, "address: Ray is already initialised"),
         (lambda: ray_export(dataset, tmp_path / "out", 2, address=7), TypeError, "address"),
-        (lambda: ray_export(dataset, tmp_path / "out", 2, shards=0), ValueError, "shards"),
+        (lambda: ray_export(dataset, tmp_path / "out", 2, shard_size=0), ValueError, "shard_size"),
     ]:
         with pytest.raises(kind, match=named):
             call()
@@ -109,10 +109,10 @@ def test_rows_and_torch_batches_are_the_samples_rendered_here(cluster, dataset):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("shards", [None, 2])
-def test_ray_export_is_the_local_export_byte_for_byte(cluster, dataset, tmp_path, shards):
-    local = export_dataset(dataset, tmp_path / "local", count=5, start=1, shards=shards, progress=False)
-    on_ray = ray_export(dataset, tmp_path / "ray", count=5, start=1, shards=shards, progress=False)
+@pytest.mark.parametrize("shard_size", [None, 2])
+def test_ray_export_is_the_local_export_byte_for_byte(cluster, dataset, tmp_path, shard_size):
+    local = export_dataset(dataset, tmp_path / "local", count=5, start=1, shard_size=shard_size, progress=False)
+    on_ray = ray_export(dataset, tmp_path / "ray", count=5, start=1, shard_size=shard_size, progress=False)
     assert on_ray.written == local.written == (1, 2, 3, 4, 5) and on_ray.present == 0
     assert tree_digests(tmp_path / "ray") == tree_digests(tmp_path / "local")
     assert ExportedDataset(tmp_path / "ray").indices == [1, 2, 3, 4, 5]
@@ -127,8 +127,8 @@ def test_a_rerun_writes_only_what_is_missing(cluster, dataset, tmp_path):
         for file in (out / name).iterdir():
             file.unlink()
         (out / name).rmdir()
-    (out / ".tmp-000003").mkdir()
-    (out / ".tmp-000003" / "0.png").write_bytes(b"half a png")
+    (out / ".tmp-sidar-000003").mkdir()
+    (out / ".tmp-sidar-000003" / "0.png").write_bytes(b"half a png")
     summary = ray_export(dataset, out, count=6, progress=False)
     assert summary.written == (2, 3, 4, 5) and summary.present == 2
     export_dataset(dataset, tmp_path / "local", count=6, progress=False)
@@ -154,7 +154,7 @@ def test_a_worker_killed_mid_task_is_retried_and_the_export_is_unchanged(cluster
     out = tmp_path / "ray"
     result = {}
     run = threading.Thread(target=lambda: result.update(
-        summary=ray_export(dataset, out, count=6, shards=3, progress=False)))
+        summary=ray_export(dataset, out, count=6, shard_size=3, progress=False)))
     run.start()
     killed = None
     while run.is_alive() and killed is None:
@@ -166,7 +166,7 @@ def test_a_worker_killed_mid_task_is_retried_and_the_export_is_unchanged(cluster
     run.join()
     assert killed is not None, "no export task was seen running"
     assert result["summary"].written == (0, 1, 2, 3, 4, 5)
-    export_dataset(dataset, tmp_path / "local", count=6, shards=3, progress=False)
+    export_dataset(dataset, tmp_path / "local", count=6, shard_size=3, progress=False)
     assert tree_digests(out) == tree_digests(tmp_path / "local")
 
 
