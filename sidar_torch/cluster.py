@@ -212,12 +212,13 @@ class _Driver:
 
 def _start_time(pid: int) -> str | None:
     """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
-    ``None`` if there is no such process or no ``/proc``."""
+    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
     try:
         stat = Path(f"/proc/{pid}/stat").read_bytes()
     except OSError:
         return None
-    return stat.rpartition(b")")[2].split()[19].decode()  # after the name, which may hold spaces
+    fields = stat.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
+    return None if fields[0] in (b"Z", b"X") else fields[19].decode()
 
 
 DRIVER_POLL_SECONDS = 0.1
