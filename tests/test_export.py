@@ -360,3 +360,45 @@ def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_by
                    + settings, check=True, capture_output=True, timeout=300)
     assert tree(out) == tree(reference)
     assert not (out / files.LOCK).exists()
+
+
+def test_ctrl_c_prints_one_line_saying_how_far_it_got_and_the_same_command_resumes(tmp_path):
+    """Issue 20 item 6: Ctrl-C printed a 40-line traceback ending inside PIL (exit -2)."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "sidar_torch", "export", "--out", str(out), "--count", "40", "--seed", "4",
+               "--no-progress", "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for_three_sequences(process, out)
+        os.kill(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    done = sorted(p.name for p in out.iterdir() if layout.SEQUENCE_NAME.match(p.name))
+    assert process.returncode == 130, err
+    assert err == (f"sidar_torch export: interrupted after {len(done)} of 40 sequences; "
+                   f"run the same command again to resume\n")
+    assert not (out / files.LOCK).exists() and not list(out.glob(".tmp-sidar-*"))
+    summary = export_dataset(tiny_dataset(seed=4), out, count=len(done) + 1, progress=False)
+    assert summary.written == (len(done),) and summary.present == len(done)
+
+
+def test_the_shard_size_option_and_its_old_name(tmp_path, capsys):
+    """Issue 20 item 6: ``--shards 1000`` meant 1,000 sequences per shard (a webdataset user reads
+    1,000 shards): the option is ``--shard-size``; ``--shards`` is refused naming it. The Python
+    keyword ``shards=`` stays accepted as the older name of ``shard_size=``."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["export", "--out", str(tmp_path / "x"), "--count", "1", "--shards", "1000"])
+    assert exit_info.value.code == 2
+    assert "--shards was renamed --shard-size" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+    cli.main(["export", "--out", str(tmp_path / "cli"), "--count", "3", "--shard-size", "2", "--no-progress",
+              "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"])
+    assert sorted(p.name for p in (tmp_path / "cli").glob("*.tar")) == ["shard-00000.tar", "shard-00001.tar"]
+    export_dataset(tiny_dataset(), tmp_path / "old-name", count=3, shards=2, progress=False)
+    assert tree(tmp_path / "old-name") == tree(tmp_path / "cli")
+    with pytest.raises(ValueError, match="shards=2: the older name of shard_size; pass shard_size only"):
+        export_dataset(tiny_dataset(), tmp_path / "both", count=1, shard_size=2, shards=2, progress=False)
