@@ -139,8 +139,10 @@ class ExportPlan:
     def shards(self) -> list[tuple[int, list[int]]]:
         """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence or is
         damaged, ascending (shard layout)."""
-        groups = {shard: list(new) for shard, new in itertools.groupby(self.missing, key=lambda i: i // self.shard_size)}
-        return sorted({**{shard: [] for shard in self.damaged}, **groups}.items())
+        groups = {shard: [] for shard in self.damaged}
+        by_shard = itertools.groupby(self.missing, lambda index: index // self.shard_size)
+        groups.update((shard, list(new)) for shard, new in by_shard)
+        return sorted(groups.items())
 
 
 def _present(out: Path, wanted: range, shard_size: int | None) -> tuple[set[int], set[int]]:
