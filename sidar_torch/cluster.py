@@ -294,8 +294,8 @@ def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, st
     shard appears complete or not at all, a rerun renders only what is missing; a task whose
     worker dies is retried by Ray (up to 3 times) without writing anything twice. If this process
     dies, its tasks on this machine end within a tenth of a second (Ray ends the others); rerun
-    the same call. Nothing is rendered, and Ray is not started,
-    when every sequence is already there.
+    the same call. Nothing is rendered, and Ray is not started, when every sequence is already there
+    and no shard is damaged.
 
     Args:
         dataset, out_dir, count, start, shard_size, progress, shards: as for :func:`export_dataset`

@@ -128,7 +128,7 @@ def test_the_ray_progress_line_estimates_the_time_left(monkeypatch, cpus):
     stderr = Recorder(ray)
     monkeypatch.setattr(export_module, "time", SimpleNamespace(perf_counter=lambda: ray.clock))
     monkeypatch.setattr(sys, "stderr", stderr)
-    plan = ExportPlan(Path("out"), None, range(400), set(), list(range(400)))
+    plan = ExportPlan(Path("out"), None, set(), list(range(400)))
     cluster_module._run_tasks(ray, None, plan, progress=True)
     end = ray.clock
     estimates = [(at, float(line.split(" s left")[0].rsplit(", ", 1)[1])) for at, line in stderr.lines

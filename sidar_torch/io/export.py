@@ -123,7 +123,6 @@ class ExportPlan:
     Attributes:
         out: the export folder.
         shard_size: ``None`` for the folder layout, else sequences per tar shard.
-        wanted: the requested indices.
         present: the requested indices an earlier run already wrote.
         missing: the requested indices to render and write, ascending.
         damaged: shard layout: the shards to rewrite whole because they are damaged (a truncated copy).
@@ -131,7 +130,6 @@ class ExportPlan:
 
     out: Path
     shard_size: int | None
-    wanted: range
     present: set[int]
     missing: list[int]
     damaged: frozenset[int] = frozenset()
@@ -178,8 +176,7 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         wanted = range(start, start + count)
         present, damaged = _present(out, wanted, shard_size)
         try:
-            yield ExportPlan(out, shard_size, wanted, present, [i for i in wanted if i not in present],
-                             frozenset(damaged))
+            yield ExportPlan(out, shard_size, present, [i for i in wanted if i not in present], frozenset(damaged))
         except KeyboardInterrupt:
             raise ExportInterrupted(out, len(_present(out, wanted, shard_size)[0]), count) from None
 
