@@ -134,6 +134,7 @@ def test_the_ray_progress_line_estimates_the_time_left(monkeypatch, cpus):
     estimates = [(at, float(line.split(" s left")[0].rsplit(", ", 1)[1])) for at, line in stderr.lines
                  if "s left" in line]
     assert len(estimates) >= 3 and stderr.lines[-1][1].startswith("export: 400/400 sequences")
+    assert not stderr.lines[-2][1].startswith("export: 400/400")  # the last line is drawn once
     for at, left in estimates:
         assert abs(left - (end - at)) <= 0.25 * (end - at) + 5, (at, left, end - at)
 

@@ -237,6 +237,7 @@ class Progress:
 
     def __init__(self, total: int, stream: TextIO | None):
         self.total, self.stream, self.done, self.busy, self.parallel = total, stream, 0, None, 1
+        self.drawn = -1  # ``done`` when the line was last drawn
         self.start = self.last = time.perf_counter()
         self.live = stream is not None and stream.isatty()
         self._show(force=True)
@@ -245,7 +246,7 @@ class Progress:
         return self
 
     def __exit__(self, kind: type | None, *_: Any) -> None:
-        if kind is None:
+        if kind is None and (self.live or self.drawn != self.done):
             self._show(force=True)
         if self.live:
             self.stream.write("\n")
@@ -270,7 +271,7 @@ class Progress:
         now = time.perf_counter()
         if not (force or self.live or now - self.last >= 10):
             return
-        self.last = now
+        self.last, self.drawn = now, self.done
         line = f"export: {self.done}/{self.total} sequences"
         if self.done:
             line += f", {(now - self.start) / self.done:.2f} s each, {self.seconds_left(now):.0f} s left"
