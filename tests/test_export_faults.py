@@ -22,19 +22,9 @@ from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_conf
 from sidar_torch.io import files
 from sidar_torch.io.reader import entry_size_limit
 
+from test_export import TINY, tiny_dataset, tree
+
 pytestmark = pytest.mark.gl  # renders
-
-TINY = {"image_size": (24, 32), "n_views": 2, "shadow_map_size": 256}
-
-
-def tiny_dataset(**kwargs):
-    return SidarDataset(config=load_config("misaligned", **TINY), **kwargs)
-
-
-def tree(path):
-    """``{relative path: bytes}`` of every file under ``path`` but the lock file."""
-    return {str(p.relative_to(path)): p.read_bytes() for p in sorted(Path(path).rglob("*"))
-            if p.is_file() and p.name != files.LOCK}
 
 
 @contextmanager
@@ -138,7 +128,7 @@ def test_a_source_with_a_file_name_that_is_not_utf8_exports(tmp_path):
     name = os.fsdecode(b"\xff.png")
     rng = np.random.default_rng(0)
     Image.fromarray(rng.integers(0, 256, (40, 50, 3), dtype=np.uint8)).save(source / name)
-    dataset = tiny_dataset(source=str(source))
+    dataset = SidarDataset(source=str(source), config=load_config("misaligned", **TINY))
     export_dataset(dataset, tmp_path / "out", count=1, progress=False)
     recorded = json.loads((tmp_path / "out" / "export.json").read_text())["source"]
     assert recorded["first_path"] == str(source / name)
