@@ -17,6 +17,7 @@ from PIL import Image
 
 from .config import available_presets, load_config
 from .dataset import SidarDataset
+from .io import ExportInterrupted, ExportSummary, export_dataset
 from .io.layout import pixel_entries_text
 from .preview import contact_sheet
 
@@ -87,23 +88,47 @@ def _export(args: argparse.Namespace) -> None:
     if args.ray and args.workers:
         raise UsageError(f"--workers {args.workers}: renders in DataLoader workers of this process; with --ray "
                          f"Ray's workers render (drop --workers)")
-    dataset = _dataset(args)
+    try:
+        summary = _run_export(args, _dataset(args))
+    except ExportInterrupted as interrupted:
+        raise _interrupted(f"interrupted after {interrupted.done} of {interrupted.requested} sequences") from None
+    except KeyboardInterrupt:
+        raise _interrupted("interrupted") from None
+    print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
+          f"({summary.present} of the {args.count} requested were already there); "
+          f"read them with sidar_torch.ExportedDataset({args.out!r})")
+
+
+def _run_export(args: argparse.Namespace, dataset: SidarDataset) -> ExportSummary:
+    """Export ``dataset`` as ``args`` say, here or on Ray."""
     try:
         if args.ray:
             from .cluster import ray_export
 
-            summary = ray_export(dataset, args.out, args.count, start=args.start, shards=args.shards,
-                                 address=args.ray_address, progress=not args.no_progress)
-        else:
-            from .io import export_dataset
-
-            summary = export_dataset(dataset, args.out, args.count, start=args.start, shards=args.shards,
-                                     workers=args.workers, progress=not args.no_progress)
+            return ray_export(dataset, args.out, args.count, start=args.start, shard_size=args.shard_size,
+                              address=args.ray_address, progress=not args.no_progress)
+        return export_dataset(dataset, args.out, args.count, start=args.start, shard_size=args.shard_size,
+                              workers=args.workers, progress=not args.no_progress)
     except (ValueError, OSError, RuntimeError, ImportError) as error:  # bad arguments, refused folder, lock, no Ray
         raise UsageError(str(error)) from error
-    print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
-          f"({summary.present} of the {args.count} requested were already there); "
-          f"read them with sidar_torch.ExportedDataset({args.out!r})")
+
+
+def _interrupted(what: str) -> SystemExit:
+    """Ctrl-C: print one line saying so and how to resume; the exit to raise, code 130 (128 + SIGINT,
+    as a shell's)."""
+    print(f"sidar_torch export: {what}; run the same command again to resume", file=sys.stderr)
+    return SystemExit(130)
+
+
+class _Renamed(argparse.Action):
+    """An option that was renamed: using it is an error naming the new one."""
+
+    def __init__(self, option_strings: list[str], dest: str, new: str, **kwargs: Any):
+        super().__init__(option_strings, dest, **kwargs)
+        self.new = new
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        parser.error(f"{'/'.join(self.option_strings)} was renamed {self.new}")
 
 
 def _schema(args: argparse.Namespace) -> None:
@@ -147,14 +172,16 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument("--count", type=int, required=True, help="number of sequences to export")
     export.add_argument("--start", type=int, default=0, help="first dataset index (default 0)")
     _dataset_options(export)
-    export.add_argument("--shards", type=int, default=None, metavar="PER_SHARD",
-                        help="write WebDataset-style tar shards shard-00000.tar, ... of PER_SHARD sequences "
+    export.add_argument("--shard-size", type=int, default=None, metavar="SEQUENCES",
+                        help="write WebDataset-style tar shards shard-00000.tar, ... of SEQUENCES sequences "
                              "each (entries <i>.<file> for the PNGs and cameras.json of a sequence folder, and "
                              "<i>.homographies.npy) instead of one folder per sequence")
+    export.add_argument("--shards", action=_Renamed, help=argparse.SUPPRESS,
+                        new="--shard-size (it gives the sequences per shard, not the number of shards)")
     export.add_argument("--workers", type=int, default=0,
                         help="render in this many DataLoader worker processes (default 0: in this process)")
     export.add_argument("--ray", action="store_true",
-                        help="render and write in Ray tasks (pip install \"sidar_torch[ray]\"): joins the cluster "
+                        help="render and write in Ray tasks (needs pip install \"ray[data]>=2.9\"): joins the cluster "
                              "in RAY_ADDRESS, else starts a local one; OUT must be a folder every node sees")
     export.add_argument("--ray-address", default=None, metavar="ADDRESS",
                         help="with --ray: the Ray cluster to join, e.g. auto or ray://head:10001")

@@ -1,7 +1,8 @@
 """Rendering on a Ray cluster: a lazy ``ray.data`` dataset of samples, and a distributed export.
 
-Ray is an optional dependency (``pip install "sidar_torch[ray]"``): importing this module needs no
-Ray; each function imports it when called and raises ``ImportError`` naming the extra if it is missing.
+Ray is an optional dependency (``pip install "ray[data]>=2.9"``, the ``sidar_torch[ray]`` extra):
+importing this module needs no Ray; each function imports it when called and raises ``ImportError``
+saying how to install it if it is missing.
 
 * :func:`ray_dataset`: a ``ray.data.Dataset`` with one row per dataset index, rendered by a pool
   of Ray actors (``map_batches``), to stream into training without writing files;
@@ -26,10 +27,11 @@ libraries installed, and an image-folder source must be readable at the same pat
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
-import shutil
 import sys
+import threading
 import time
 from pathlib import Path
 from types import ModuleType
@@ -42,13 +44,17 @@ from .config import as_int
 from .dataset import SidarDataset
 from .io import folders
 from .io import shards as tar_shards
-from .io.export import ExportPlan, ExportSummary, Progress, planned_export
-from .io.layout import TMP_PREFIX, sequence_name
+from .io.export import ExportPlan, ExportSummary, Progress, either_shard_size, planned_export
+from .io.files import remove_stale_temporary
+from .io.layout import sequence_name
 from .sample import KEYS, SampleArrays, stack_samples
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
 
-INSTALL_HINT = 'Ray is not installed: pip install "sidar_torch[ray]"'
+RAY_REQUIREMENT = "ray[data]>=2.9"
+"""What the ``ray`` extra of ``pyproject.toml`` installs (a test keeps them equal)."""
+
+INSTALL_HINT = f'Ray is not installed: pip install "{RAY_REQUIREMENT}"'
 
 MAX_FOLDERS_PER_TASK = 16
 """Folder layout: most sequences one export task renders (fewer when there are few per CPU, so that
@@ -188,27 +194,84 @@ def torch_batches(rows: Any, batch_size: int, geometry_dtype: str = "float32",
 # --------------------------------------------------------------------------- export
 
 
-def _write(dataset: SidarDataset, out: Path, shard_size: int | None, indices: list[int]) -> list[int]:
-    """Ray task: render ``indices`` and write them into ``out`` with the layout's writer; returns ``indices``.
+@dataclasses.dataclass(frozen=True)
+class _Driver:
+    """The process that runs :func:`ray_export`: its pid and its start time (``None`` without
+    ``/proc``), which tell it from a later process given the same pid."""
 
-    Safe to run again after an attempt died part-way (Ray retries a task whose worker died): a
-    sequence folder already there is kept, the attempt's stale ``.tmp-<name>`` is removed (the
-    driver holds the export's lock, so no one else writes it), and a shard is rewritten from what
-    it holds plus what it lacks, as a local rerun does."""
-    if shard_size is None:
+    pid: int
+    started: str | None
+
+    @classmethod
+    def this_process(cls) -> _Driver:
+        return cls(os.getpid(), _start_time(os.getpid()))
+
+    def alive(self) -> bool:
+        return _start_time(self.pid) == self.started
+
+
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
+    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_bytes()
+    except OSError:
+        return None
+    fields = stat.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
+    return None if fields[0] in (b"Z", b"X") else fields[19].decode()
+
+
+DRIVER_POLL_SECONDS = 0.1
+_watched: set[_Driver] = set()
+"""The drivers this (worker) process watches."""
+
+
+def _exit_with_driver(driver: _Driver) -> None:
+    """In a Ray worker: end this process within :data:`DRIVER_POLL_SECONDS` of the driver's death.
+
+    Ray ends the tasks of a dead driver only 2-5 s later; until then they kept rendering and
+    writing into the export folder, whose lock died with the driver, so a rerun could already be
+    writing there. A daemon thread (one per driver and worker) polls the driver's ``/proc`` entry
+    and leaves at once (a task's folder or shard is written atomically: nothing is lost). The
+    watch starts only where the driver is seen alive, i.e. on the driver's machine (the same pid
+    and start time); on other nodes Ray's own clean-up ends the tasks."""
+    if driver in _watched or driver.started is None or not driver.alive():
+        return
+    _watched.add(driver)
+
+    def watch() -> None:
+        while driver.alive():
+            time.sleep(DRIVER_POLL_SECONDS)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-driver", daemon=True).start()
+
+
+def _write(dataset: SidarDataset, out: Path, shard_size: int | None, job: tuple[int | None, list[int]],
+           driver: _Driver) -> tuple[int, float]:
+    """Ray task: render ``job``'s indices and write them into ``out`` with the layout's writer;
+    returns how many sequences it wrote and the seconds it took.
+
+    ``job`` is ``(shard, new indices in it)`` (a damaged shard may have none: it is rewritten),
+    or ``(None, indices)`` for sequence folders. Safe to run again after an attempt died part-way
+    (Ray retries a task whose worker died): a sequence folder already there is kept, the attempt's
+    stale temporary is removed (the driver holds the export's lock, so no one else writes it), and
+    a shard is rewritten from what it holds plus what it lacks, as a local rerun does."""
+    _exit_with_driver(driver)
+    begin = time.perf_counter()
+    shard, indices = job
+    if shard is None:
         for index in indices:
-            name = sequence_name(index)
-            if (out / name).is_dir():
+            path = out / sequence_name(index)
+            if path.is_dir():
                 continue
-            shutil.rmtree(out / (TMP_PREFIX + name), ignore_errors=True)
+            remove_stale_temporary(path)
             folders.write_sequence(out, dataset.sample_arrays(index))
     else:
-        shard = indices[0] // shard_size
-        held = tar_shards.shard_contents(tar_shards.shard_path(out, shard))
+        held = tar_shards.held_sequences(tar_shards.shard_path(out, shard))
         new = [i for i in indices if i not in held]
-        if new:
-            tar_shards.write_shard(out, shard, new, (dataset.sample_arrays(i) for i in new), lambda: None)
-    return indices
+        tar_shards.write_shard(out, shard, new, (dataset.sample_arrays(i) for i in new), lambda: None)
+    return len(indices), time.perf_counter() - begin
 
 
 def _folder_tasks(missing: list[int], cpus: int) -> list[list[int]]:
@@ -219,22 +282,24 @@ def _folder_tasks(missing: list[int], cpus: int) -> list[list[int]]:
 
 
 def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
-               shards: int | None = None, address: str | None = None, progress: bool = True) -> ExportSummary:
+               shard_size: int | None = None, address: str | None = None, progress: bool = True, *,
+               shards: int | None = None) -> ExportSummary:
     """:func:`~sidar_torch.export_dataset` on a Ray cluster: the same files, byte for byte.
 
     This process checks the arguments, holds the export's lock, writes the manifest and finds what
     is missing, exactly as :func:`export_dataset` does; then Ray tasks of one CPU render and write
-    straight into ``out_dir``: one task per tar shard (``shards=N``), or per run of up to
+    straight into ``out_dir``: one task per tar shard (``shard_size=N``), or per run of up to
     :data:`MAX_FOLDERS_PER_TASK` sequence folders. So ``out_dir`` must be the same shared folder
     on every node (a local cluster: any folder). Resumption is the local export's: each folder or
     shard appears complete or not at all, a rerun renders only what is missing; a task whose
     worker dies is retried by Ray (up to 3 times) without writing anything twice. If this process
-    dies, Ray ends its tasks; rerun the same call. Nothing is rendered, and Ray is not started,
-    when every sequence is already there.
+    dies, its tasks on this machine end within a tenth of a second (Ray ends the others); rerun
+    the same call. Nothing is rendered, and Ray is not started, when every sequence is already there
+    and no shard is damaged.
 
     Args:
-        dataset, out_dir, count, start, shards, progress: as for :func:`export_dataset` (the
-            progress line counts finished tasks' sequences).
+        dataset, out_dir, count, start, shard_size, progress, shards: as for :func:`export_dataset`
+            (the progress line counts finished tasks' sequences).
         address: the cluster to join if this process has not called ``ray.init`` (see
             :func:`ray_dataset`); a cluster this call starts is shut down at its end.
 
@@ -243,13 +308,13 @@ def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, st
 
     Raises:
         ImportError: Ray is not installed (the message says how to install it).
-        TypeError, ValueError, RuntimeError: as :func:`export_dataset`; a bad ``address``.
+        TypeError, ValueError, RuntimeError, ExportInterrupted: as :func:`export_dataset`; a bad ``address``.
     """
     ray = _ray()
     address = _check_address(address)
     begin = time.perf_counter()
-    with planned_export(dataset, out_dir, count, start, shards) as plan:
-        if plan.missing:
+    with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards)) as plan:
+        if plan.missing or plan.damaged:
             started = _connect(ray, address)
             try:
                 _run_tasks(ray, dataset, plan, progress)
@@ -260,23 +325,24 @@ def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, st
 
 
 def _run_tasks(ray: ModuleType, dataset: SidarDataset, plan: ExportPlan, progress: bool) -> None:
-    """Submit the tasks writing ``plan.missing`` and wait for all, advancing the progress line; if one
-    fails (or this process is interrupted), the others are cancelled before the lock is released."""
+    """Submit the tasks writing ``plan.missing`` and wait for all, advancing the progress line by
+    each finished task's sequences and busy time; if one fails (or this process is interrupted),
+    the others are cancelled before the lock is released."""
+    cpus = int(ray.cluster_resources().get("CPU", 1))
     if plan.shard_size is None:
-        jobs = _folder_tasks(plan.missing, int(ray.cluster_resources().get("CPU", 1)))
+        jobs = [(None, indices) for indices in _folder_tasks(plan.missing, cpus)]
     else:
-        jobs = [new for _, new in plan.shards()]
+        jobs = plan.shards()
     task = ray.remote(_write).options(num_cpus=1, max_retries=3)
-    dataset_ref, out = ray.put(dataset), plan.out.absolute()
-    pending = [task.remote(dataset_ref, out, plan.shard_size, job) for job in jobs]
-    bar = Progress(len(plan.missing), sys.stderr if progress else None)
-    try:
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for _ in ray.get(done[0]):
-                bar.advance()
-    except BaseException:
-        for ref in pending:
-            ray.cancel(ref, force=True)
-        raise
-    bar.close()
+    dataset_ref, out, driver = ray.put(dataset), plan.out.absolute(), _Driver.this_process()
+    pending = [task.remote(dataset_ref, out, plan.shard_size, job, driver) for job in jobs]
+    with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
+        try:
+            while pending:
+                done, pending = ray.wait(pending, num_returns=1)
+                count, seconds = ray.get(done[0])
+                bar.advance(count, busy=seconds, parallel=min(cpus, len(pending)))
+        except BaseException:
+            for ref in pending:
+                ray.cancel(ref, force=True)
+            raise

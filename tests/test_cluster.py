@@ -3,12 +3,17 @@
 ``export_dataset`` byte for byte, resuming and surviving a killed worker. Without Ray, each entry
 point names the extra to install (those tests need no Ray); the others skip when Ray is absent."""
 
+import contextlib
 import os
 import signal
+import subprocess
 import sys
+import textwrap
 import threading
 import time
+import tomllib
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,10 +23,13 @@ from conftest import small_config
 from export_digests import tree_digests
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset
 from sidar_torch.cli import main
-from sidar_torch.cluster import ray_dataset, ray_export, torch_batches
+from sidar_torch import cluster as cluster_module
+from sidar_torch.cluster import RAY_REQUIREMENT, ray_dataset, ray_export, torch_batches
+from sidar_torch.io import export as export_module
+from sidar_torch.io.export import ExportPlan
 from sidar_torch.sample import SampleArrays
 
-HINT = r'pip install "sidar_torch\[ray\]"'
+HINT = r'pip install "ray\[data\]>=2.9"'
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +62,82 @@ def test_without_ray_each_entry_point_names_the_extra(monkeypatch, tmp_path, cap
         main(["export", "--out", str(tmp_path / "cli"), "--count", "1", "--ray"])
     assert exit_.value.code == 2
     assert capsys.readouterr().err.strip().splitlines() == [
-        'sidar_torch export: Ray is not installed: pip install "sidar_torch[ray]"']
+        'sidar_torch export: Ray is not installed: pip install "ray[data]>=2.9"']
+
+
+def test_the_install_hint_is_the_ray_extras_requirement():
+    """Issue 20 item 6: ``pip install "sidar_torch[ray]"`` does not work for a package installed
+    from a clone; the hint names Ray's own requirement, the one the extra installs."""
+    pyproject = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
+    assert pyproject["project"]["optional-dependencies"]["ray"] == [RAY_REQUIREMENT]
+
+
+class FakeRay:
+    """Stands for Ray in ``cluster._run_tasks`` on a virtual clock: ``cpus`` workers, each ready
+    after ``startup`` seconds, run the tasks in submission order; a task of ``n`` sequences takes
+    ``n * per_sequence`` seconds and reports them as its busy time."""
+
+    def __init__(self, cpus, startup, per_sequence):
+        self.cpus, self.per_sequence, self.clock = cpus, per_sequence, 0.0
+        self.free = [startup] * cpus  # when each worker is next free
+
+    def cluster_resources(self):
+        return {"CPU": self.cpus}
+
+    def put(self, value):
+        return value
+
+    def remote(self, function):
+        return SimpleNamespace(options=lambda **_: SimpleNamespace(remote=self._submit))
+
+    def _submit(self, dataset, out, shard_size, job, driver):
+        _, indices = job
+        worker = min(range(self.cpus), key=self.free.__getitem__)
+        self.free[worker] += len(indices) * self.per_sequence
+        return SimpleNamespace(finish=self.free[worker], result=(len(indices), len(indices) * self.per_sequence))
+
+    def wait(self, pending, num_returns):
+        first = min(pending, key=lambda ref: ref.finish)
+        self.clock = first.finish
+        return [first], [ref for ref in pending if ref is not first]
+
+    def get(self, ref):
+        return ref.result
+
+
+class Recorder:
+    """A non-terminal stderr that records ``(virtual time, line)``."""
+
+    def __init__(self, ray):
+        self.ray, self.lines = ray, []
+
+    def write(self, text):
+        self.lines.append((self.ray.clock, text))
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return False
+
+
+@pytest.mark.parametrize("cpus", [2, 16])
+def test_the_ray_progress_line_estimates_the_time_left(monkeypatch, cpus):
+    """Issue 20 item 6: the ``--ray`` ETA said 1713 s when 22 s were left (the line was drawn after
+    the first of a finished task's 16 sequences, as if one sequence had taken the whole start-up)."""
+    ray = FakeRay(cpus, startup=10.0, per_sequence=1.0)
+    stderr = Recorder(ray)
+    monkeypatch.setattr(export_module, "time", SimpleNamespace(perf_counter=lambda: ray.clock))
+    monkeypatch.setattr(sys, "stderr", stderr)
+    plan = ExportPlan(Path("out"), None, set(), list(range(400)))
+    cluster_module._run_tasks(ray, None, plan, progress=True)
+    end = ray.clock
+    estimates = [(at, float(line.split(" s left")[0].rsplit(", ", 1)[1])) for at, line in stderr.lines
+                 if "s left" in line]
+    assert len(estimates) >= 3 and stderr.lines[-1][1].startswith("export: 400/400 sequences")
+    assert not stderr.lines[-2][1].startswith("export: 400/400")  # the last line is drawn once
+    for at, left in estimates:
+        assert abs(left - (end - at)) <= 0.25 * (end - at) + 5, (at, left, end - at)
 
 
 @pytest.mark.parametrize("argv, named", [(["--ray-address", "auto"], "--ray-address 'auto': add --ray"),
@@ -80,7 +163,7 @@ def test_wrong_arguments_are_named(cluster, dataset, tmp_path):
         (lambda: ray_dataset(dataset, 2, batch_size=0), ValueError, "batch_size"),
         (lambda: ray_dataset(dataset, 2, address="auto"), ValueError, "address: Ray is already initialised"),
         (lambda: ray_export(dataset, tmp_path / "out", 2, address=7), TypeError, "address"),
-        (lambda: ray_export(dataset, tmp_path / "out", 2, shards=0), ValueError, "shards"),
+        (lambda: ray_export(dataset, tmp_path / "out", 2, shard_size=0), ValueError, "shard_size"),
     ]:
         with pytest.raises(kind, match=named):
             call()
@@ -109,10 +192,10 @@ def test_rows_and_torch_batches_are_the_samples_rendered_here(cluster, dataset):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("shards", [None, 2])
-def test_ray_export_is_the_local_export_byte_for_byte(cluster, dataset, tmp_path, shards):
-    local = export_dataset(dataset, tmp_path / "local", count=5, start=1, shards=shards, progress=False)
-    on_ray = ray_export(dataset, tmp_path / "ray", count=5, start=1, shards=shards, progress=False)
+@pytest.mark.parametrize("shard_size", [None, 2])
+def test_ray_export_is_the_local_export_byte_for_byte(cluster, dataset, tmp_path, shard_size):
+    local = export_dataset(dataset, tmp_path / "local", count=5, start=1, shard_size=shard_size, progress=False)
+    on_ray = ray_export(dataset, tmp_path / "ray", count=5, start=1, shard_size=shard_size, progress=False)
     assert on_ray.written == local.written == (1, 2, 3, 4, 5) and on_ray.present == 0
     assert tree_digests(tmp_path / "ray") == tree_digests(tmp_path / "local")
     assert ExportedDataset(tmp_path / "ray").indices == [1, 2, 3, 4, 5]
@@ -127,8 +210,8 @@ def test_a_rerun_writes_only_what_is_missing(cluster, dataset, tmp_path):
         for file in (out / name).iterdir():
             file.unlink()
         (out / name).rmdir()
-    (out / ".tmp-000003").mkdir()
-    (out / ".tmp-000003" / "0.png").write_bytes(b"half a png")
+    (out / ".tmp-sidar-000003").mkdir()
+    (out / ".tmp-sidar-000003" / "0.png").write_bytes(b"half a png")
     summary = ray_export(dataset, out, count=6, progress=False)
     assert summary.written == (2, 3, 4, 5) and summary.present == 2
     export_dataset(dataset, tmp_path / "local", count=6, progress=False)
@@ -154,7 +237,7 @@ def test_a_worker_killed_mid_task_is_retried_and_the_export_is_unchanged(cluster
     out = tmp_path / "ray"
     result = {}
     run = threading.Thread(target=lambda: result.update(
-        summary=ray_export(dataset, out, count=6, shards=3, progress=False)))
+        summary=ray_export(dataset, out, count=6, shard_size=3, progress=False)))
     run.start()
     killed = None
     while run.is_alive() and killed is None:
@@ -166,7 +249,7 @@ def test_a_worker_killed_mid_task_is_retried_and_the_export_is_unchanged(cluster
     run.join()
     assert killed is not None, "no export task was seen running"
     assert result["summary"].written == (0, 1, 2, 3, 4, 5)
-    export_dataset(dataset, tmp_path / "local", count=6, shards=3, progress=False)
+    export_dataset(dataset, tmp_path / "local", count=6, shard_size=3, progress=False)
     assert tree_digests(out) == tree_digests(tmp_path / "local")
 
 
@@ -177,3 +260,43 @@ def test_cli_export_with_ray_joins_the_running_cluster(cluster, tmp_path, capsys
           "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"])
     assert "wrote 2 sequences" in capsys.readouterr().out
     assert ExportedDataset(out).indices == [0, 1]
+
+
+DRIVER = textwrap.dedent("""
+    import sys
+    import ray
+    from sidar_torch import SidarDataset, load_config
+    from sidar_torch.cluster import ray_export
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    dataset = SidarDataset(config=load_config("misaligned", image_size=(24, 32), n_views=2, shadow_map_size=256))
+    ray_export(dataset, sys.argv[1], count=400, progress=False)
+""")
+
+
+@pytest.mark.gl
+@pytest.mark.slow  # starts its own Ray cluster: about 20 s
+def test_tasks_stop_writing_when_the_driver_dies(tmp_path):
+    """Issue 25 item 6: Ray's workers kept writing into the export 1-5 s after a ``kill -9`` of a
+    driver that had started its own cluster (the export's lock died with the driver, so a rerun
+    could already be writing there); now they stop within a tenth of a second."""
+    pytest.importorskip("ray")
+    out = tmp_path / "out"
+    driver = subprocess.Popen([sys.executable, "-c", DRIVER, str(out)], start_new_session=True,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out.is_dir() and any(p.name.isdigit() for p in out.iterdir())):
+            assert driver.poll() is None, driver.stderr.read().decode()[-2000:]
+            assert time.monotonic() < deadline, "the driver wrote no sequence in 120 s"
+            time.sleep(0.02)
+        os.kill(driver.pid, signal.SIGKILL)
+        driver.wait()
+        time.sleep(0.5)  # the watch polls every 0.1 s
+        written = sorted(p.name for p in out.iterdir())
+        time.sleep(3)
+        assert sorted(p.name for p in out.iterdir()) == written, "tasks kept writing after the driver died"
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # the cluster it started (Ray's agents linger a minute)
+            os.killpg(driver.pid, signal.SIGKILL)
+        driver.wait()
+        driver.stderr.close()

@@ -18,7 +18,7 @@ from PIL import Image
 
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_config
 from sidar_torch import cli
-from sidar_torch.io import layout
+from sidar_torch.io import files, layout
 from sidar_torch.sample import sequence_homographies
 
 import export_digests
@@ -48,7 +48,7 @@ def assert_same_sample(read, rendered):
 def tree(path):
     """``{relative path: bytes}`` of every file under ``path`` but the lock file."""
     return {str(p.relative_to(path)): p.read_bytes() for p in sorted(Path(path).rglob("*"))
-            if p.is_file() and p.name != layout.LOCK}
+            if p.is_file() and p.name != files.LOCK}
 
 
 
@@ -86,7 +86,7 @@ def test_folder_round_trip_is_byte_identical(tmp_path):
 
 def test_shards_round_trip_resume_and_match_an_uninterrupted_export(tmp_path):
     ds = tiny_dataset(seed=1)
-    export_dataset(ds, tmp_path / "a", count=3, start=1, shards=2, progress=False)
+    export_dataset(ds, tmp_path / "a", count=3, start=1, shard_size=2, progress=False)
     with tarfile.open(tmp_path / "a" / "shard-00001.tar") as tar:
         names = tar.getnames()
     assert names[:2] == ["000002.0.png", "000002.0-m.png"] and "000003.homographies.npy" in names
@@ -96,9 +96,9 @@ def test_shards_round_trip_resume_and_match_an_uninterrupted_export(tmp_path):
         assert_same_sample(read[k], ds.sample(index))
 
     # More sequences into the same folder: only 0 and 4 are rendered, shard 0 keeps sequence 1's bytes.
-    summary = export_dataset(ds, tmp_path / "a", count=5, shards=2, progress=False)
+    summary = export_dataset(ds, tmp_path / "a", count=5, shard_size=2, progress=False)
     assert summary.written == (0, 4) and summary.present == 3
-    export_dataset(ds, tmp_path / "b", count=5, shards=2, workers=2, progress=False)
+    export_dataset(ds, tmp_path / "b", count=5, shard_size=2, workers=2, progress=False)
     assert tree(tmp_path / "a") == tree(tmp_path / "b")
     assert sorted(tree(tmp_path / "b")) == ["config.yaml", "export.json", "shard-00000.tar", "shard-00001.tar",
                                             "shard-00002.tar"]
@@ -111,7 +111,7 @@ class Killed(BaseException):
 def test_crash_while_writing_leaves_no_partial_sequence_and_resume_completes(tmp_path, monkeypatch):
     ds = tiny_dataset(seed=2)
     writes = []
-    real_write = layout.write_file
+    real_write = files.write_file
 
     def failing_write(path, data):
         if len(writes) == 2 + len(SEQUENCE_FILES) + 3:  # export.json, config.yaml, sequence 0, 3 files of sequence 1
@@ -119,14 +119,14 @@ def test_crash_while_writing_leaves_no_partial_sequence_and_resume_completes(tmp
         writes.append(path)
         real_write(path, data)
 
-    monkeypatch.setattr(layout, "write_file", failing_write)
+    monkeypatch.setattr(files, "write_file", failing_write)
     with pytest.raises(Killed):
         export_dataset(ds, tmp_path / "a", count=4, progress=False)
     assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["000000", "config.yaml", "export.json"]
     assert {p.name for p in (tmp_path / "a" / "000000").iterdir()} == SEQUENCE_FILES
-    assert any(".tmp-000001" in str(path) for path in writes)  # it did crash inside sequence 1
+    assert any(".tmp-sidar-000001" in str(path) for path in writes)  # it did crash inside sequence 1
 
-    monkeypatch.setattr(layout, "write_file", real_write)
+    monkeypatch.setattr(files, "write_file", real_write)
     summary = export_dataset(ds, tmp_path / "a", count=4, progress=False)
     assert summary.written == (1, 2, 3) and summary.present == 1
     export_dataset(ds, tmp_path / "b", count=4, progress=False)
@@ -135,7 +135,7 @@ def test_crash_while_writing_leaves_no_partial_sequence_and_resume_completes(tmp
 
 def test_crash_while_rendering_a_shard_keeps_the_previous_shard_file(tmp_path, monkeypatch):
     ds = tiny_dataset(seed=3)
-    export_dataset(ds, tmp_path, count=1, shards=3, progress=False)
+    export_dataset(ds, tmp_path, count=1, shard_size=3, progress=False)
     before = tree(tmp_path)
     real_render = SidarDataset.sample_arrays
 
@@ -146,10 +146,10 @@ def test_crash_while_rendering_a_shard_keeps_the_previous_shard_file(tmp_path, m
 
     monkeypatch.setattr(SidarDataset, "sample_arrays", failing_render)
     with pytest.raises(Killed):
-        export_dataset(ds, tmp_path, count=3, shards=3, progress=False)
+        export_dataset(ds, tmp_path, count=3, shard_size=3, progress=False)
     assert tree(tmp_path) == before  # shard 0 still holds sequence 0 only, no temporary file
     monkeypatch.setattr(SidarDataset, "sample_arrays", real_render)
-    assert export_dataset(ds, tmp_path, count=3, shards=3, progress=False).written == (1, 2)
+    assert export_dataset(ds, tmp_path, count=3, shard_size=3, progress=False).written == (1, 2)
     assert ExportedDataset(tmp_path).indices == [0, 1, 2]
 
 
@@ -173,13 +173,13 @@ def test_killed_export_resumes(tmp_path):
     for name in done:
         assert {p.name for p in (out / name).iterdir()} == SEQUENCE_FILES, name
     # What a kill while writing leaves (the kill above most likely hit rendering): a partial temporary folder.
-    stale = out / f".tmp-{len(done):06d}"
+    stale = out / f".tmp-sidar-{len(done):06d}"
     stale.mkdir(exist_ok=True)
     (stale / "0.png").write_bytes(b"partial")
     ds = tiny_dataset(seed=4)
     summary = export_dataset(ds, out, count=len(done) + 2, progress=False)
     assert summary.written == (len(done), len(done) + 1) and summary.present == len(done)
-    assert not list(out.glob(".tmp-*"))
+    assert not list(out.glob(".tmp-sidar-*"))
     read = ExportedDataset(out)
     for k in (0, len(done) - 1, len(done)):
         assert_same_sample(read[k], ds.sample(k))
@@ -193,7 +193,7 @@ def test_export_refuses_other_settings_foreign_folders_concurrent_writers_and_ba
     with pytest.raises(ValueError, match=r"config.n_views: 2 there, 3 now"):
         export_dataset(tiny_dataset(n_views=3), tmp_path / "a", count=1, progress=False)
     with pytest.raises(ValueError, match=r"layout: 'folders' there, 'shards' now"):
-        export_dataset(ds, tmp_path / "a", count=1, shards=4, progress=False)
+        export_dataset(ds, tmp_path / "a", count=1, shard_size=4, progress=False)
     (tmp_path / "b").mkdir()
     (tmp_path / "b" / "notes.txt").write_text("mine")
     with pytest.raises(ValueError, match=r"not empty and holds no export.json"):
@@ -203,13 +203,14 @@ def test_export_refuses_other_settings_foreign_folders_concurrent_writers_and_ba
     with pytest.raises(TypeError, match="dataset: expected a SidarDataset"):
         export_dataset([ds.sample(0)], tmp_path / "c", count=1)
     for kwargs, match in (({"count": 0}, "count"), ({"count": 1, "start": -1}, "start"),
-                          ({"count": 1, "shards": 0}, "shards"), ({"count": 1, "workers": -1}, "workers")):
+                          ({"count": 1, "shard_size": 0}, "shard_size"), ({"count": 1, "workers": -1}, "workers")):
         with pytest.raises(ValueError, match=match):
             export_dataset(ds, tmp_path / "c", **kwargs)
 
-    assert not (tmp_path / "b" / layout.LOCK).exists()  # a refused run leaves no lock file behind
-    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time\n"
-                               f"fd = os.open({str(tmp_path / 'a' / layout.LOCK)!r}, os.O_RDWR | os.O_CREAT)\n"
+    assert not (tmp_path / "b" / files.LOCK).exists()  # a refused run leaves no lock file behind
+    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time\n"  # an export's lock, held
+                               f"fd = os.open({str(tmp_path / 'a' / files.LOCK)!r}, os.O_RDWR | os.O_CREAT)\n"
+                               f"os.write(fd, {files.LOCK_MARKER!r})\n"
                                "fcntl.lockf(fd, fcntl.LOCK_EX); print('locked', flush=True); time.sleep(60)"],
                               stdout=subprocess.PIPE, text=True)
     try:
@@ -221,7 +222,7 @@ def test_export_refuses_other_settings_foreign_folders_concurrent_writers_and_ba
         holder.wait()
         holder.stdout.close()
     assert export_dataset(ds, tmp_path / "a", count=2, progress=False).written == (1,)
-    assert not (tmp_path / "a" / layout.LOCK).exists()
+    assert not (tmp_path / "a" / files.LOCK).exists()
 
 
 def test_reader_errors(tmp_path):
@@ -321,10 +322,10 @@ def test_reader_names_the_field_a_damaged_file_breaks(tmp_path):
         ExportedDataset(tmp_path)[0]
 
 
-@pytest.mark.parametrize("shards", [None, 2])
-def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, shards):
+@pytest.mark.parametrize("shard_size", [None, 2])
+def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, shard_size):
     ds = tiny_dataset(seed=6, geometry_dtype="float64")
-    export_dataset(ds, tmp_path, count=2, shards=shards, progress=False)
+    export_dataset(ds, tmp_path, count=2, shard_size=shard_size, progress=False)
     read = ExportedDataset(tmp_path)
     assert read.config["geometry_dtype"] == "float64"
     for k in range(2):
@@ -361,4 +362,46 @@ def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_by
     subprocess.run([sys.executable, "-m", "sidar_torch", "export", "--out", str(reference), "--count", "30"]
                    + settings, check=True, capture_output=True, timeout=300)
     assert tree(out) == tree(reference)
-    assert not (out / layout.LOCK).exists()
+    assert not (out / files.LOCK).exists()
+
+
+def test_ctrl_c_prints_one_line_saying_how_far_it_got_and_the_same_command_resumes(tmp_path):
+    """Issue 20 item 6: Ctrl-C printed a 40-line traceback ending inside PIL (exit -2)."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "sidar_torch", "export", "--out", str(out), "--count", "40", "--seed", "4",
+               "--no-progress", "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        wait_for_three_sequences(process, out)
+        os.kill(process.pid, signal.SIGINT)
+        _, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.communicate()
+    done = sorted(p.name for p in out.iterdir() if layout.SEQUENCE_NAME.match(p.name))
+    assert process.returncode == 130, err
+    assert err == (f"sidar_torch export: interrupted after {len(done)} of 40 sequences; "
+                   f"run the same command again to resume\n")
+    assert not (out / files.LOCK).exists() and not list(out.glob(".tmp-sidar-*"))
+    summary = export_dataset(tiny_dataset(seed=4), out, count=len(done) + 1, progress=False)
+    assert summary.written == (len(done),) and summary.present == len(done)
+
+
+def test_the_shard_size_option_and_its_old_name(tmp_path, capsys):
+    """Issue 20 item 6: ``--shards 1000`` meant 1,000 sequences per shard (a webdataset user reads
+    1,000 shards): the option is ``--shard-size``; ``--shards`` is refused naming it. The Python
+    keyword ``shards=`` stays accepted as the older name of ``shard_size=``."""
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main(["export", "--out", str(tmp_path / "x"), "--count", "1", "--shards", "1000"])
+    assert exit_info.value.code == 2
+    assert "--shards was renamed --shard-size" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+    cli.main(["export", "--out", str(tmp_path / "cli"), "--count", "3", "--shard-size", "2", "--no-progress",
+              "--set", "image_size=[24,32]", "--set", "n_views=2", "--set", "shadow_map_size=256"])
+    assert sorted(p.name for p in (tmp_path / "cli").glob("*.tar")) == ["shard-00000.tar", "shard-00001.tar"]
+    export_dataset(tiny_dataset(), tmp_path / "old-name", count=3, shards=2, progress=False)
+    assert tree(tmp_path / "old-name") == tree(tmp_path / "cli")
+    with pytest.raises(ValueError, match="shards=2: the older name of shard_size; pass shard_size only"):
+        export_dataset(tiny_dataset(), tmp_path / "both", count=1, shard_size=2, shards=2, progress=False)

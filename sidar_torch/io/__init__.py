@@ -4,17 +4,17 @@
 paper's file layout (the default, :mod:`.folders`) or in WebDataset-style tar shards
 (:mod:`.shards`); :class:`ExportedDataset` (:mod:`.reader`) loads either back into the dict
 :meth:`SidarDataset.sample` returns, tensor for tensor byte-identical (the views are 8-bit
-renders, so 8-bit PNGs hold them exactly). What the layouts share (names, manifest, codecs,
-atomic writes, the lock) is :mod:`.layout`.
+renders, so 8-bit PNGs hold them exactly). What the layouts share: names and codecs
+(:mod:`.layout`), atomic writes, the lock and bounded reads (:mod:`.files`), the manifest (:mod:`.manifest`).
 
-Folder layout (``shards=None``)::
+Folder layout (``shard_size=None``)::
 
     out/
       export.json        format, package version, layout, seed, painting source, config
       config.yaml        the config (``load_config("out/config.yaml")`` gives it back)
       000000/            one folder per sequence (see :mod:`.folders`)
 
-Shard layout (``shards=N``): ``shard-00000.tar``, ``shard-00001.tar``, ... beside
+Shard layout (``shard_size=N``): ``shard-00000.tar``, ``shard-00001.tar``, ... beside
 ``export.json`` and ``config.yaml`` (see :mod:`.shards`).
 
 Homography convention: the package's (Kornia's): pixel ``(u, v)`` is column ``u``, row ``v``, the
@@ -24,18 +24,25 @@ The paper's Blender files use coordinates in which the image's outer edges are `
 pixel grid; to compare with them, conjugate: ``H_paper = S H S^-1`` with
 ``S = [[(W-1)/W, 0, (W-1)/(2W)], [0, (H-1)/H, (H-1)/(2H)], [0, 0, 1]]``.
 
-Safety. Each sequence (or shard) is written into ``out/.tmp-<name>`` and moved into place by one
-``os.replace``, so a folder ``000007/`` or a ``shard-*.tar`` is either complete or absent. A
-rerun with the same arguments skips what exists, deletes stale ``.tmp-*`` left by a killed run
-and renders only what is missing; samples are pure functions of ``(seed, index)``, so the result
-is byte for byte an uninterrupted export's. Files are not ``fsync``-ed: this protects against
-the process dying (exception, Ctrl-C, ``kill -9``), not against losing power. One export at a
-time may write to a folder (a POSIX lock on ``out/.export.lock``, which DataLoader workers do not inherit, released when
-the export's process dies and removed when it ends), and a rerun must keep the
-seed, source, config and layout recorded in ``export.json`` (else ``ValueError``).
+Safety. Each sequence (or shard, or manifest file) is written into ``out/.tmp-sidar-<name>`` and
+moved into place by one ``os.replace``, so a folder ``000007/`` or a ``shard-*.tar`` is either
+complete or absent; ``export.json`` is written before ``config.yaml``, so an interruption at any
+point (a kill, a full disk, Ctrl-C: :class:`ExportInterrupted`) leaves a folder the same call
+resumes. A rerun with the same arguments skips what exists, deletes the ``.tmp-sidar-<name>`` left
+by a killed run (and no other file: a folder without ``export.json`` that holds anything else
+is refused as not empty), rewrites a damaged (truncated) shard and renders only what is missing;
+samples are pure functions of ``(seed, index)``, so the result is byte for byte an uninterrupted
+export's. Files are not ``fsync``-ed: this protects against the process dying, not against
+losing power. One export at a time may write to a folder (a POSIX lock on ``out/.export.lock``,
+which DataLoader workers do not inherit, released when the export's process dies and removed when
+it ends), and a rerun must keep the seed, source, config and layout recorded in ``export.json``
+(else ``ValueError``).
+
+The reader reads only regular files inside the export folder, of bounded size, and checks every
+field of ``export.json`` it uses: a damaged or tampered export is a ``ValueError`` naming the file.
 """
 
-from .export import ExportSummary, export_dataset
+from .export import ExportInterrupted, ExportSummary, export_dataset
 from .reader import ExportedDataset
 
-__all__ = ["ExportSummary", "ExportedDataset", "export_dataset"]
+__all__ = ["ExportInterrupted", "ExportSummary", "ExportedDataset", "export_dataset"]

@@ -23,7 +23,8 @@ from ..dataset import SidarDataset
 from ..sample import SampleArrays
 from . import folders
 from . import shards as tar_shards  # the name "shards" is export_dataset's argument
-from .layout import locked, remove_stale, write_manifest
+from .files import locked, remove_stale
+from .manifest import write_manifest
 
 
 @dataclasses.dataclass(frozen=True)
@@ -43,8 +44,25 @@ class ExportSummary:
     seconds: float
 
 
+class ExportInterrupted(KeyboardInterrupt):
+    """An export stopped by Ctrl-C (``KeyboardInterrupt``); what it wrote is complete and kept, and
+    the same call (or command) again resumes.
+
+    Attributes:
+        out: the export folder.
+        done: how many of the requested sequences are in ``out``.
+        requested: how many were requested.
+    """
+
+    def __init__(self, out: Path, done: int, requested: int):
+        super().__init__(f"export into {str(out)!r} interrupted after {done} of {requested} sequences; "
+                         f"export again with the same arguments to resume")
+        self.out, self.done, self.requested = out, done, requested
+
+
 def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
-                   shards: int | None = None, workers: int = 0, progress: bool = True) -> ExportSummary:
+                   shard_size: int | None = None, workers: int = 0, progress: bool = True, *,
+                   shards: int | None = None) -> ExportSummary:
     """Write sequences ``start .. start + count - 1`` of ``dataset`` to ``out_dir`` (see :mod:`sidar_torch.io`).
 
     Args:
@@ -53,35 +71,49 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         out_dir: the export folder; created if missing. Rerunning into it resumes.
         count: number of sequences, ``>= 1``.
         start: first dataset index, ``>= 0``.
-        shards: ``None`` for the folder layout, or ``N >= 1``: tar shards of (at most) ``N``
+        shard_size: ``None`` for the folder layout, or ``N >= 1``: tar shards of (at most) ``N``
             sequences each.
         workers: ``0`` renders in this process; ``n >= 1`` renders in ``n`` DataLoader workers
             while this process writes.
         progress: print a progress line on stderr (redrawn in place on a terminal, else every 10 s).
+        shards: the older name of ``shard_size``, still accepted.
 
     Returns:
         An :class:`ExportSummary`.
 
     Raises:
         TypeError: ``dataset`` is not a :class:`SidarDataset`.
-        ValueError: a bad ``count``, ``start``, ``shards`` or ``workers``; ``out_dir`` holds an
-            export whose seed, source, config, layout or version differ.
+        ValueError: a bad ``count``, ``start``, ``shard_size`` or ``workers``; ``out_dir`` holds an
+            export whose seed, source, config, layout or version differ, or files that are not an export's.
         RuntimeError: another export holds the lock on ``out_dir``.
+        ExportInterrupted: Ctrl-C (a ``KeyboardInterrupt``) stopped it; what it wrote is kept.
     """
     begin = time.perf_counter()
     workers = as_int("workers", workers, 0)
-    with planned_export(dataset, out_dir, count, start, shards) as plan:
-        bar = Progress(len(plan.missing), sys.stderr if progress else None)
-        samples = _render(dataset, plan.missing, workers)
-        if plan.shard_size is None:
-            for arrays in samples:
-                folders.write_sequence(plan.out, arrays)
-                bar.advance()
-        else:
-            for shard, new in plan.shards():
-                tar_shards.write_shard(plan.out, shard, new, samples, bar.advance)
-        bar.close()
+    with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards)) as plan:
+        with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
+            samples = _render(dataset, plan.missing, workers)
+            if plan.shard_size is None:
+                for arrays in samples:
+                    folders.write_sequence(plan.out, arrays)
+                    bar.advance()
+            else:
+                for shard, new in plan.shards():
+                    tar_shards.write_shard(plan.out, shard, new, samples, bar.advance)
     return ExportSummary(plan.out, tuple(plan.missing), len(plan.present), time.perf_counter() - begin)
+
+
+def either_shard_size(shard_size: int | None, shards: int | None) -> int | None:
+    """``shard_size``, or ``shards`` (its older name) if only that is given.
+
+    Raises:
+        ValueError: both are given.
+    """
+    if shards is None:
+        return shard_size
+    if shard_size is not None:
+        raise ValueError(f"shards={shards!r}: the older name of shard_size; pass shard_size only")
+    return shards
 
 
 @dataclasses.dataclass(frozen=True)
@@ -93,25 +125,39 @@ class ExportPlan:
         shard_size: ``None`` for the folder layout, else sequences per tar shard.
         present: the requested indices an earlier run already wrote.
         missing: the requested indices to render and write, ascending.
+        damaged: shard layout: the shards to rewrite whole because they are damaged (a truncated copy).
     """
 
     out: Path
     shard_size: int | None
     present: set[int]
     missing: list[int]
+    damaged: frozenset[int] = frozenset()
 
     def shards(self) -> list[tuple[int, list[int]]]:
-        """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence (shard layout)."""
-        groups = itertools.groupby(self.missing, key=lambda i: i // self.shard_size)
-        return [(shard, list(new)) for shard, new in groups]
+        """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence or is
+        damaged, ascending (shard layout)."""
+        groups = {shard: [] for shard in self.damaged}
+        by_shard = itertools.groupby(self.missing, lambda index: index // self.shard_size)
+        groups.update((shard, list(new)) for shard, new in by_shard)
+        return sorted(groups.items())
+
+
+def _present(out: Path, wanted: range, shard_size: int | None) -> tuple[set[int], set[int]]:
+    """``(held, damaged)``: the indices of ``wanted`` whose sequences ``out`` holds, and (shards) the
+    damaged shards among theirs."""
+    if shard_size is None:
+        return folders.present(out, wanted), set()
+    return tar_shards.present(out, wanted, shard_size)
 
 
 @contextmanager
 def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int,
-                   shards: int | None) -> Iterator[ExportPlan]:
+                   shard_size: int | None) -> Iterator[ExportPlan]:
     """The part every export shares, local or distributed: check the arguments, create ``out_dir``,
     hold its lock for the block, write (or check) the manifest, delete stale temporaries and find what
-    is missing. The block writes the :class:`ExportPlan`'s ``missing`` sequences with the layout's writer.
+    is missing. The block writes the :class:`ExportPlan`'s ``missing`` sequences with the layout's
+    writer; a ``KeyboardInterrupt`` in it becomes an :class:`ExportInterrupted` saying how many are done.
 
     Raises:
         the exceptions of :func:`export_dataset` (but for ``workers``).
@@ -119,7 +165,7 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     if not isinstance(dataset, SidarDataset):
         raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
     count, start = as_int("count", count, 1), as_int("start", start, 0)
-    shard_size = None if shards is None else as_int("shards", shards, 1)
+    shard_size = None if shard_size is None else as_int("shard_size", shard_size, 1)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")
@@ -128,8 +174,11 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         write_manifest(out, dataset.seed, dataset.source, dataset.config.to_dict(), shard_size)
         remove_stale(out)
         wanted = range(start, start + count)
-        present = folders.present(out, wanted) if shard_size is None else tar_shards.present(out, wanted, shard_size)
-        yield ExportPlan(out, shard_size, present, [i for i in wanted if i not in present])
+        present, damaged = _present(out, wanted, shard_size)
+        try:
+            yield ExportPlan(out, shard_size, present, [i for i in wanted if i not in present], frozenset(damaged))
+        except KeyboardInterrupt:
+            raise ExportInterrupted(out, len(_present(out, wanted, shard_size)[0]), count) from None
 
 
 class _Renders(Dataset):
@@ -177,22 +226,44 @@ def _exit_with_parent(worker_id: int) -> None:
 
 class Progress:
     """``export: 12/100 sequences, 0.41 s each, 36 s left`` on ``stream``: redrawn in place on a
-    terminal, else printed every 10 s and at the end; ``stream=None`` prints nothing."""
+    terminal, else printed every 10 s and at the end; ``stream=None`` prints nothing. Used as a
+    context manager: the last line is drawn on a normal exit, a live line is ended on an exception.
+
+    The time left is :func:`seconds_left` of the work reported: sequences done locally (one after
+    the other, the time per sequence is the time since the start over the sequences done), or tasks
+    done in parallel that report their own busy time (Ray), so that neither start-up nor a batch
+    finishing at once skews it.
+    """
 
     def __init__(self, total: int, stream: TextIO | None):
-        self.total, self.stream, self.done = total, stream, 0
+        self.total, self.stream, self.done, self.busy, self.parallel = total, stream, 0, None, 1
+        self.drawn = -1  # ``done`` when the line was last drawn
         self.start = self.last = time.perf_counter()
         self.live = stream is not None and stream.isatty()
         self._show(force=True)
 
-    def advance(self) -> None:
-        self.done += 1
-        self._show(force=False)
+    def __enter__(self) -> Progress:
+        return self
 
-    def close(self) -> None:
-        self._show(force=True)
+    def __exit__(self, kind: type | None, *_: Any) -> None:
+        if kind is None and (self.live or self.drawn != self.done):
+            self._show(force=True)
         if self.live:
             self.stream.write("\n")
+
+    def advance(self, count: int = 1, busy: float | None = None, parallel: int = 1) -> None:
+        """``count`` more sequences are done; ``busy``: seconds a worker spent on them (parallel
+        work), ``parallel``: how many workers share the work left."""
+        self.done += count
+        if busy is not None:
+            self.busy = (self.busy or 0.0) + busy
+        self.parallel = parallel
+        self._show(force=False)
+
+    def seconds_left(self, now: float) -> float:
+        """The estimated seconds to finish, at time ``now`` (``perf_counter``); needs ``done >= 1``."""
+        per_sequence = (now - self.start) / self.done if self.busy is None else self.busy / self.done
+        return seconds_left(self.total - self.done, per_sequence, self.parallel)
 
     def _show(self, force: bool) -> None:
         if self.stream is None:
@@ -200,10 +271,14 @@ class Progress:
         now = time.perf_counter()
         if not (force or self.live or now - self.last >= 10):
             return
-        self.last = now
+        self.last, self.drawn = now, self.done
         line = f"export: {self.done}/{self.total} sequences"
         if self.done:
-            each = (now - self.start) / self.done
-            line += f", {each:.2f} s each, {each * (self.total - self.done):.0f} s left"
+            line += f", {(now - self.start) / self.done:.2f} s each, {self.seconds_left(now):.0f} s left"
         self.stream.write(("\r" + line + "\033[K") if self.live else line + "\n")
         self.stream.flush()
+
+
+def seconds_left(remaining: int, seconds_per_sequence: float, parallel: int = 1) -> float:
+    """Seconds to do ``remaining`` sequences that take ``seconds_per_sequence`` each, ``parallel`` at a time."""
+    return remaining * seconds_per_sequence / max(parallel, 1)

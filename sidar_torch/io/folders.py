@@ -24,7 +24,8 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ..sample import SampleArrays
-from .layout import SEQUENCE_NAME, encode, replace_folder, sample_entries, sequence_name
+from .files import replace_folder
+from .layout import SEQUENCE_NAME, encode, sample_entries, sequence_name
 
 
 def homography_entry(i: int, j: int) -> str:

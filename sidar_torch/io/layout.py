@@ -1,4 +1,5 @@
-"""What the two export layouts share: names, the manifest, the codecs, atomic writes and the lock.
+"""What the two export layouts share: names and codecs (the files are :mod:`.files`, the manifest
+:mod:`.manifest`).
 
 A sequence is written as named entries (``0.png``, ``gt.png``, ``cameras.json``, ...): the
 writers (:mod:`.folders`, :mod:`.shards`) name them, :data:`ENCODERS` turns each into bytes by its
@@ -9,43 +10,37 @@ back without a change here.
 
 from __future__ import annotations
 
-import fcntl
-import hashlib
 import io
 import json
 import os
 import re
-import shutil
-from contextlib import contextmanager
-from pathlib import Path
-from typing import Any, Callable, Iterator
+import struct
+from typing import Any, Callable
 
 import numpy as np
 import scipy.io
-import yaml
 from PIL import Image
 
 from ..sample import KEYS, SampleArrays, present_keys
-from ..sources import ImageFiles, PaintingSource
 
-FORMAT = "sidar_torch export"
-FORMAT_VERSION = 1
 MANIFEST = "export.json"
-LOCK = ".export.lock"
-TMP_PREFIX = ".tmp-"
+CONFIG = "config.yaml"
 SEQUENCE_NAME = re.compile(r"^\d{6,}$")
 SHARD_NAME = re.compile(r"^shard-(\d{5,})\.tar$")
 CAMERAS = "cameras.json"
 MAT_HEADER = b"MATLAB 5.0 MAT-file, written by sidar_torch"
 """Replaces scipy's header text, which holds the time of writing, so equal data gives equal files."""
 
-RESUME_KEYS = ("format", "format_version", "package_version", "layout", "shard_size", "seed", "source", "config")
-"""``export.json`` fields a rerun into an existing export must match."""
 
 
 def sequence_name(index: int) -> str:
     """The name of sequence ``index``: its 6-digit (or longer) index."""
     return f"{index:06d}"
+
+
+def is_export_name(name: str) -> bool:
+    """True for a name an export writes at its top: a sequence folder, a shard, the manifest or the config."""
+    return bool(SEQUENCE_NAME.match(name) or SHARD_NAME.match(name)) or name in (MANIFEST, CONFIG)
 
 
 # --------------------------------------------------------------------------- codecs
@@ -73,6 +68,17 @@ def _npy(array: np.ndarray) -> bytes:
 
 def _json(data: dict[str, Any]) -> bytes:
     return (json.dumps(data, indent=1) + "\n").encode()
+
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def png_size(data: bytes) -> tuple[int, int] | None:
+    """``(H, W)`` pixels from the header of the PNG ``data`` (nothing decoded), or None if it is not a PNG."""
+    if len(data) < 24 or not data.startswith(PNG_SIGNATURE) or data[12:16] != b"IHDR":
+        return None
+    width, height = struct.unpack(">II", data[16:24])
+    return height, width
 
 
 def _read_png(data: bytes) -> np.ndarray:
@@ -160,148 +166,3 @@ def sample_from_entries(read: Callable[[str], Any], index: int, config: dict[str
                         homography_error=float(cameras["homography_error"]),
                         K=np.array(cameras["K"], dtype=np.float64), R=np.array(cameras["R"], dtype=np.float64),
                         t=np.array(cameras["t"], dtype=np.float64), index=index)
-
-
-# --------------------------------------------------------------------------- files, atomically
-
-
-def write_file(path: Path, data: bytes) -> None:
-    """Write one file (the single place export writes file contents)."""
-    with open(path, "wb") as f:
-        f.write(data)
-
-
-def replace_file(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically (a temporary sibling, then ``os.replace``)."""
-    tmp = path.with_name(TMP_PREFIX + path.name)
-    write_file(tmp, data)
-    os.replace(tmp, path)
-
-
-def replace_folder(path: Path, files: dict[str, bytes]) -> None:
-    """Write ``files`` into ``.tmp-<name>`` beside ``path``, then move it into place in one step."""
-    tmp = path.with_name(TMP_PREFIX + path.name)
-    tmp.mkdir()
-    try:
-        for file_name, data in files.items():
-            write_file(tmp / file_name, data)
-        os.replace(tmp, path)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-def remove_stale(out: Path) -> None:
-    """Delete the ``.tmp-*`` left by a killed run (call it holding the lock: no one writes them)."""
-    for stale in out.glob(TMP_PREFIX + "*"):
-        if stale.is_dir():
-            shutil.rmtree(stale)
-        else:
-            stale.unlink()
-
-
-@contextmanager
-def locked(out: Path) -> Iterator[None]:
-    """Hold an exclusive lock on ``out/.export.lock`` while writing; the file is removed afterwards.
-
-    A POSIX record lock (``fcntl.lockf``), not ``flock``: it belongs to this process alone, so
-    forked DataLoader workers do not inherit it and cannot keep it after this process dies (with
-    ``flock`` they did, and a rerun after ``kill -9`` was refused for good); the kernel releases it
-    when this process dies, however it dies. The file is removed on the way out, also when the
-    export is refused, so no run leaves it behind.
-
-    Raises:
-        RuntimeError: another live process holds the lock.
-    """
-    path = out / LOCK
-    fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    try:
-        try:
-            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except (BlockingIOError, PermissionError):
-            raise RuntimeError(f"out_dir: another export is writing to {str(out)!r} "
-                               f"(it holds the lock on {str(path)!r})") from None
-        if not path.exists() or os.stat(path).st_ino != os.fstat(fd).st_ino:
-            # The holder we waited behind removed the file we locked: another run may hold a new one.
-            raise RuntimeError(f"out_dir: another export was finishing in {str(out)!r}; run again")
-        try:
-            yield
-        finally:
-            path.unlink(missing_ok=True)  # while holding the lock; a run that opened it meanwhile sees it gone
-    finally:
-        os.close(fd)  # releases the lock
-
-
-# --------------------------------------------------------------------------- manifest
-
-
-def source_description(source: PaintingSource) -> dict[str, Any]:
-    """Plain-data description of a painting source: its kind, size, crop and, for files, their paths' hash."""
-    description: dict[str, Any] = {"type": type(source).__name__, "paintings": len(source)}
-    if hasattr(source, "crop"):
-        description["crop"] = source.crop
-    if isinstance(source, ImageFiles):
-        description["first_path"] = source.paths[0]
-        description["paths_sha256"] = hashlib.sha256("\n".join(source.paths).encode()).hexdigest()
-    return description
-
-
-def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any],
-                   shard_size: int | None) -> None:
-    """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones."""
-    from .. import __version__
-
-    manifest = {
-        "format": FORMAT,
-        "format_version": FORMAT_VERSION,
-        "package_version": __version__,
-        "layout": "folders" if shard_size is None else "shards",
-        "shard_size": shard_size,
-        "seed": seed,
-        "source": source_description(source),
-        "config": config,
-        "homographies": "H[i, j] maps view-i pixels to view-j pixels; Kornia pixels (centre of the top-left "
-                        "pixel at (0, 0)); det = 1; float64",
-        "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
-    }
-    if config["opacity_output"]:
-        manifest["opacities"] = "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"
-    path = out / MANIFEST
-    if path.exists():
-        old = read_manifest(out)
-        differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS
-                       if old.get(key) != manifest[key]]
-        if differences:
-            raise ValueError(f"out_dir: {str(out)!r} holds an export made with other settings "
-                             f"({'; '.join(differences)}); export into a new folder or rerun with the recorded ones")
-        return
-    foreign = sorted(p.name for p in out.iterdir() if p.name != LOCK and not p.name.startswith(TMP_PREFIX))
-    if foreign:
-        raise ValueError(f"out_dir: {str(out)!r} is not empty and holds no {MANIFEST} (found {foreign[:5]}); "
-                         f"export into a new or empty folder")
-    replace_file(out / "config.yaml", yaml.safe_dump(manifest["config"], sort_keys=False).encode())
-    replace_file(path, (json.dumps(manifest, indent=2) + "\n").encode())
-
-
-def _difference(key: str, there: Any, now: Any) -> str:
-    """``"key: <there> there, <now> now"``, naming only the differing fields of two dicts."""
-    if isinstance(there, dict) and isinstance(now, dict):
-        fields = sorted(k for k in {*there, *now} if there.get(k, "(absent)") != now.get(k, "(absent)"))
-        return "; ".join(f"{key}.{k}: {there.get(k, '(absent)')!r} there, {now.get(k, '(absent)')!r} now"
-                         for k in fields)
-    return f"{key}: {there!r} there, {now!r} now"
-
-
-def read_manifest(path: Path) -> dict[str, Any]:
-    """The ``export.json`` of the export at ``path``, checked to be of this format and version."""
-    manifest_path = path / MANIFEST
-    if not manifest_path.is_file():
-        raise ValueError(f"{str(path)!r}: not a sidar_torch export (no {MANIFEST})")
-    try:
-        manifest = json.loads(manifest_path.read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{str(manifest_path)!r}: not valid JSON ({error})") from None
-    if manifest.get("format") != FORMAT or manifest.get("format_version") != FORMAT_VERSION:
-        raise ValueError(f"{str(manifest_path)!r}: expected format {FORMAT!r} version {FORMAT_VERSION}, "
-                         f"got {manifest.get('format')!r} version {manifest.get('format_version')!r}")
-    return manifest

@@ -11,15 +11,17 @@ import numpy as np
 from torch.utils.data import Dataset
 
 from . import folders, shards
-from .layout import decode, read_manifest, sample_from_entries
+from .files import read_inside
+from .layout import decode, png_size, sample_from_entries
+from .manifest import layout_name, read_manifest
 
 
-def _read_file(folder: Path, name: str) -> Any:
-    return decode(name, (folder / name).read_bytes())
-
-
-def _read_entry(entries: dict[str, tuple[Path, int, int]], name: str) -> Any:
-    return decode(name, shards.read_entry(entries, name))
+def entry_size_limit(config: dict[str, Any]) -> int:
+    """Most bytes one file of a sequence rendered with ``config`` can hold, with a wide margin: four
+    times a view's raw RGB pixels (a PNG adds a few bytes per row and per 32 kB), plus 128 bytes per
+    pair of views (``homographies.npy`` holds 72), plus 1 MiB (``cameras.json``, headers)."""
+    height, width = config["image_size"]
+    return 4 * height * width * 3 + 128 * config["n_views"] ** 2 + 2**20
 
 
 class ExportedDataset(Dataset):
@@ -32,6 +34,10 @@ class ExportedDataset(Dataset):
     for bit (keys, shapes, dtypes: the table :data:`sidar_torch.sample.KEYS`; geometry in the
     recorded config's ``geometry_dtype``, from the float64 files). Reads both layouts; works in
     DataLoader workers.
+
+    Only regular files inside ``path`` are read (a link out of it, a FIFO or a device is an error
+    naming it), each of at most :func:`entry_size_limit` bytes, and a PNG only if its header gives
+    the recorded ``image_size``.
 
     Args:
         path: the export folder.
@@ -46,7 +52,8 @@ class ExportedDataset(Dataset):
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
-        ValueError: ``path`` holds no export (no ``export.json``) or one of another format.
+        ValueError: ``path`` holds no export (no ``export.json``), one of another format, a
+            manifest with a missing or wrong field, or a damaged shard (each message names the file).
     """
 
     def __init__(self, path: str | os.PathLike):
@@ -58,7 +65,8 @@ class ExportedDataset(Dataset):
         self.seed: int = manifest["seed"]
         self.layout: str = manifest["layout"]
         # Per item: its index and where its entries are: a folder, or {name: (shard, offset, size)}.
-        self._items = folders.sequences(self.path) if self.layout == "folders" else shards.sequences(self.path)
+        folder_layout = self.layout == layout_name(None)
+        self._items = folders.sequences(self.path) if folder_layout else shards.sequences(self.path)
         self.indices = [index for index, _ in self._items]
 
     def __len__(self) -> int:
@@ -70,8 +78,26 @@ class ExportedDataset(Dataset):
             raise IndexError(f"index {k!r}: expected an integer in [{-len(self)}, {len(self)})")
         index, where = self._items[k]
         if isinstance(where, Path):
-            read, layout = partial(_read_file, where), folders
+            read, layout = partial(self._read_file, where), folders
         else:
-            read, layout = partial(_read_entry, where), shards
+            read, layout = partial(self._read_entry, where), shards
         arrays = sample_from_entries(read, index, self.config, partial(layout.read_homographies, read))
         return arrays.to_tensors(self.config.get("geometry_dtype", "float32"))
+
+    def _read_file(self, folder: Path, name: str) -> Any:
+        """Entry ``name`` of a sequence folder, decoded."""
+        return self._decode(folder / name, name, read_inside(folder / name, self.path, entry_size_limit(self.config)))
+
+    def _read_entry(self, entries: dict[str, tuple[Path, int, int]], name: str) -> Any:
+        """Entry ``name`` of a sequence in a shard, decoded."""
+        data = shards.read_entry(entries, name, entry_size_limit(self.config))
+        return self._decode(entries[name][0], name, data)
+
+    def _decode(self, where: Path, name: str, data: bytes) -> Any:
+        """``data`` decoded by ``name``'s extension; a PNG only if its header gives the recorded size."""
+        if name.endswith(".png"):
+            expected = tuple(self.config["image_size"])
+            if png_size(data) != expected:
+                raise ValueError(f"{str(where)!r}: {name} is not a PNG of {expected[0]} x {expected[1]} pixels "
+                                 f"(H x W, the recorded image_size): its header says {png_size(data)}")
+        return decode(name, data)

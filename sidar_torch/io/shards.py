@@ -11,6 +11,7 @@ and time 0: equal data gives equal tars.
 from __future__ import annotations
 
 import io
+import os
 import tarfile
 from contextlib import nullcontext
 from pathlib import Path
@@ -19,9 +20,12 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 from ..sample import SampleArrays
-from .layout import SHARD_NAME, TMP_PREFIX, encode, sample_entries, sequence_name
+from .files import open_inside, temporary_path
+from .layout import SEQUENCE_NAME, SHARD_NAME, encode, sample_entries, sequence_name
 
 HOMOGRAPHIES = "homographies.npy"
+END_MARKER = 2 * tarfile.BLOCKSIZE
+"""Bytes of zeros that end a whole tar (the end-of-archive marker ``tarfile`` writes)."""
 
 
 def entries(arrays: SampleArrays) -> dict[str, Any]:
@@ -33,33 +37,86 @@ def shard_path(out: Path, shard: int) -> Path:
     return out / f"shard-{shard:05d}.tar"
 
 
+class DamagedShard(ValueError):
+    """A shard that is not a whole tar as the export writes it (cut short, say, by a copy that
+    stopped). The message names the file; ``complete`` holds the sequences before the damage
+    (``{index: [member, ...]}``, without the last one, which may have lost entries)."""
+
+    def __init__(self, path: Path, reason: str, complete: dict[int, list[tarfile.TarInfo]]):
+        super().__init__(f"{str(path)!r}: damaged shard ({reason}); rerun the export that wrote it to rewrite it")
+        self.complete = complete
+
+
 def shard_contents(path: Path) -> dict[int, list[tarfile.TarInfo]]:
-    """``{index: [member, ...]}`` of the shard at ``path`` (empty if there is none)."""
-    if not path.exists():
+    """``{index: [member, ...]}`` of the shard at ``path`` (empty if there is none).
+
+    Raises:
+        DamagedShard: the shard is truncated or not a tar of sequence entries.
+        ValueError: ``path`` is not a regular file inside its folder (see :func:`.files.open_inside`).
+    """
+    if not os.path.lexists(path):
         return {}
     contents: dict[int, list[tarfile.TarInfo]] = {}
-    with tarfile.open(path) as tar:
-        for member in tar.getmembers():
-            contents.setdefault(int(member.name.partition(".")[0]), []).append(member)
+    with open_inside(path, path.parent) as f:
+        size = os.fstat(f.fileno()).st_size
+        try:
+            with tarfile.open(fileobj=f, mode="r:") as tar:
+                for member in tar:
+                    key, dot, _ = member.name.partition(".")
+                    if not (member.isfile() and dot and SEQUENCE_NAME.match(key)):
+                        raise DamagedShard(path, f"entry {member.name!r} is not a sequence's file",
+                                           _without_last(contents))
+                    if member.offset_data + member.size > size:
+                        break  # cut inside this entry's data: the end marker check below fails
+                    contents.setdefault(int(key), []).append(member)
+                end = tar.offset
+        except tarfile.TarError as error:
+            raise DamagedShard(path, f"{type(error).__name__}: {error}", _without_last(contents)) from None
+        f.seek(end)
+        if f.read(END_MARKER) != bytes(END_MARKER):
+            raise DamagedShard(path, f"cut short: no end-of-archive marker after byte {end} of {size}",
+                               _without_last(contents))
     return contents
 
 
-def present(out: Path, wanted: range, shard_size: int) -> set[int]:
-    """The indices of ``wanted`` (non-empty) that the shards in ``out`` hold."""
-    shards = range(wanted.start // shard_size, (wanted.stop - 1) // shard_size + 1)
-    return {i for k in shards for i in shard_contents(shard_path(out, k)) if i in wanted}
+def _without_last(contents: dict[int, list[tarfile.TarInfo]]) -> dict[int, list[tarfile.TarInfo]]:
+    """``contents`` without its last sequence."""
+    return dict(sorted(contents.items())[:-1])
+
+
+def held_sequences(path: Path) -> dict[int, list[tarfile.TarInfo]]:
+    """What a rerun of the export keeps of the shard at ``path``: all of it, or of a damaged shard
+    the sequences before the damage (the rerun rewrites it: :func:`write_shard`)."""
+    try:
+        return shard_contents(path)
+    except DamagedShard as damaged:
+        return damaged.complete
+
+
+def present(out: Path, wanted: range, shard_size: int) -> tuple[set[int], set[int]]:
+    """``(held, damaged)``: the indices of ``wanted`` (non-empty) that the shards in ``out`` hold
+    whole, and the shards among ``wanted``'s that are damaged (to rewrite)."""
+    held, damaged = set(), set()
+    for shard in range(wanted.start // shard_size, (wanted.stop - 1) // shard_size + 1):
+        try:
+            contents = shard_contents(shard_path(out, shard))
+        except DamagedShard as error:
+            contents = error.complete
+            damaged.add(shard)
+        held |= {i for i in contents if i in wanted}
+    return held, damaged
 
 
 def write_shard(out: Path, shard: int, new: list[int], arrays: Iterator[SampleArrays],
                 written: Callable[[], None]) -> None:
-    """(Re)write one shard: the sequences it holds copied over, those of ``new`` (ascending) taken
-    from ``arrays``, all in index order, into ``.tmp-shard-<k>.tar``, then moved into place;
-    ``written()`` is called after each new sequence."""
+    """(Re)write one shard: the sequences it holds copied over (of a damaged shard, those before
+    the damage), those of ``new`` (ascending) taken from ``arrays``, all in index order, into
+    ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is called after each new sequence."""
     path = shard_path(out, shard)
-    old = shard_contents(path)
-    tmp = out / (TMP_PREFIX + path.name)
+    old = held_sequences(path)
+    tmp = temporary_path(path)
     try:
-        with tarfile.open(tmp, "w") as tar, (open(path, "rb") if old else nullcontext()) as old_file:
+        with tarfile.open(tmp, "w") as tar, (open_inside(path, out) if old else nullcontext()) as old_file:
             for index in sorted({*old, *new}):
                 if index in old:
                     for member in old[index]:
@@ -86,7 +143,11 @@ def _add_entry(tar: tarfile.TarFile, name: str, data: bytes) -> None:
 
 
 def sequences(out: Path) -> list[tuple[int, dict[str, tuple[Path, int, int]]]]:
-    """``(index, {entry name: (shard, offset, size)})`` of every sequence in the shards of ``out``, ascending."""
+    """``(index, {entry name: (shard, offset, size)})`` of every sequence in the shards of ``out``, ascending.
+
+    Raises:
+        DamagedShard, ValueError: as :func:`shard_contents`, for any shard.
+    """
     items = []
     for shard in sorted(p for p in out.iterdir() if SHARD_NAME.match(p.name)):
         for index, members in sorted(shard_contents(shard).items()):
@@ -94,12 +155,20 @@ def sequences(out: Path) -> list[tuple[int, dict[str, tuple[Path, int, int]]]]:
     return items
 
 
-def read_entry(entries: dict[str, tuple[Path, int, int]], name: str) -> bytes:
-    """The bytes of entry ``name`` of one sequence (``FileNotFoundError`` naming it if missing)."""
+def read_entry(entries: dict[str, tuple[Path, int, int]], name: str, limit: int) -> bytes:
+    """The bytes of entry ``name`` of one sequence, at most ``limit`` of them.
+
+    Raises:
+        FileNotFoundError: the sequence has no entry ``name``.
+        ValueError: the entry is larger than ``limit`` bytes, or its shard is no longer a regular file.
+    """
     if name not in entries:
         raise FileNotFoundError(f"shard entry {name!r} missing (entries: {sorted(entries)})")
     shard, offset, size = entries[name]
-    with open(shard, "rb") as f:
+    if size > limit:
+        raise ValueError(f"{str(shard)!r}: entry {name!r} holds {size} bytes, more than the {limit} "
+                         f"this export's files can hold")
+    with open_inside(shard, shard.parent) as f:
         f.seek(offset)
         return f.read(size)
 

@@ -1,0 +1,164 @@
+"""The manifest of an export: ``export.json`` (format, version, layout, seed, painting source,
+config) and ``config.yaml`` (the config alone), written so that any interruption leaves a folder
+the same command resumes, and read back checked field by field."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+
+from ..sample import GEOMETRY_DTYPES
+from ..sources import ImageFiles, PaintingSource
+from .files import LOCK, is_own_temporary, read_inside, replace_file
+from .layout import CONFIG, MANIFEST
+
+FORMAT = "sidar_torch export"
+FORMAT_VERSION = 1
+LAYOUTS = ("folders", "shards")
+"""The layouts an export is written in: ``"folders"`` (``shard_size`` None) or ``"shards"``."""
+
+RESUME_KEYS = ("format", "format_version", "package_version", "layout", "shard_size", "seed", "source", "config")
+"""``export.json`` fields a rerun into an existing export must match."""
+
+MANIFEST_LIMIT = 16 * 2**20
+"""Most bytes an ``export.json`` is read to (a real one holds a config: a few kB)."""
+
+
+def layout_name(shard_size: int | None) -> str:
+    """The layout of an export with ``shard_size`` sequences per shard (``None``: one folder per sequence)."""
+    return LAYOUTS[0] if shard_size is None else LAYOUTS[1]
+
+
+def source_description(source: PaintingSource) -> dict[str, Any]:
+    """Plain-data description of a painting source: its kind, size, crop and, for files, their paths' hash
+    (of the paths' bytes, so that any file name the system allows is described)."""
+    description: dict[str, Any] = {"type": type(source).__name__, "paintings": len(source)}
+    if hasattr(source, "crop"):
+        description["crop"] = source.crop
+    if isinstance(source, ImageFiles):
+        description["first_path"] = source.paths[0]
+        description["paths_sha256"] = hashlib.sha256(b"\n".join(map(os.fsencode, source.paths))).hexdigest()
+    return description
+
+
+def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any],
+                   shard_size: int | None) -> None:
+    """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
+
+    ``export.json`` is written first, each file atomically: an interruption before it leaves no
+    manifest (and only the export's own temporaries, which a rerun deletes), one after it an
+    export that the rerun completes (it writes ``config.yaml`` when missing). Call it holding the lock.
+
+    Raises:
+        ValueError: ``out`` holds an export made with other settings, or holds files but no ``export.json``.
+    """
+    from .. import __version__
+
+    manifest = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "package_version": __version__,
+        "layout": layout_name(shard_size),
+        "shard_size": shard_size,
+        "seed": seed,
+        "source": source_description(source),
+        "config": config,
+        "homographies": "H[i, j] maps view-i pixels to view-j pixels; Kornia pixels (centre of the top-left "
+                        "pixel at (0, 0)); det = 1; float64",
+        "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
+    }
+    if config["opacity_output"]:
+        manifest["opacities"] = "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"
+    if (out / MANIFEST).exists():
+        old = read_manifest(out)
+        differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS
+                       if old.get(key) != manifest[key]]
+        if differences:
+            raise ValueError(f"out_dir: {str(out)!r} holds an export made with other settings "
+                             f"({'; '.join(differences)}); export into a new folder or rerun with the recorded ones")
+    else:
+        foreign = sorted(p.name for p in out.iterdir() if p.name != LOCK and not is_own_temporary(p.name))
+        if foreign:
+            raise ValueError(f"out_dir: {str(out)!r} is not empty and holds no {MANIFEST} (found {foreign[:5]}); "
+                             f"export into a new or empty folder")
+        replace_file(out / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
+    if not (out / CONFIG).exists():
+        replace_file(out / CONFIG, yaml.safe_dump(manifest["config"], sort_keys=False).encode())
+
+
+def _difference(key: str, there: Any, now: Any) -> str:
+    """``"key: <there> there, <now> now"``, naming only the differing fields of two dicts."""
+    if isinstance(there, dict) and isinstance(now, dict):
+        fields = sorted(k for k in {*there, *now} if there.get(k, "(absent)") != now.get(k, "(absent)"))
+        return "; ".join(f"{key}.{k}: {there.get(k, '(absent)')!r} there, {now.get(k, '(absent)')!r} now"
+                         for k in fields)
+    return f"{key}: {there!r} there, {now!r} now"
+
+
+def read_manifest(path: Path) -> dict[str, Any]:
+    """The ``export.json`` of the export at ``path``, checked to be of this format and version, with
+    every field the reader and a rerun use of the expected type (see :func:`check_manifest`).
+
+    Raises:
+        ValueError: no ``export.json``, or one that is not a regular file of at most
+            :data:`MANIFEST_LIMIT` bytes of UTF-8 JSON, or a field that is missing or wrong (the
+            message names the file and the field).
+    """
+    manifest_path = path / MANIFEST
+    if not manifest_path.exists():
+        raise ValueError(f"{str(path)!r}: not a sidar_torch export (no {MANIFEST})")
+    try:
+        manifest = json.loads(read_inside(manifest_path, path, MANIFEST_LIMIT).decode("utf-8"))
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{str(manifest_path)!r}: not UTF-8 text ({error})") from None
+    except (json.JSONDecodeError, RecursionError) as error:
+        raise ValueError(f"{str(manifest_path)!r}: not valid JSON ({type(error).__name__}: {error})") from None
+    check_manifest(manifest, manifest_path)
+    return manifest
+
+
+def check_manifest(manifest: Any, where: Path) -> None:
+    """Check the fields of a decoded ``export.json`` (``where`` names it in errors): the format and
+    version, ``layout`` one of :data:`LAYOUTS` with a fitting ``shard_size``, an integer ``seed``,
+    a ``source`` and a ``config`` dict whose fields the reader uses (``image_size``, ``n_views``,
+    ``opacity_output``, ``geometry_dtype``) hold what they should.
+
+    Raises:
+        ValueError: naming ``where`` and the first wrong field.
+    """
+    def check(name: str, value: Any, ok: Callable[[Any], bool], expected: str) -> None:
+        if not ok(value):
+            raise ValueError(f"{str(where)!r}: field {name!r}: expected {expected}, got {value!r}")
+
+    check("(top level)", manifest, lambda m: isinstance(m, dict), "a JSON object")
+    if manifest.get("format") != FORMAT or manifest.get("format_version") != FORMAT_VERSION:
+        raise ValueError(f"{str(where)!r}: expected format {FORMAT!r} version {FORMAT_VERSION}, "
+                         f"got {manifest.get('format')!r} version {manifest.get('format_version')!r}")
+    for key in RESUME_KEYS:
+        check(key, key in manifest, bool, "a value (the field is missing)")
+    check("layout", manifest["layout"], lambda v: v in LAYOUTS, f"one of {list(LAYOUTS)}")
+    if manifest["layout"] == layout_name(None):
+        check("shard_size", manifest["shard_size"], lambda v: v is None, "null for the folder layout")
+    else:
+        check("shard_size", manifest["shard_size"], lambda v: _is_int(v, 1), "an integer >= 1 for shards")
+    check("seed", manifest["seed"], lambda v: _is_int(v, 0), "an integer >= 0")
+    check("source", manifest["source"], lambda v: isinstance(v, dict), "a JSON object")
+    config = manifest["config"]
+    check("config", config, lambda v: isinstance(v, dict), "a JSON object")
+    check("config.image_size", config.get("image_size"),
+          lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(n, 1) for n in v), "[H, W], integers >= 1")
+    check("config.n_views", config.get("n_views"), lambda v: _is_int(v, 1), "an integer >= 1")
+    check("config.opacity_output", config.get("opacity_output", False), lambda v: isinstance(v, bool),
+          "true or false")
+    check("config.geometry_dtype", config.get("geometry_dtype", "float32"), lambda v: v in GEOMETRY_DTYPES,
+          f"one of {list(GEOMETRY_DTYPES)}")
+
+
+def _is_int(value: Any, minimum: int) -> bool:
+    """True for a JSON integer (not a bool) ``>= minimum``."""
+    return type(value) is int and value >= minimum
