@@ -70,7 +70,7 @@ def current_records() -> dict[str, dict[str, dict]]:
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
         for layout, shards in (("folders", None), ("shards", SHARD_SIZE)):
-            export_dataset(dataset, Path(tmp) / layout, count=COUNT, start=START, shards=shards, progress=False)
+            export_dataset(dataset, Path(tmp) / layout, count=COUNT, start=START, shard_size=shards, progress=False)
             out[layout] = tree_records(Path(tmp) / layout)
     return out
 
