@@ -169,6 +169,7 @@ def test_wrong_arguments_are_named(cluster, dataset, tmp_path):
             call()
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_rows_and_torch_batches_are_the_samples_rendered_here(cluster, dataset):
     rows = ray_dataset(dataset, 3, start=4, actors=2).materialize()  # rendered once, read twice

@@ -45,6 +45,7 @@ def test_every_snippet_is_checked_here():
     assert "ray_dataset" in blocks[4] and "ray_dataset" not in "".join(blocks[:4])
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_dataset_augmentation_and_pairs_snippets_run():
     blocks = python_blocks()
@@ -66,6 +67,7 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
     assert result.returncode == 0, result.stderr[-2000:]
 
 
+@pytest.mark.slow
 @pytest.mark.gl
 def test_ray_snippet_runs_on_a_local_cluster():
     pytest.importorskip("ray")

@@ -334,6 +334,7 @@ def test_reader_returns_float64_geometry_when_the_set_was_rendered_so(tmp_path, 
         assert_same_sample(sample, ds.sample(k))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signal_number", [signal.SIGKILL, signal.SIGTERM], ids=["kill-9", "sigterm"])
 def test_export_with_workers_killed_leaves_no_process_and_resumes_to_the_same_bytes(tmp_path, signal_number):
     """Issue 13 items 1 and 10: killing the export's main process while two DataLoader workers render

@@ -45,6 +45,7 @@ def run(*command, cwd, **kwargs):
     return result
 
 
+@pytest.mark.slow
 def test_a_wheel_installed_elsewhere_loads_every_preset_renders_and_previews(tmp_path):
     source = tmp_path / "source"
     for name in PACKAGE_FILES:

@@ -183,6 +183,7 @@ print(json.dumps({i: sample_digest(ds.sample(i)) for i in (0, 5)}))
 """
 
 
+@pytest.mark.slow
 def test_same_seed_and_index_give_the_same_bytes_in_another_run(tmp_path):
     # Another interpreter: a fresh renderer, another hash seed (so set and dict orders differ).
     done = run_script(tmp_path / "digests.py", DIGESTS, PYTHONHASHSEED="12345")
@@ -221,6 +222,7 @@ def _rank_main(rank, init_method, out, length):
         dist.destroy_process_group()
 
 
+@pytest.mark.slow
 def test_ranks_and_workers_draw_disjoint_shards_covering_length_once(tmp_path):
     length = 10  # not a multiple of the 4 shards: shards differ by one sample
     out = tmp_path / "gathered.json"

@@ -136,6 +136,7 @@ def test_rendering_is_deterministic_with_many_lights():
         assert np.array_equal(first.views, again.views) and np.array_equal(first.masks, again.masks)
 
 
+@pytest.mark.slow
 def test_collecting_one_renderer_does_not_break_another():
     # pyrender's Renderer.__del__ deleted GL objects by id in whatever context was current.
     painting = textured_painting(SMALL)

@@ -7,6 +7,7 @@ from benchmarks import augment_pool
 pytestmark = pytest.mark.gl  # renders
 
 
+@pytest.mark.slow
 def test_figures_are_consistent(capsys):
     augment_pool.main(["--batch", "2", "--size", "48x64", "--calls", "1"])
     printed = capsys.readouterr().out

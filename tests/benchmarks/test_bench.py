@@ -9,7 +9,7 @@ import pytest
 from benchmarks import bench
 from benchmarks.common import parse_size, size_label
 
-pytestmark = pytest.mark.gl  # renders
+pytestmark = [pytest.mark.gl, pytest.mark.slow]  # renders a tiny bench run (a module fixture)
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ import pytest
 pytestmark = pytest.mark.gl  # renders
 
 
+@pytest.mark.slow
 def test_figures_are_consistent(capsys):
     pytest.importorskip("ray")
     from benchmarks import ray_throughput

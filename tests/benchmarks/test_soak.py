@@ -16,6 +16,7 @@ MAX_GROWTH_MB = 10
 the leak this guards against, one set of shader programs per render, costs about 4 MB a sample)."""
 
 
+@pytest.mark.slow
 def test_short_soak_keeps_memory_programs_and_gl_objects_flat(tmp_path):
     # The misaligned preset (lights, shadows, occluders; a new painting every sample) with 3 views
     # and small shadow maps to keep it short. The 150 samples cycle through 50 indices, so every

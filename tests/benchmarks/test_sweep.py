@@ -19,7 +19,7 @@ from sidar_torch.render import RenderSettings, SceneRenderer
 
 from conftest import SMALL
 
-pytestmark = pytest.mark.gl  # renders
+pytestmark = [pytest.mark.gl, pytest.mark.slow]  # renders a tiny sweep (a module fixture); slow
 
 TINY = sweep.SweepSettings(sizes=(SMALL,), shadow_map_sizes=(32, 128, 512), supersampling=(1,),
                            mesh_errors=(1.0,), base_shadow_map_size=128, reference=(2048, 1), scenes=2,
