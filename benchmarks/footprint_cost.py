@@ -16,21 +16,15 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from sidar_torch import SidarDataset, load_config
+from sidar_torch import SidarDataset
 
-from .common import DEFAULT_PRESET, parse_set, parse_size, size_label
-from .paired import paired_view_times, print_paired
+from .common import size_label
+from .paired import paired_config, paired_parser, paired_view_times, print_paired
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m benchmarks.footprint_cost``; parsing it runs nothing."""
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.footprint_cost", description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a config field (repeatable), e.g. --set n_occluders=[3,4]")
-    parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
-    parser.add_argument("--samples", type=int, default=40, help="measured sequences (after 3 warm-up ones)")
-    return parser
+    return paired_parser("footprint_cost", __doc__.splitlines()[0], samples=40, set_example="n_occluders=[3,4]")
 
 
 def lookups_kept(config, samples: int) -> tuple[float, float]:
@@ -59,10 +53,7 @@ def lookups_kept(config, samples: int) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
-    try:
-        config = load_config(args.config, image_size=args.size, **parse_set(args.set))
-    except (ValueError, FileNotFoundError) as error:
-        raise SystemExit(f"footprint_cost: {error}") from error
+    config = paired_config("footprint_cost", args)
     ms_per_view, _ = paired_view_times(config, "split_shadow_lookups", args.samples)
     share, draws = lookups_kept(config, args.samples)
     print(f"{args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} sequences x "

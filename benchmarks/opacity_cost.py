@@ -1,5 +1,5 @@
 """Cost of the opacity draw: median time per view with and without ``opacity_output``, same run.
-``python -m benchmarks.opacity_cost [--size HxW] [--samples N]`` from the repository root.
+``python -m benchmarks.opacity_cost [--config P] [--set K=V] [--size HxW] [--samples N]`` from the repository root.
 
 Renders the same scenes and paintings both ways, alternating which goes first, in this process's
 shared renderers (one per setting), after warm-up samples (shader variants compile at first use). Prints, per view
@@ -17,27 +17,22 @@ from __future__ import annotations
 import argparse
 import statistics
 
-from sidar_torch import load_config
-
-from .common import DEFAULT_PRESET, parse_size, size_label
-from .paired import paired_view_times, print_paired
+from .common import size_label
+from .paired import paired_config, paired_parser, paired_view_times, print_paired
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m benchmarks.opacity_cost``; parsing it runs nothing."""
-    parser = argparse.ArgumentParser(prog="python -m benchmarks.opacity_cost", description=__doc__.splitlines()[0])
-    parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
-    parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
-    parser.add_argument("--samples", type=int, default=60, help="measured sequences (after 3 warm-up ones)")
-    return parser
+    return paired_parser("opacity_cost", __doc__.splitlines()[0], samples=60, set_example="n_occluders=[1,2]")
 
 
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
-    config = load_config(args.config, image_size=args.size)
+    config = paired_config("opacity_cost", args)
     ms_per_view, steps = paired_view_times(config, "opacities", args.samples)
     draw_ms = [1e3 * on.get("opacity", 0.0) / config.n_views for _, on in steps]
-    print(f"{args.config} {size_label(args.size)} (H x W), {args.samples} sequences x {config.n_views} views")
+    print(f"{args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} sequences x "
+          f"{config.n_views} views")
     print_paired(ms_per_view)
     print(f"opacity draw (wall): median {statistics.median(draw_ms):.2f} ms / view "
           f"(views without a visible occluder skip it)")

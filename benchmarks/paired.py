@@ -9,20 +9,43 @@ Clocks: wall time and this process's CPU time (llvmpipe draws in this thread wit
 
 from __future__ import annotations
 
+import argparse
 import statistics
 import time
 from dataclasses import replace
 from typing import Any
 
-from sidar_torch import SidarDataset
-from sidar_torch.render import RenderSettings, shared_renderer
+from sidar_torch import SidarConfig, SidarDataset, load_config
 
-__all__ = ["CLOCKS", "paired_view_times", "print_paired"]
+from .common import DEFAULT_PRESET, parse_set, parse_size
+
+__all__ = ["CLOCKS", "paired_config", "paired_parser", "paired_view_times", "print_paired"]
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
 WARMUP = 3
 """Sequences rendered both ways before measuring (indices 10,000 and up: not measured ones)."""
+
+
+def paired_parser(name: str, description: str, samples: int, set_example: str) -> argparse.ArgumentParser:
+    """The command line every paired cost benchmark shares (``python -m benchmarks.<name>``): ``--config``,
+    ``--set`` (repeatable), ``--size HxW``, ``--samples``; parsing it runs nothing."""
+    parser = argparse.ArgumentParser(prog=f"python -m benchmarks.{name}", description=description)
+    parser.add_argument("--config", default=DEFAULT_PRESET, help=f"preset name or YAML path (default {DEFAULT_PRESET})")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help=f"override a config field (repeatable), e.g. --set {set_example}")
+    parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
+    parser.add_argument("--samples", type=int, default=samples, help="measured sequences (after 3 warm-up ones)")
+    return parser
+
+
+def paired_config(name: str, args: argparse.Namespace) -> SidarConfig:
+    """The config a :func:`paired_parser` command line asks for; a wrong field or value stops the
+    command with a message naming it."""
+    try:
+        return load_config(args.config, image_size=args.size, **parse_set(args.set))
+    except (ValueError, FileNotFoundError) as error:
+        raise SystemExit(f"{name}: {error}") from error
 
 
 def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
@@ -32,6 +55,8 @@ def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list
         ms per view keyed ``(clock, on)`` (lists in sample order), and each measured sequence's
         ``(timings off, timings on)`` step dicts (seconds, see ``SceneRenderer.render``).
     """
+    from sidar_torch.render import RenderSettings, shared_renderer  # imports pyrender: here, so parsing loads no GL
+
     dataset = SidarDataset(config=config, seed=0)
     settings = RenderSettings.from_config(config)
     renderers = {on: shared_renderer(replace(settings, **{field: on})) for on in (False, True)}

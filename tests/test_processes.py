@@ -90,28 +90,26 @@ class IndexOnly(SidarDataset):
         return {"index": index}
 
 
+def indices_per_epoch(ds, batch_size, context, epochs=2):
+    """The sorted indices that 2 persistent workers yield in each epoch, ``set_epoch`` called before each."""
+    loader = DataLoader(ds, batch_size=batch_size, num_workers=2, persistent_workers=True, timeout=WAIT,
+                        multiprocessing_context=context)
+    drawn = []
+    for epoch in range(epochs):
+        ds.set_epoch(epoch)
+        drawn.append(sorted(int(i) for batch in loader for i in batch["index"]))
+    return drawn
+
+
 @pytest.mark.parametrize("context", ["fork", "spawn"])
 def test_set_epoch_reaches_persistent_workers_under_torchrun_ranks(monkeypatch, context):
     """Issue 20 item 3: persistent workers (which keep the dataset they started with) draw each
     epoch's fresh indices, on a single process and as rank 0 of 2 (torchrun's RANK/WORLD_SIZE)."""
-    ds = IndexOnly(None, TINY, seed=0, length=64)
-    loader = DataLoader(ds, batch_size=16, num_workers=2, persistent_workers=True, timeout=WAIT,
-                        multiprocessing_context=context)
-    epochs = []
-    for epoch in range(3):
-        ds.set_epoch(epoch)
-        epochs.append(sorted(int(i) for batch in loader for i in batch["index"]))
-    assert epochs == [list(range(64 * e, 64 * e + 64)) for e in range(3)]
-
+    drawn = indices_per_epoch(IndexOnly(None, TINY, seed=0, length=64), 16, context, epochs=3)
+    assert drawn == [list(range(64 * e, 64 * e + 64)) for e in range(3)]
     monkeypatch.setenv("RANK", "0")
     monkeypatch.setenv("WORLD_SIZE", "2")
-    ranked = IndexOnly(None, TINY, seed=0, length=16)
-    loader = DataLoader(ranked, batch_size=2, num_workers=2, persistent_workers=True, timeout=WAIT,
-                        multiprocessing_context=context)
-    drawn = []
-    for epoch in range(2):
-        ranked.set_epoch(epoch)
-        drawn.append(sorted(int(i) for batch in loader for i in batch["index"]))
+    drawn = indices_per_epoch(IndexOnly(None, TINY, seed=0, length=16), 2, context)
     assert drawn == [[0, 1, 4, 5, 8, 9, 12, 13], [16, 17, 20, 21, 24, 25, 28, 29]]
 
 
