@@ -11,11 +11,13 @@ own); every other file (manifests) by digest, everywhere.
 
 from __future__ import annotations
 
+import io
 import json
 import sys
 import tarfile
 import tempfile
 from pathlib import Path
+from typing import Iterator
 
 
 HERE = Path(__file__).resolve().parent
@@ -42,23 +44,34 @@ def file_record(name: str, data: bytes) -> dict:
     return {"fields": {field: {"text": v} if isinstance(v, str) else geometry_record(v) for field, v in fields}}
 
 
-def tree_records(root: Path) -> dict[str, dict]:
-    """``{path: file_record}`` of every file under ``root`` (the lock file aside); a tar as
-    ``{"members": [names]}`` and each of its entries as ``"<tar>:<entry>"``, so that a mismatch
-    names the entry."""
-    records = {}
+def tree_files(root: Path) -> Iterator[tuple[str, bytes]]:
+    """``(name, bytes)`` of every file under ``root`` (the lock file aside) and, after a tar, of each
+    of its entries as ``"<tar>:<entry>"``, so that a mismatch names the entry."""
     for path in sorted(root.rglob("*")):
         if not path.is_file() or path.name == LOCK:
             continue
         name = str(path.relative_to(root))
-        if path.suffix != ".tar":
-            records[name] = file_record(name, path.read_bytes())
-            continue
-        with tarfile.open(path) as tar:
-            members = tar.getmembers()
-            records[name] = {"members": [member.name for member in members]}
-            for member in members:
-                records[f"{name}:{member.name}"] = file_record(member.name, tar.extractfile(member).read())
+        yield name, path.read_bytes()
+        if path.suffix == ".tar":
+            with tarfile.open(path) as tar:
+                for member in tar.getmembers():
+                    yield f"{name}:{member.name}", tar.extractfile(member).read()
+
+
+def tree_digests(root: Path) -> dict[str, str]:
+    """``{name: sha256}`` of :func:`tree_files`: two exports made here are byte-identical when these are equal."""
+    return {name: digest(data) for name, data in tree_files(root)}
+
+
+def tree_records(root: Path) -> dict[str, dict]:
+    """``{name: file_record}`` of :func:`tree_files`, a tar recorded as the names of its entries."""
+    records = {}
+    for name, data in tree_files(root):
+        if name.endswith(".tar"):
+            with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+                records[name] = {"members": tar.getnames()}
+        else:
+            records[name] = file_record(name, data)
     return records
 
 

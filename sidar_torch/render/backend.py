@@ -395,7 +395,9 @@ class GLRenderer(pyrender.Renderer):
         GL.glEnable(GL.GL_SCISSOR_TEST)
         try:
             for k, part in enumerate(parts):
-                GL.glScissor(part.x, part.y, part.width, part.height)  # upside-down drawing: row 0 is the top
+                # Window rows: drawn upside down (FLIP_Y), image row r is window row r; upright, H - 1 - r.
+                y = part.y if FLIP_Y[1, 1] < 0 else self.viewport_height - part.y - part.height
+                GL.glScissor(part.x, y, part.width, part.height)
                 program.set_uniform("lookup_begin", part.begin)
                 program.set_uniform("lookup_end", part.end)
                 if k == 0:
