@@ -2,10 +2,11 @@
 
 Each field is declared with :func:`_field`, whose ``metadata`` holds ``meaning`` (one sentence or
 more, the text ``python -m sidar_torch schema`` prints), and where they apply ``bounds`` (the
-``(lowest, highest)`` value of a number, of each side of a size, or of a range's ends; every
-number field has finite bounds, derived in ``allowed`` from what renders) and ``choices`` (the
-allowed words of a text field). Validation (``validation``) and the schema (``schema``) read the
-metadata; nothing parses this module's docstrings.
+``(lowest, highest)`` value of a number, of each side of a size, or of a range's ends) or
+``choices`` (the allowed words of a text field, or numbers of ``antialias``): every number field
+has one or the other, finite bounds derived in ``allowed`` from what renders. Validation
+(``validation``) and the schema (``schema``) read the metadata; nothing parses this module's
+docstrings.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from .allowed import (BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_LEVEL,
+from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_LEVEL,
                       MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
                       OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
@@ -26,7 +27,7 @@ IntRange = tuple[int, int]
 
 
 def _field(default: Any, *, meaning: str, bounds: tuple[float, float] | None = None,
-           choices: tuple[str, ...] | None = None) -> Any:
+           choices: tuple[str | int, ...] | None = None) -> Any:
     """A dataclass field with its ``meaning`` and, where given, ``bounds`` (``(lowest, highest)``, both
     allowed) and ``choices`` as metadata."""
     metadata = {"meaning": meaning}
@@ -224,7 +225,7 @@ class SidarConfig:
     mesh_error_px: float = _field(0.25, bounds=(0.0, MAX_GL_SIZE), meaning=(
         'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level; at '
         f"most {MAX_GL_SIZE}, an image's largest side)."))
-    antialias: int = _field(1, meaning=(
+    antialias: int = _field(1, choices=ANTIALIAS_SAMPLES, meaning=(
         "samples per pixel of each view's lit colour pass: 1 (none, the default: jagged silhouettes) or 2, 4, 8 "
         "(multisample antialiasing, resolved to one colour per pixel; the OpenGL context must offer the count, "
         "Mesa's llvmpipe offers only 4). Masks stay binary (drawn single-sampled, by the paper's rule); "

@@ -61,7 +61,7 @@ def as_float(name: str, value: Any, *, finite: bool = True) -> float:
     a 0-d tensor); finite unless ``finite`` is false (then NaN and infinities pass, for a caller
     that explains them itself).
 
-    An integer too large for a float (``10**400``) counts as infinite.
+    An integer too large for a float (``10**400``) counts as infinite; ``-0.0`` becomes ``0.0``.
 
     Raises:
         ValueError: a bool, not a number, or (if ``finite``) NaN or infinite (the message starts with ``name``).
@@ -72,4 +72,4 @@ def as_float(name: str, value: Any, *, finite: bool = True) -> float:
         number = math.inf
     if finite and not math.isfinite(number):
         raise ValueError(f"{name}: expected a finite number, got {shown(value)}")
-    return number
+    return number + 0.0  # -0.0 becomes 0.0: numpy's uniform(0.0, -0.0) raises "high - low < 0"

@@ -33,7 +33,7 @@ def _allowed(f: dataclasses.Field) -> str:
     if "bounds" in f.metadata:
         return bounds_text(f)
     if "choices" in f.metadata:
-        return ("any of " if f.type.startswith("tuple") else "one of ") + ", ".join(f.metadata["choices"])
+        return ("any of " if f.type.startswith("tuple") else "one of ") + ", ".join(map(str, f.metadata["choices"]))
     return ""
 
 

@@ -14,7 +14,7 @@ import difflib
 import math
 from typing import Any, Mapping
 
-from .allowed import ANTIALIAS_SAMPLES, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
+from .allowed import MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
 
@@ -136,7 +136,6 @@ def validate(config: Any) -> None:
          f"for grazing views, or set 90 for no limit")
     size = c.shadow_map_size
     need(size & (size - 1) == 0, "shadow_map_size", f"a power of two from 16 to {MAX_GL_SIZE}")
-    need(c.antialias in ANTIALIAS_SAMPLES, "antialias", f"one of {ANTIALIAS_SAMPLES} (samples per pixel)")
     need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
          f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
          f"config field 'n_lights' is {c.n_lights})")
