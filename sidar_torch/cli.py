@@ -91,15 +91,21 @@ def _preview(args: argparse.Namespace) -> None:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
     dataset = _dataset(args)
     config = dataset.config
+    out = Path(args.out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)  # before rendering, so a wrong --out costs no wait
+    except OSError as error:
+        raise UsageError(f"--out {args.out!r}: {error}") from error
     start = time.perf_counter()
     try:
         samples = [dataset.sample(i) for i in range(args.samples)]
     except RENDER_MISTAKES as error:
         raise UsageError(str(error)) from error
     elapsed = time.perf_counter() - start
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
+    try:
+        Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
+    except (OSError, ValueError) as error:  # no permission, no such format (Pillow: unknown extension)
+        raise UsageError(f"--out {args.out!r}: {error}") from error
     views = args.samples * config.n_views
     print(f"wrote {out} ({args.samples} samples of {config.n_views} views at "
           f"{config.image_size[0]}x{config.image_size[1]} (H x W), config {args.config!r})")

@@ -53,6 +53,11 @@ def test_user_mistakes_print_one_line_naming_the_field_and_exit_2(argv, message,
     assert message in _one_line_error(argv, capsys)
 
 
+def test_an_output_path_that_cannot_be_made_is_one_line_before_rendering(tmp_path, capsys):
+    (tmp_path / "file").write_text("x")
+    assert "--out '" in _one_line_error(["--out", str(tmp_path / "file" / "sheet.png")], capsys)
+
+
 def test_a_genuine_bug_keeps_its_traceback(monkeypatch):
     def broken(index):
         raise KeyError("a bug")
