@@ -68,8 +68,7 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
         except yaml.YAMLError as error:
             raise UsageError(f"--set {item[:80]!r}: the value is not YAML ({str(error).splitlines()[0]})") from None
         except RecursionError:  # the parser recurses once per level of nesting
-            raise UsageError(f"--set {item[:80]!r}: the value is not YAML a config takes (nested too deeply to "
-                             f"parse)") from None
+            raise UsageError(f"--set {item[:80]!r}: the value is nested too deeply to parse") from None
     return overrides
 
 

@@ -179,7 +179,8 @@ def test_sizes_beyond_the_gl_limit_are_refused_naming_the_field_and_the_limit(fi
         load_config("misaligned", **{field: value})
     # One shadowed emitter of 16384^2 texels (1.5 GiB) fits a sample's memory; the default lights' 16 would not.
     one_light = dict(n_lights=(1, 1), light_types=("spot",))
-    assert load_config("misaligned", image_size=(16, 16384), shadow_map_size=16384, **one_light).shadow_map_size == 16384
+    config = load_config("misaligned", image_size=(16, 16384), shadow_map_size=16384, **one_light)
+    assert config.shadow_map_size == 16384
 
 
 def test_the_gl_limit_is_said_in_the_fields_meaning():

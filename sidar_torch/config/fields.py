@@ -15,8 +15,8 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_LEVEL,
-                      MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
+from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
+                      MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
                       OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
 
@@ -46,7 +46,8 @@ def field_meaning(name: str) -> str:
 # Meanings shared by fields described together.
 _LIGHT_BOX = f"light position box, like the cameras' (at most {MAX_SCENE_EXTENT:g} painting units)."
 _IRRADIANCE = (
-    f"ranges (at most {MAX_LIGHT_LEVEL:g}, where every lit texel is white) of a point, spot and area light's irradiance at the painting's centre (an area light's summed "
+    f"ranges (at most {MAX_LIGHT_LEVEL:g}, where every lit texel is white) of a point, spot and area light's "
+    "irradiance at the painting's centre (an area light's summed "
     "over its emitters). The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area 1-2 "
     "kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen so that the fraction "
     "of blown-out painting pixels matches the paper's renders (``python -m benchmarks.exposure``).")

@@ -80,10 +80,6 @@ def coerce(f: dataclasses.Field, value: Any) -> Any:
     return value
 
 
-def _number(x: float) -> str:
-    return f"{x:g}"
-
-
 _RANGE_BOUNDS = ("a range (low, high) with {lo} <= low <= high <= {hi}", lambda v, lo, hi: lo <= v[0] <= v[1] <= hi)
 _NUMBER_BOUNDS = ("{lo} <= value <= {hi}", lambda v, lo, hi: lo <= v <= hi)
 _BOUNDED = {
@@ -99,10 +95,11 @@ _BOUNDED = {
 def bounds_text(f: dataclasses.Field) -> str:
     """What field ``f``'s ``bounds`` allow, e.g. ``"0 <= value <= 100"`` (the schema prints it too)."""
     lo, hi = f.metadata["bounds"]
-    return _BOUNDED[str(f.type)][0].format(lo=_number(lo), hi=_number(hi))
+    return _BOUNDED[str(f.type)][0].format(lo=f"{lo:g}", hi=f"{hi:g}")
 
 
 def _within_bounds(f: dataclasses.Field, value: Any) -> bool:
+    """Whether the coerced ``value`` of field ``f`` lies within its ``bounds``."""
     lo, hi = f.metadata["bounds"]
     return _BOUNDED[str(f.type)][1](value, lo, hi)
 
