@@ -174,17 +174,35 @@ EXTREMES = {
         background="view", background_level=(1, 1), exposure_jitter=True, exposure_stops=(8, 8), gamma=(10, 10),
         sensor_noise=True, read_noise=(1, 1), shot_noise=(1, 1), jpeg=True, jpeg_quality=(1, 1),
         mesh_error_px=float(MAX_GL_SIZE), mask_min_opacity=1.0, opacity_output=True),
+    "the longest side, one pixel high": dict(image_size=(1, MAX_GL_SIZE), antialias=4),
 }
 
 
 @pytest.mark.gl
 @pytest.mark.parametrize("name", EXTREMES)
 def test_configs_at_the_bounds_render_finite_samples_without_hanging(name):
-    config = load_config("misaligned", image_size=(24, 32), n_views=2, shadow_map_size=64, **EXTREMES[name])
+    """One sample of each extreme at 2 views of 24 x 32 pixels (shadow maps of 64 texels: the largest,
+    16384, would allocate 1.5 GiB per map; the largest sizes and view counts are checked against the
+    memory estimate instead)."""
+    config = load_config("misaligned", **{"image_size": (24, 32), "n_views": 2, "shadow_map_size": 64,
+                                          **EXTREMES[name]})
     with no_hang(60):
-        sample = SidarDataset(config=config, seed=1).sample(0)
+        assert_sample_is_finite(SidarDataset(config=config, seed=1).sample(0))
+
+
+def assert_sample_is_finite(sample: dict) -> None:
     for key, value in sample.items():
         if isinstance(value, torch.Tensor):
             assert torch.isfinite(value).all(), key
     assert sample["images"].min() >= 0 and sample["images"].max() <= 1
     assert math.isfinite(sample["homography_error"])
+
+
+@pytest.mark.gl
+def test_the_most_views_render_without_hanging():
+    """256 views of 4 x 4 pixels: about 10 s (the 65536 homographies and their check dominate)."""
+    config = load_config("ambient", image_size=(4, 4), n_views=MAX_VIEWS, shadow_map_size=16)
+    with no_hang(120):
+        sample = SidarDataset(config=config, seed=1).sample(0)
+    assert_sample_is_finite(sample)
+    assert sample["homographies"].shape == (MAX_VIEWS, MAX_VIEWS, 3, 3)
