@@ -129,7 +129,7 @@ def assert_scene_is_finite(config: SidarConfig) -> None:
         assert torch.isfinite(homographies).all() and math.isfinite(error)
 
 
-@settings(max_examples=400, deadline=timedelta(seconds=3), derandomize=True, database=None,
+@settings(max_examples=400, deadline=timedelta(seconds=10), derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(st.data())
 def test_fuzzed_values_give_a_config_that_samples_or_a_value_error_naming_the_field(data):
