@@ -92,7 +92,7 @@ class SidarConfig:
     aligned: bool = _field(False, meaning="every view through the reference camera (all homographies identity).")
     camera_xy: float = _field(5 / 7, bounds=(0.0, MAX_CAMERA_DISTANCE), meaning=(
         "half-width of the square in which camera x and y are drawn (at most "
-        f"{MAX_CAMERA_DISTANCE:g}: homographies stay within 1e-6 px that far)."))
+        f"{MAX_CAMERA_DISTANCE:g}: views that far still render with finite, accurate homographies)."))
     camera_height: Range = _field((5 / 7, 1.0), bounds=(1e-3, MAX_CAMERA_DISTANCE), meaning=(
         "range of camera z (distance above the painting's plane)."))
     fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
