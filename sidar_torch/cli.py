@@ -7,6 +7,8 @@ Measurements (speed, accuracy, the quality sweep) live outside the package, in t
 from __future__ import annotations
 
 import argparse
+import os
+import signal
 import sys
 import time
 from pathlib import Path
@@ -16,6 +18,7 @@ import yaml
 from PIL import Image
 
 from .config import available_presets, load_config
+from .config.loader import parse_yaml
 from .dataset import SidarDataset
 from .io import ExportInterrupted, ExportSummary, export_dataset
 from .io.layout import pixel_entries_text
@@ -31,13 +34,30 @@ class UsageError(ValueError):
 USER_MISTAKES = (ValueError, TypeError, OSError, yaml.YAMLError)
 """What reading the user's config, overrides and source raises for a mistake of theirs."""
 
+RENDER_MISTAKES = (ValueError, OSError)
+"""What rendering raises for a mistake of the user's: a config whose guarantees no camera meets, an
+unreadable image with ``on_bad_image="raise"``, a size this OpenGL context cannot hold (each message
+names the field or file). Anything else raised while rendering is a bug and keeps its traceback."""
+
+PIPE_CLOSED_EXIT = 128 + signal.SIGPIPE
+"""Exit code when the reader of the output has gone (``| head``): a shell's code for a process
+ended by SIGPIPE, as ``cat`` or ``yes`` give."""
+
+
+def _yaml_value(text: str) -> str:
+    """``text`` with a tuple written in parentheses, ``(192, 256)``, turned into the YAML list ``[192, 256]``."""
+    stripped = text.strip()
+    return f"[{stripped[1:-1]}]" if stripped.startswith("(") and stripped.endswith(")") else text
+
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     """Config overrides from ``--set`` items: ``key=value`` pairs, values read as YAML (``n_views=3``,
-    ``fov_deg=[40,60]``).
+    ``fov_deg=[40,60]``, ``camera_height=[1e-3,1]``; :func:`~sidar_torch.config.loader.parse_yaml`);
+    a tuple in parentheses reads as a list (``image_size=(192, 256)``).
 
     Raises:
-        UsageError: an item without ``=``, or a value that is not YAML (the message names the item).
+        UsageError: an item without ``=``, or a value that is not YAML or nested too deeply to parse
+            (the message names the item).
     """
     overrides = {}
     for item in items:
@@ -45,9 +65,11 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
         if not sep or not key:
             raise UsageError(f"--set {item!r}: expected key=value")
         try:
-            overrides[key.strip()] = yaml.safe_load(value)
+            overrides[key.strip()] = parse_yaml(_yaml_value(value))
         except yaml.YAMLError as error:
-            raise UsageError(f"--set {item!r}: the value is not YAML ({str(error).splitlines()[0]})") from None
+            raise UsageError(f"--set {item[:80]!r}: the value is not YAML ({str(error).splitlines()[0]})") from None
+        except RecursionError:  # the parser recurses once per level of nesting
+            raise UsageError(f"--set {item[:80]!r}: the value is nested too deeply to parse") from None
     return overrides
 
 
@@ -69,12 +91,21 @@ def _preview(args: argparse.Namespace) -> None:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
     dataset = _dataset(args)
     config = dataset.config
-    start = time.perf_counter()
-    samples = [dataset.sample(i) for i in range(args.samples)]
-    elapsed = time.perf_counter() - start
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)  # before rendering, so a wrong --out costs no wait
+    except OSError as error:
+        raise UsageError(f"--out {args.out!r}: {error}") from error
+    start = time.perf_counter()
+    try:
+        samples = [dataset.sample(i) for i in range(args.samples)]
+    except RENDER_MISTAKES as error:
+        raise UsageError(str(error)) from error
+    elapsed = time.perf_counter() - start
+    try:
+        Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
+    except (OSError, ValueError) as error:  # no permission, no such format (Pillow: unknown extension)
+        raise UsageError(f"--out {args.out!r}: {error}") from error
     views = args.samples * config.n_views
     print(f"wrote {out} ({args.samples} samples of {config.n_views} views at "
           f"{config.image_size[0]}x{config.image_size[1]} (H x W), config {args.config!r})")
@@ -193,12 +224,27 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _silence_stdout() -> None:
+    """Point stdout at ``os.devnull``, so that flushing what is left at exit raises nothing."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (AttributeError, OSError, ValueError):  # not a file descriptor (e.g. captured in a test)
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Run a command. A user's mistake prints one line, ``sidar_torch <command>: <what is wrong>``, and
-    exits with code 2 (as argparse does for bad options); anything else is a bug and keeps its traceback."""
+    exits with code 2 (as argparse does for bad options); anything else is a bug and keeps its traceback.
+    When the reader of the output goes away (``python -m sidar_torch schema | head``), the command
+    stops quietly with exit code :data:`PIPE_CLOSED_EXIT` (the only pipes a command writes to are
+    stdout and stderr, so a ``BrokenPipeError`` means one of them)."""
     args = _parser().parse_args(argv)
     try:
         args.run(args)
+        sys.stdout.flush()  # here, so that a closed pipe raises inside this try rather than at exit
     except UsageError as error:
         print(f"sidar_torch {args.command}: {error}", file=sys.stderr)
         raise SystemExit(2) from None
+    except BrokenPipeError:
+        _silence_stdout()
+        raise SystemExit(PIPE_CLOSED_EXIT) from None

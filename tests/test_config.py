@@ -177,7 +177,10 @@ def test_as_int_and_as_float_are_the_one_conversion_other_layers_reuse():
 def test_sizes_beyond_the_gl_limit_are_refused_naming_the_field_and_the_limit(field, value):
     with pytest.raises(ValueError, match=f"config field '{field}'.*16384"):
         load_config("misaligned", **{field: value})
-    assert load_config("misaligned", image_size=(16, 16384), shadow_map_size=16384).shadow_map_size == 16384
+    # One shadowed emitter of 16384^2 texels (1.5 GiB) fits a sample's memory; the default lights' 16 would not.
+    one_light = dict(n_lights=(1, 1), light_types=("spot",))
+    config = load_config("misaligned", image_size=(16, 16384), shadow_map_size=16384, **one_light)
+    assert config.shadow_map_size == 16384
 
 
 def test_the_gl_limit_is_said_in_the_fields_meaning():
@@ -220,13 +223,50 @@ def test_a_three_element_image_size_says_it_expects_h_w():
 
 
 # Issue 13 item 8: an infinite end of a range cannot be drawn from uniformly (numpy's uniform raises
-# OverflowError); the schema says the ends must be finite, and the error says why.
+# OverflowError); the error says why. Issue 25 item 4: every range has a finite upper bound, which
+# the schema shows.
 @pytest.mark.parametrize("field", ["camera_height", "light_height", "ambient", "occluder_size", "spot_irradiance"])
-def test_an_infinite_range_end_is_refused_saying_why_and_the_schema_does_not_offer_inf(field):
+def test_an_infinite_range_end_is_refused_saying_why_and_the_schema_shows_the_finite_bound(field):
     from sidar_torch.config.schema import schema_rows
 
     with pytest.raises(ValueError, match=f"'{field}': expected finite numbers .*drawn uniformly"):
         load_config("misaligned", **{field: [1, float("inf")]})
     (row,) = [r for r in schema_rows() if r["name"] == field]
-    assert "inf" not in row["allowed"] and row["allowed"].endswith("(finite)"), row
-    assert load_config("misaligned", **{field: [1, 1e6]}) is not None  # no upper limit
+    highest = SidarConfig.__dataclass_fields__[field].metadata["bounds"][1]
+    assert "inf" not in row["allowed"] and row["allowed"].endswith(f"<= {highest:g}"), row
+    assert getattr(load_config("misaligned", **{field: [1, highest]}), field) == (1, highest)
+    with pytest.raises(ValueError, match=f"'{field}': expected a range .* <= {highest:g}, got \\(1.0, {highest * 2:g}"):
+        load_config("misaligned", **{field: [1, highest * 2]})
+
+
+# Issue 25 item 6: a YAML file nested thousands deep or not text at all is a ValueError naming the file.
+def test_deeply_nested_and_binary_yaml_files_are_value_errors_naming_the_file(tmp_path):
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("n_views: " + "[" * 5000 + "]" * 5000 + "\n")
+    with pytest.raises(ValueError, match=r"deep\.yaml': YAML nested too deeply to parse"):
+        load_config(deep)
+    binary = tmp_path / "binary.yaml"
+    binary.write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe")
+    with pytest.raises(ValueError, match=r"binary\.yaml': not UTF-8 text \(byte 0x89 at offset 0\)"):
+        load_config(binary)
+    nul = tmp_path / "nul.yaml"
+    nul.write_bytes(b"n_views: 3\x00\n")
+    with pytest.raises(ValueError, match=r"nul\.yaml': malformed YAML"):
+        load_config(nul)
+
+
+# Issue 20 item 6: a wrong preset name gets the closest names.
+def test_a_wrong_preset_name_suggests_the_closest_presets():
+    with pytest.raises(ValueError, match=r"'misalinged': not a preset \(did you mean 'misaligned'") as error:
+        load_config("misalinged")
+    assert "paper_aligned" in str(error.value)  # and lists them all, as before
+    with pytest.raises(ValueError, match=r"'zzz': not a preset nor a YAML path; the presets are aligned, "):
+        load_config("zzz")
+
+
+def test_yaml_reads_exponent_floats_as_numbers(tmp_path):
+    """PyYAML (YAML 1.1) reads ``1e-3`` as a string; config files and ``--set`` read it as YAML 1.2 does."""
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: misaligned\ncamera_height: [1e-3, 2E0]\narea_light_size: 5e-2\n")
+    config = load_config(path)
+    assert config.camera_height == (0.001, 2.0) and config.area_light_size == 0.05

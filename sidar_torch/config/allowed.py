@@ -6,8 +6,9 @@ from __future__ import annotations
 from ..render_choices import ANTIALIAS_SAMPLES, MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
 
 __all__ = [
-    "ANTIALIAS_SAMPLES", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_GL_SIZE", "MAX_SHADOWED_LIGHTS", "MESH_DETAILS", "OCCLUDER_MATERIALS",
-    "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
+    "ANTIALIAS_SAMPLES", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
+    "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
+    "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
 ]
 
 LIGHT_TYPES = ("spot", "point", "area")
@@ -25,3 +26,39 @@ llvmpipe (OSMesa and EGL, Mesa 22.3) reports ``GL_MAX_TEXTURE_SIZE = GL_MAX_REND
 16384`` (``GL_MAX_VIEWPORT_DIMS`` is 16384 x 16384 too). GPU drivers report the same or more; the
 bound is checked when the config is made, so a larger size fails there, naming the field, rather
 than inside OpenGL at the first render."""
+
+MAX_CAMERA_DISTANCE = 1e5
+"""Largest ``camera_xy`` and ``camera_height``, painting units. Cameras this far (the box may be far
+wider than the cameras reach when ``max_tilt_deg`` limits them: ``tests/test_hard_cases.py`` draws
+from ``camera_xy=1e5`` at a tilt of 89.99 degrees) still render (``tests/test_config_bounds.py``
+renders every bound) and give finite homographies, within 2e-7 px of the analytic ones for views
+from that far up and 1e-3 px for the grazing extreme (height 1e-3, a 1 degree field of view;
+measured with ``sidar_torch.sample.sequence_homographies``); from about 1e10 the fit loses accuracy
+(1e-2 px at 1e12) and at 1e20 it is NaN."""
+
+MAX_SCENE_EXTENT = 100.0
+"""Largest position, height and size of a light or an occluder (``light_xy``, ``light_height``,
+``area_light_size``, ``occluder_xy``, ``occluder_height``, ``occluder_size``), painting units: 50
+times the paper's farthest light (15 / 7). They act on the painting only from nearby: the
+transmittance maps store a light's distances in float16, resolving about ``d / 1024`` (0.1 units at
+100), and a light's cone and an occluder's shadow are fitted to the painting, so farther values draw
+nothing new. The bound also keeps every number of the scene finite (``1e307`` spun forever in
+``sidar_torch.scene``, ``1e308`` overflowed)."""
+
+MAX_LIGHT_LEVEL = 1e4
+"""Largest light level (``*_irradiance`` and ``ambient``, the renderer's linear units): a white
+diffuse painting saturates at about 3.3 and the darkest non-black 8-bit sRGB texel (linear
+``1 / 255 / 12.92``) at about 1e4 times less light than white, so beyond this every lit texel is
+white."""
+
+MAX_VIEWS = 256
+"""Largest ``n_views``: a sample's homographies and their accuracy check cost about 32 KiB per
+ordered pair of views (``config.memory``), 2 GiB at 256 views, within :data:`MAX_SAMPLE_BYTES` with
+room for the views themselves."""
+
+MAX_SAMPLE_BYTES = 2**32
+"""Memory one sample may need (4 GiB), by the estimate of
+:func:`sidar_torch.config.memory.estimated_sample_bytes` (views, masks, label, the renderer's
+buffers and shadow maps, the homographies): a config over it is refused when it is made, naming
+``image_size`` and ``n_views``, instead of failing (or being killed) minutes into the first sample.
+The default preset needs about 0.2 GiB."""

@@ -2,9 +2,11 @@
 
 Each field is declared with :func:`_field`, whose ``metadata`` holds ``meaning`` (one sentence or
 more, the text ``python -m sidar_torch schema`` prints), and where they apply ``bounds`` (the
-``(lowest low, highest high)`` of a range field) and ``choices`` (the allowed words of a text
-field). Validation (``validation``) and the schema (``schema``) read the metadata; nothing parses
-this module's docstrings.
+``(lowest, highest)`` value of a number, of each side of a size, or of a range's ends) or
+``choices`` (the allowed words of a text field, or numbers of ``antialias``): every number field
+has one or the other, finite bounds derived in ``allowed`` from what renders. Validation
+(``validation``) and the schema (``schema``) read the metadata; nothing parses this module's
+docstrings.
 """
 
 from __future__ import annotations
@@ -13,22 +15,21 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from .allowed import (BACKGROUNDS, LIGHT_TYPES, MAX_GL_SIZE, MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES,
-                      ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, GEOMETRY_DTYPES)
+from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
+                      MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
+                      OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
 
 __all__ = ["SidarConfig", "field_meaning"]
-
-UNBOUNDED = float("inf")
-"""The ``highest high`` of a range field with no upper limit (its values must still be finite)."""
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
 
 
 def _field(default: Any, *, meaning: str, bounds: tuple[float, float] | None = None,
-           choices: tuple[str, ...] | None = None) -> Any:
-    """A dataclass field with its ``meaning`` and, where given, ``bounds`` and ``choices`` as metadata."""
+           choices: tuple[str | int, ...] | None = None) -> Any:
+    """A dataclass field with its ``meaning`` and, where given, ``bounds`` (``(lowest, highest)``, both
+    allowed) and ``choices`` as metadata."""
     metadata = {"meaning": meaning}
     if bounds is not None:
         metadata["bounds"] = bounds
@@ -43,14 +44,15 @@ def field_meaning(name: str) -> str:
 
 
 # Meanings shared by fields described together.
-_LIGHT_BOX = "light position box, like the cameras'."
+_LIGHT_BOX = f"light position box, like the cameras' (at most {MAX_SCENE_EXTENT:g} painting units)."
 _IRRADIANCE = (
-    "ranges of a point, spot and area light's irradiance at the painting's centre (an area light's summed "
+    f"ranges (at most {MAX_LIGHT_LEVEL:g}, where every lit texel is white) of a point, spot and area light's "
+    "irradiance at the painting's centre (an area light's summed "
     "over its emitters). The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area 1-2 "
     "kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen so that the fraction "
     "of blown-out painting pixels matches the paper's renders (``python -m benchmarks.exposure``).")
 _OCCLUDER_KINDS = "kinds to draw from."
-_OCCLUDER_BOX = "box of occluder centres."
+_OCCLUDER_BOX = f"box of occluder centres (at most {MAX_SCENE_EXTENT:g} painting units)."
 _PLANE_MATERIAL = "ranges of the painting's material."
 _COAT = ("ranges of the weight and roughness of a clear coat on the painting (a second, sharper specular lobe "
          "with 4 % reflectance).")
@@ -71,10 +73,16 @@ class SidarConfig:
     """
 
     # Output
-    image_size: tuple[int, int] = _field((384, 512), meaning=(
+    image_size: tuple[int, int] = _field((384, 512), bounds=(1, MAX_GL_SIZE), meaning=(
         f"``(H, W)`` of every view, mask and label, in pixels; each at most {MAX_GL_SIZE} (the largest "
-        "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``)."))
-    n_views: int = _field(6, meaning="number of views ``V`` per sample; view 0 is the fronto-parallel reference.")
+        "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``), and with ``n_views`` "
+        f"and the shadow maps within the {MAX_SAMPLE_BYTES / 2**30:g} GiB a sample may need, estimated as "
+        "``H W (32 V + 96 + 8 antialias) + 32768 V^2 + 6 maps shadow_map_size^2`` bytes (measured; "
+        "``sidar_torch.config.memory``): e.g. up to about 3300 x 4400 at 6 views."))
+    n_views: int = _field(6, bounds=(1, MAX_VIEWS), meaning=(
+        "number of views ``V`` per sample; view 0 is the fronto-parallel reference. At most "
+        f"{MAX_VIEWS} (the homographies and their check need about 32 KiB per ordered pair of views), and "
+        "within a sample's memory with ``image_size``."))
     geometry_dtype: str = _field("float32", choices=GEOMETRY_DTYPES, meaning=(
         "dtype of the handed-out ``homographies``, ``K``, ``R`` and ``t``: ``\"float32\"`` or ``\"float64\"`` "
         "(computed in float64 either way; chaining homographies, e.g. ``H[k, j] @ H[i, k]`` at grazing views, "
@@ -82,20 +90,22 @@ class SidarConfig:
 
     # Cameras
     aligned: bool = _field(False, meaning="every view through the reference camera (all homographies identity).")
-    camera_xy: float = _field(5 / 7, meaning="half-width of the square in which camera x and y are drawn.")
-    camera_height: Range = _field((5 / 7, 1.0), bounds=(1e-3, UNBOUNDED), meaning=(
+    camera_xy: float = _field(5 / 7, bounds=(0.0, MAX_CAMERA_DISTANCE), meaning=(
+        "half-width of the square in which camera x and y are drawn (at most "
+        f"{MAX_CAMERA_DISTANCE:g}: views that far still render with finite, accurate homographies)."))
+    camera_height: Range = _field((5 / 7, 1.0), bounds=(1e-3, MAX_CAMERA_DISTANCE), meaning=(
         "range of camera z (distance above the painting's plane)."))
     fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
         "range of the field of view across the longer image side, for views 1..V-1."))
-    max_tilt_deg: float = _field(90.0, meaning=(
+    max_tilt_deg: float = _field(90.0, bounds=(0.0, 90.0), meaning=(
         "largest angle between a camera's axis and the painting's normal: cameras are drawn from the "
         "``camera_xy`` x ``camera_height`` box, then limited to this tilt (90: no limit). The box itself "
         "tilts at most ``atan(sqrt(2) camera_xy / camera_height[0])`` (54.7 deg by default), so a larger "
         "value is refused: for grazing views raise ``camera_xy`` or lower ``camera_height``."))
-    min_coverage: float = _field(0.0, meaning=(
+    min_coverage: float = _field(0.0, bounds=(0.0, 1.0), meaning=(
         "least fraction of each view's pixels that see the painting (cameras are redrawn until it holds; see "
         "``sidar_torch.scene``)."))
-    min_overlap: float = _field(0.0, meaning=(
+    min_overlap: float = _field(0.0, bounds=(0.0, 1.0), meaning=(
         "least fraction of the painting pixels of any view ``i`` that another view ``j`` also sees (every "
         "ordered pair; cameras are redrawn until it holds)."))
 
@@ -103,31 +113,35 @@ class SidarConfig:
     n_lights: IntRange = _field((2, 4), bounds=(0, 8), meaning="range of the number of lights.")
     light_types: tuple[str, ...] = _field(LIGHT_TYPES, choices=LIGHT_TYPES, meaning=(
         "light kinds to draw from (``spot``, ``point``, ``area``)."))
-    light_xy: float = _field(10 / 7, meaning=_LIGHT_BOX)
-    light_height: Range = _field((10 / 7, 15 / 7), bounds=(1e-3, UNBOUNDED), meaning=_LIGHT_BOX)
-    light_irradiance: Range = _field((0.5, 1.75), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
-    spot_irradiance: Range = _field((0.5, 5.0), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
-    area_irradiance: Range = _field((2.0, 4.0), bounds=(0.0, UNBOUNDED), meaning=_IRRADIANCE)
-    light_saturation_max: float = _field(0.3, meaning="colour is HSV(U(0, 1), U(0, this), 1).")
+    light_xy: float = _field(10 / 7, bounds=(0.0, MAX_SCENE_EXTENT), meaning=_LIGHT_BOX)
+    light_height: Range = _field((10 / 7, 15 / 7), bounds=(1e-3, MAX_SCENE_EXTENT), meaning=_LIGHT_BOX)
+    light_irradiance: Range = _field((0.5, 1.75), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
+    spot_irradiance: Range = _field((0.5, 5.0), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
+    area_irradiance: Range = _field((2.0, 4.0), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
+    light_saturation_max: float = _field(0.3, bounds=(0.0, 1.0), meaning="colour is HSV(U(0, 1), U(0, this), 1).")
     spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
-    area_light_size: float = _field(0.3, meaning="side of a square area light.")
+    area_light_size: float = _field(0.3, bounds=(1e-4, MAX_SCENE_EXTENT), meaning=(
+        f"side of a square area light (at most {MAX_SCENE_EXTENT:g} painting units)."))
     area_spread_deg: Range = _field((180.0, 180.0), bounds=(1.0, 180.0), meaning=(
         "range of an area light's spread (Blender's), the full angle of the cone it emits into. ``(180, 180)``: "
         "the whole half-space, lighting the painting evenly (no draw then, so such configs draw the same scenes "
         "as before the field existed); below 180, a beam aimed at the painting's centre with no inner cone and "
         "the same power, so the narrower the brighter its centre (``sidar_torch.scene.spread_beam``; cones "
         "wider than 114 degrees are capped there)."))
-    area_light_samples: int = _field(4, meaning="jittered shadow-casting samples an area light is made of.")
-    ambient: Range = _field((0.0, 0.02), bounds=(0.0, UNBOUNDED), meaning=(
-        "range of the ambient light level (linear, 1 reproduces the texture)."))
+    area_light_samples: int = _field(4, bounds=(1, MAX_SHADOWED_LIGHTS), meaning=(
+        "jittered shadow-casting samples an area light is made of (``n_lights`` high end times this at most "
+        f"{MAX_SHADOWED_LIGHTS}, the shadow maps the renderer can bind, when ``area`` lights are drawn)."))
+    ambient: Range = _field((0.0, 0.02), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=(
+        f"range of the ambient light level (linear, 1 reproduces the texture; at most {MAX_LIGHT_LEVEL:g}, where "
+        "every non-black texel is white)."))
     n_occluders: IntRange = _field((0, 3), bounds=(0, 16), meaning="range of the number of occluding objects.")
     occluder_shapes: tuple[str, ...] = _field(OCCLUDER_SHAPES, choices=OCCLUDER_SHAPES, meaning=_OCCLUDER_KINDS)
     occluder_materials: tuple[str, ...] = _field(OCCLUDER_MATERIALS, choices=OCCLUDER_MATERIALS,
                                                  meaning=_OCCLUDER_KINDS)
-    occluder_xy: float = _field(3 / 7, meaning=_OCCLUDER_BOX)
-    occluder_height: Range = _field((1 / 7, 5 / 7), bounds=(0.0, UNBOUNDED), meaning=_OCCLUDER_BOX)
-    occluder_size: Range = _field((0.1 / 7, 1.1 / 7), bounds=(1e-4, UNBOUNDED), meaning=(
-        "range of an occluder's half-extent along each of its axes."))
+    occluder_xy: float = _field(3 / 7, bounds=(0.0, MAX_SCENE_EXTENT), meaning=_OCCLUDER_BOX)
+    occluder_height: Range = _field((1 / 7, 5 / 7), bounds=(0.0, MAX_SCENE_EXTENT), meaning=_OCCLUDER_BOX)
+    occluder_size: Range = _field((0.1 / 7, 1.1 / 7), bounds=(1e-4, MAX_SCENE_EXTENT), meaning=(
+        f"range of an occluder's half-extent along each of its axes (at most {MAX_SCENE_EXTENT:g} painting units)."))
     paper_torus: bool = _field(False, meaning=(
         "every torus at the size of the paper's, Blender's default torus, which it never scales (major radius 1, "
         "minor 0.25 Blender units): outer radius 1.25 / 7 and half-thickness 0.25 / 7, with no draw from "
@@ -138,7 +152,7 @@ class SidarConfig:
         "shadow like a ``transparent`` occluder's."))
     occluders_visible: bool = _field(True, meaning=(
         "false makes occluders invisible to cameras; they still cast shadows."))
-    mask_min_opacity: float = _field(0.0, meaning=(
+    mask_min_opacity: float = _field(0.0, bounds=(0.0, 1.0), meaning=(
         "occluders whose material opacity (alpha) is below this are left out of the masks: the painting seen "
         "through them counts as visible. 0 (the paper's choice) masks every occluder, however transparent."))
     opacity_output: bool = _field(False, meaning=(
@@ -165,9 +179,10 @@ class SidarConfig:
     scene_per_view: bool = _field(True, meaning="draw new lights, occluders and painting material for every view.")
 
     # Rendering
-    shadow_map_size: int = _field(1024, meaning=(
+    shadow_map_size: int = _field(1024, bounds=(16, MAX_GL_SIZE), meaning=(
         f"side of each shadow map in texels (a power of two from 16 to {MAX_GL_SIZE}, the largest texture "
-        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``)."))
+        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``); a view holds one map per shadowed emitter, 6 bytes "
+        "per texel, counted in a sample's memory (see ``image_size``)."))
     shadow_filter: str = _field("bilinear", choices=SHADOW_FILTERS, meaning=(
         'how a shadow-map lookup is filtered: ``"bilinear"``, a 2 x 2 percentage-closer filter from one '
         'depth-compare tap (the default: closer to a 4096-map reference than the tent at every map size, for a '
@@ -208,9 +223,10 @@ class SidarConfig:
         '``"auto"`` (the default): per view, the coarsest of 4 pooled levels whose silhouette and shadow stay '
         'within ``mesh_error_px`` of the true surface; ``"fixed"``: every curved occluder (sphere, cylinder, '
         "cone, torus, capsule) uses one mesh (icosphere 3, 48 sections), which facets close ones."))
-    mesh_error_px: float = _field(0.25, meaning=(
-        'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level).'))
-    antialias: int = _field(1, meaning=(
+    mesh_error_px: float = _field(0.25, bounds=(0.0, MAX_GL_SIZE), meaning=(
+        'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level; at '
+        f"most {MAX_GL_SIZE}, an image's largest side)."))
+    antialias: int = _field(1, choices=ANTIALIAS_SAMPLES, meaning=(
         "samples per pixel of each view's lit colour pass: 1 (none, the default: jagged silhouettes) or 2, 4, 8 "
         "(multisample antialiasing, resolved to one colour per pixel; the OpenGL context must offer the count, "
         "Mesa's llvmpipe offers only 4). Masks stay binary (drawn single-sampled, by the paper's rule); "

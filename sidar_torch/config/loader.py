@@ -8,18 +8,38 @@ installed wheel loads them wherever it runs. A YAML file of the user's own may n
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from .fields import SidarConfig
-from .validation import check_names
+from .validation import check_names, did_you_mean
 
-__all__ = ["PRESET_DIR", "available_presets", "load_config"]
+__all__ = ["PRESET_DIR", "available_presets", "load_config", "parse_yaml"]
 
 PRESET_DIR = Path(__file__).resolve().parent / "presets"
 """Folder of the YAML presets, inside the installed package."""
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader, also reading YAML 1.2's floats without a dot or a signed exponent."""
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+                              list("-+0123456789"))
+
+
+def parse_yaml(text: str) -> Any:
+    """The value YAML ``text`` holds, like ``yaml.safe_load``, except that ``1e-3`` and ``1e300`` are
+    numbers (YAML 1.2) rather than the strings YAML 1.1, PyYAML's, makes of them (it wants
+    ``1.0e-3``).
+
+    Raises:
+        yaml.YAMLError: malformed YAML. RecursionError: nested too deeply for the parser.
+    """
+    return yaml.load(text, Loader=_Loader)
 
 
 def available_presets() -> list[str]:
@@ -31,10 +51,19 @@ def _parse(path: Path) -> dict[str, Any]:
     """The mapping a YAML file holds.
 
     Raises:
-        ValueError: malformed YAML (the message names the file, line and column) or not a mapping.
+        ValueError: not UTF-8 text (a binary file), malformed YAML (the message names the file, line
+            and column), nested too deeply to parse, or not a mapping; each message names the file.
     """
     try:
-        data = yaml.safe_load(path.read_text())
+        text = path.read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"config file {str(path)!r}: not UTF-8 text (byte {error.object[error.start]:#04x} at "
+                         f"offset {error.start}); a config file is YAML text") from None
+    try:
+        data = parse_yaml(text)
+    except RecursionError:  # the parser recurses once per level of nesting
+        raise ValueError(f"config file {str(path)!r}: YAML nested too deeply to parse (a config is a mapping "
+                         f"of fields to numbers, words and short lists)") from None
     except yaml.MarkedYAMLError as error:
         mark = error.problem_mark or error.context_mark
         where = f", line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -53,8 +82,10 @@ def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[s
     """Fields of a preset name or YAML path, with its ``base`` chain resolved (base first)."""
     path = Path(source)
     if path.suffix not in (".yaml", ".yml"):
-        if str(source) not in available_presets():
-            raise ValueError(f"config {str(source)!r}: not a preset ({available_presets()}) nor a YAML path")
+        presets = available_presets()
+        if str(source) not in presets:
+            raise ValueError(f"config {str(source)!r}: not a preset{did_you_mean(str(source), presets)} nor a YAML "
+                             f"path; the presets are {', '.join(presets)}")
         path = PRESET_DIR / f"{source}.yaml"
     if not path.is_file():
         raise FileNotFoundError(f"config file {str(path)!r} does not exist")
@@ -79,8 +110,10 @@ def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", *
             ``n_lights=(0, 2)``; numbers may be NumPy or 0-d torch scalars.
 
     Raises:
-        ValueError: unknown preset or field (with the closest field names), malformed YAML (naming
-            the file and line), or a value out of its allowed range (the message names the field).
+        ValueError: unknown preset or field (with the closest names), a YAML file that is not UTF-8
+            text, malformed (naming the file and line) or nested too deeply, or a value of the wrong
+            type or out of its allowed range (the message names the field). Nothing else: no
+            ``TypeError`` or ``OverflowError`` for a wrong value.
         FileNotFoundError: a YAML path, or a ``base`` it names, does not exist.
     """
     check_names(overrides, SidarConfig, "override")

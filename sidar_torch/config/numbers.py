@@ -10,9 +10,18 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 from typing import Any
 
-__all__ = ["as_float", "as_int"]
+__all__ = ["as_float", "as_int", "shown"]
+
+_SHORT = reprlib.Repr()
+_SHORT.maxlong, _SHORT.maxstring, _SHORT.maxother = 40, 60, 60
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` cut to a readable length for an error message (``10**400`` shows 40 digits)."""
+    return _SHORT.repr(value)
 
 
 def _scalar(name: str, value: Any) -> int | float:
@@ -24,7 +33,7 @@ def _scalar(name: str, value: Any) -> int | float:
     if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):  # 0-d numpy array or torch tensor
         value = value.item()
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # np.bool_ is no numbers.Real
-        raise ValueError(f"{name}: expected a number, got {value!r}")
+        raise ValueError(f"{name}: expected a number, got {shown(value)}")
     return int(value) if isinstance(value, numbers.Integral) else float(value)
 
 
@@ -41,9 +50,9 @@ def as_int(name: str, value: Any, minimum: int | None = None) -> int:
     """
     number = _scalar(name, value)
     if isinstance(number, float) and not number.is_integer():
-        raise ValueError(f"{name}: expected an integer, got {value!r}")
+        raise ValueError(f"{name}: expected an integer, got {shown(value)}")
     if minimum is not None and number < minimum:
-        raise ValueError(f"{name}: expected an integer >= {minimum}, got {value!r}")
+        raise ValueError(f"{name}: expected an integer >= {minimum}, got {shown(value)}")
     return int(number)
 
 
@@ -52,10 +61,15 @@ def as_float(name: str, value: Any, *, finite: bool = True) -> float:
     a 0-d tensor); finite unless ``finite`` is false (then NaN and infinities pass, for a caller
     that explains them itself).
 
+    An integer too large for a float (``10**400``) counts as infinite; ``-0.0`` becomes ``0.0``.
+
     Raises:
         ValueError: a bool, not a number, or (if ``finite``) NaN or infinite (the message starts with ``name``).
     """
-    number = float(_scalar(name, value))
+    try:
+        number = float(_scalar(name, value))
+    except OverflowError:  # an integer beyond float's range, e.g. 10**400
+        number = math.inf
     if finite and not math.isfinite(number):
-        raise ValueError(f"{name}: expected a finite number, got {value!r}")
-    return number
+        raise ValueError(f"{name}: expected a finite number, got {shown(value)}")
+    return number + 0.0  # -0.0 becomes 0.0: numpy's uniform(0.0, -0.0) raises "high - low < 0"

@@ -12,6 +12,7 @@ import math
 from typing import Any
 
 from .fields import SidarConfig
+from .validation import bounds_text
 
 __all__ = ["schema_markdown", "schema_rows"]
 
@@ -30,10 +31,9 @@ def _format(value: Any) -> str:
 def _allowed(f: dataclasses.Field) -> str:
     """What the field may hold, from its ``bounds`` or ``choices`` metadata ("" if neither)."""
     if "bounds" in f.metadata:
-        lo, hi = f.metadata["bounds"]
-        return f"{_format(lo)} <= low <= high" + (f" <= {_format(hi)}" if math.isfinite(hi) else " (finite)")
+        return bounds_text(f)
     if "choices" in f.metadata:
-        return ("any of " if f.type.startswith("tuple") else "one of ") + ", ".join(f.metadata["choices"])
+        return ("any of " if f.type.startswith("tuple") else "one of ") + ", ".join(map(str, f.metadata["choices"]))
     return ""
 
 

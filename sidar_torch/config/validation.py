@@ -1,7 +1,10 @@
 """Turning field values as users write them into the config's types, and checking them.
 
-Every error is a ``ValueError`` whose message starts with ``config field '<name>'`` (or names the
-unknown field), says what was expected, and shows what was given. Sizes read ``(H, W)``.
+Every error, a wrong type included, is a ``ValueError`` whose message starts with ``config field
+'<name>'`` (``config fields '<a>', '<b>'`` for a rule between fields, or names the unknown field),
+says what was expected, and shows what was given. Sizes read ``(H, W)``. Every number field has
+finite ``bounds`` (field metadata), so a config that passes holds no number that overflows, hangs
+the scene sampler or gives NaN.
 """
 
 from __future__ import annotations
@@ -11,10 +14,11 @@ import difflib
 import math
 from typing import Any, Mapping
 
-from .allowed import ANTIALIAS_SAMPLES, MAX_GL_SIZE, MAX_SHADOWED_LIGHTS
-from .numbers import as_float, as_int
+from .allowed import MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
+from .memory import estimated_sample_bytes, shadowed_emitters
+from .numbers import as_float, as_int, shown
 
-__all__ = ["check_names", "coerce", "validate"]
+__all__ = ["bounds_text", "check_names", "coerce", "did_you_mean", "validate"]
 
 
 def box_tilt_limit_deg(camera_xy: float, lowest_height: float) -> float:
@@ -23,90 +27,135 @@ def box_tilt_limit_deg(camera_xy: float, lowest_height: float) -> float:
     return math.degrees(math.atan2(math.sqrt(2) * camera_xy, lowest_height))
 
 
-def coerce(f: dataclasses.Field, value: Any) -> Any:
-    """``value`` in the type of field ``f``: lists become tuples, numbers (Python, NumPy, 0-d torch)
-    plain ``int`` or ``float`` as the field's type asks.
+_PAIRS = {"Range": "(low, high)", "IntRange": "(low, high)", "tuple[int, int]": "(H, W)"}
+"""The two-number field types and how their two numbers read."""
+
+
+def _as_tuple(name: str, value: Any) -> tuple:
+    """``value``, a list, tuple, 1-d array or tensor, as a tuple of its elements.
 
     Raises:
-        ValueError: a value of the wrong kind or length (the message names the field).
+        ValueError: a string, set, mapping, 0-d array or tensor, scalar or iterator (no length).
+    """
+    if isinstance(value, (str, bytes, set, frozenset, dict)) or getattr(value, "ndim", None) == 0 \
+            or not hasattr(value, "__iter__") or not hasattr(value, "__len__"):
+        # Sets are refused: their order follows string hashing, which changes between processes.
+        raise ValueError(f"{name}: expected a list or tuple, got {shown(value)}")
+    return tuple(value)
+
+
+def coerce(f: dataclasses.Field, value: Any) -> Any:
+    """``value`` in the type of field ``f``: lists become tuples, numbers (Python, NumPy, 0-d torch)
+    plain ``int`` or ``float`` as the field's type asks, words must be ``str``.
+
+    Raises:
+        ValueError: a value of the wrong kind or length (the message names the field). A wrong type
+            is a ``ValueError`` too, like a wrong value, so ``except ValueError`` catches every
+            mistake in a config.
     """
     name = f"config field {f.name!r}"
     kind = str(f.type)
     if kind.startswith(("Range", "IntRange", "tuple")):
-        if isinstance(value, (str, bytes, set, frozenset, dict)) or not hasattr(value, "__iter__"):
-            # Sets are refused: their order follows string hashing, which changes between processes.
-            raise ValueError(f"{name}: expected a list or tuple, got {value!r}")
-        value = tuple(value)
-        pair = {"Range": "(low, high)", "IntRange": "(low, high)", "tuple[int, int]": "(H, W)"}.get(kind)
+        value = _as_tuple(name, value)
+        pair = _PAIRS.get(kind)
         if pair and len(value) != 2:
-            raise ValueError(f"{name}: expected 2 values {pair}, got {len(value)}: {value!r}")
+            raise ValueError(f"{name}: expected 2 values {pair}, got {len(value)}: {shown(value)}")
         if kind == "Range":
             value = tuple(as_float(name, v, finite=False) for v in value)
             if not all(map(math.isfinite, value)):
                 raise ValueError(f"{name}: expected finite numbers (values are drawn uniformly from (low, high), "
-                                 f"so both ends must be finite), got {value!r}")
+                                 f"so both ends must be finite), got {shown(value)}")
         elif pair:
             value = tuple(as_int(name, v) for v in value)
+        elif not all(isinstance(v, str) for v in value):
+            raise ValueError(f"{name}: expected a list of words from {f.metadata['choices']}, got {shown(value)}")
     elif kind == "float":
         value = as_float(name, value)
     elif kind == "int":
         value = as_int(name, value)
     elif kind == "bool" and not isinstance(value, bool):
-        raise ValueError(f"{name}: expected true or false, got {value!r}")
+        raise ValueError(f"{name}: expected true or false, got {shown(value)}")
+    elif kind == "str" and not isinstance(value, str):
+        raise ValueError(f"{name}: expected one of {f.metadata['choices']}, got {shown(value)}")
     return value
+
+
+_RANGE_BOUNDS = ("a range (low, high) with {lo} <= low <= high <= {hi}", lambda v, lo, hi: lo <= v[0] <= v[1] <= hi)
+_NUMBER_BOUNDS = ("{lo} <= value <= {hi}", lambda v, lo, hi: lo <= v <= hi)
+_BOUNDED = {
+    "Range": _RANGE_BOUNDS,
+    "IntRange": _RANGE_BOUNDS,
+    "tuple[int, int]": ("(H, W) with {lo} <= H, W <= {hi}", lambda v, lo, hi: all(lo <= s <= hi for s in v)),
+    "int": _NUMBER_BOUNDS,
+    "float": _NUMBER_BOUNDS,
+}
+"""Per field type, what its ``bounds`` metadata ``(lo, hi)`` mean: the text and the check."""
+
+
+def bounds_text(f: dataclasses.Field) -> str:
+    """What field ``f``'s ``bounds`` allow, e.g. ``"0 <= value <= 100"`` (the schema prints it too)."""
+    lo, hi = f.metadata["bounds"]
+    return _BOUNDED[str(f.type)][0].format(lo=f"{lo:g}", hi=f"{hi:g}")
+
+
+def _within_bounds(f: dataclasses.Field, value: Any) -> bool:
+    """Whether the coerced ``value`` of field ``f`` lies within its ``bounds``."""
+    lo, hi = f.metadata["bounds"]
+    return _BOUNDED[str(f.type)][1](value, lo, hi)
 
 
 def validate(config: Any) -> None:
     """Check the coerced fields of a ``SidarConfig`` against their ``bounds`` and ``choices``
-    metadata and the rules between fields.
+    metadata and the rules between fields (the camera box's tilt, the shadow maps the renderer can
+    bind, the memory a sample needs).
 
     Raises:
         ValueError: the first field out of range (the message names it and what was expected).
     """
     def need(ok: bool, name: str, expected: str) -> None:
         if not ok:
-            raise ValueError(f"config field {name!r}: expected {expected}, got {getattr(config, name)!r}")
+            raise ValueError(f"config field {name!r}: expected {expected}, got {shown(getattr(config, name))}")
 
     c = config
-    need(all(s >= 1 for s in c.image_size), "image_size", "(H, W) with H, W >= 1")
-    need(all(s <= MAX_GL_SIZE for s in c.image_size), "image_size",
-         f"(H, W) with H, W <= {MAX_GL_SIZE} (the largest renderbuffer side of Mesa's llvmpipe)")
-    need(c.n_views >= 1, "n_views", "at least 1")
-    need(c.camera_xy >= 0, "camera_xy", ">= 0")
-    need(0 <= c.max_tilt_deg <= 90, "max_tilt_deg", "0 <= max_tilt_deg <= 90 (90: no limit)")
-    reach = box_tilt_limit_deg(c.camera_xy, c.camera_height[0])
-    need(c.max_tilt_deg == 90 or c.max_tilt_deg <= reach, "max_tilt_deg",
-         f"at most {reach:.4g} deg, the steepest tilt of the camera box (x, y within camera_xy={c.camera_xy:.4g} "
-         f"at heights from camera_height[0]={c.camera_height[0]:.4g}); raise camera_xy or lower camera_height "
-         f"for grazing views, or set 90 for no limit")
-    need(c.light_xy >= 0, "light_xy", ">= 0")
-    need(c.occluder_xy >= 0, "occluder_xy", ">= 0")
-    need(0 <= c.min_coverage <= 1, "min_coverage", "a fraction in [0, 1]")
-    need(0 <= c.min_overlap <= 1, "min_overlap", "a fraction in [0, 1]")
-    need(0 <= c.light_saturation_max <= 1, "light_saturation_max", "a value in [0, 1]")
-    need(c.area_light_size > 0, "area_light_size", "> 0")
-    need(c.area_light_samples >= 1, "area_light_samples", "at least 1")
-    need(0 <= c.mask_min_opacity <= 1, "mask_min_opacity", "a value in [0, 1]")
-    size = c.shadow_map_size
-    need(size >= 16 and size & (size - 1) == 0, "shadow_map_size", "a power of two >= 16")
-    need(size <= MAX_GL_SIZE, "shadow_map_size",
-         f"a power of two <= {MAX_GL_SIZE} (the largest texture side of Mesa's llvmpipe)")
-    need(c.mesh_error_px >= 0, "mesh_error_px", ">= 0 (pixels)")
-    need(c.antialias in ANTIALIAS_SAMPLES, "antialias", f"one of {ANTIALIAS_SAMPLES} (samples per pixel)")
     for f in dataclasses.fields(c):
         value = getattr(c, f.name)
+        if "bounds" in f.metadata:
+            need(_within_bounds(f, value), f.name, bounds_text(f))
         if "choices" in f.metadata and isinstance(value, tuple):
             choices = f.metadata["choices"]
             need(len(value) > 0 and set(value) <= set(choices), f.name, f"a non-empty subset of {choices}")
         elif "choices" in f.metadata:
             need(value in f.metadata["choices"], f.name, f"one of {f.metadata['choices']}")
-        if "bounds" in f.metadata:
-            lo, hi = f.metadata["bounds"]
-            low, high = value
-            need(lo <= low <= high <= hi, f.name, f"a range (low, high) with {lo} <= low <= high <= {hi}")
-    samples = c.area_light_samples if "area" in c.light_types else 1
-    need(c.n_lights[1] * samples <= MAX_SHADOWED_LIGHTS, "area_light_samples",
-         f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind)")
+    reach = box_tilt_limit_deg(c.camera_xy, c.camera_height[0])
+    need(c.max_tilt_deg == 90 or c.max_tilt_deg <= reach, "max_tilt_deg",
+         f"at most {reach:.4g} deg, the steepest tilt of the camera box (x, y within camera_xy={c.camera_xy:.4g} "
+         f"at heights from camera_height[0]={c.camera_height[0]:.4g}); raise camera_xy or lower camera_height "
+         f"for grazing views, or set 90 for no limit")
+    size = c.shadow_map_size
+    need(size & (size - 1) == 0, "shadow_map_size", f"a power of two from 16 to {MAX_GL_SIZE}")
+    need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
+         f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
+         f"config field 'n_lights' is {c.n_lights})")
+    _check_memory(c)
+
+
+def _check_memory(config: Any) -> None:
+    """Refuse a config whose sample needs more than ``MAX_SAMPLE_BYTES`` (``memory.estimated_sample_bytes``)."""
+    need = estimated_sample_bytes(config)
+    if need > MAX_SAMPLE_BYTES:
+        (h, w), maps = config.image_size, max(1, shadowed_emitters(config) if config.shadows else 0)
+        raise ValueError(
+            f"config fields 'image_size', 'n_views' and 'shadow_map_size': a sample of {config.n_views} views of "
+            f"{h} x {w} (H x W) pixels with {maps} shadow maps of {config.shadow_map_size}^2 texels (antialias "
+            f"{config.antialias}) needs about {need / 2**30:.3g} GiB (sidar_torch.config.memory's estimate), more "
+            f"than the {MAX_SAMPLE_BYTES / 2**30:g} GiB a sample may use; lower image_size, n_views or shadow_map_size")
+
+
+def did_you_mean(name: str, known: list[str]) -> str:
+    """`` (did you mean 'a' or 'b'?)`` naming the (up to 3) entries of ``known`` closest to ``name``
+    (``difflib``), or ``""`` if none is close."""
+    close = difflib.get_close_matches(name, known, n=3, cutoff=0.6)
+    return f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
 
 
 def check_names(values: Mapping[str, Any], config_class: type, what: str) -> None:
@@ -119,12 +168,8 @@ def check_names(values: Mapping[str, Any], config_class: type, what: str) -> Non
         ValueError: ``unknown config <what> 'name' (did you mean 'a' or 'b'?)``, one clause per unknown key.
     """
     known = [f.name for f in dataclasses.fields(config_class)]
-    unknown = sorted(set(values) - set(known))
+    unknown = sorted(set(values) - set(known), key=str)
     if unknown:
-        clauses = []
-        for name in unknown:
-            close = difflib.get_close_matches(str(name), known, n=3, cutoff=0.6)
-            hint = f" (did you mean {' or '.join(repr(c) for c in close)}?)" if close else ""
-            clauses.append(f"{name!r}{hint}")
+        clauses = [f"{name!r}{did_you_mean(str(name), known)}" for name in unknown]
         raise ValueError(f"unknown config {what} {', '.join(clauses)}; `python -m sidar_torch schema` lists "
                          f"the {len(known)} fields")

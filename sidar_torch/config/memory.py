@@ -1,0 +1,52 @@
+"""The memory one sample needs, estimated from its config (checked against ``MAX_SAMPLE_BYTES``).
+
+The figures are peak resident memory a sample added to a process that had already rendered a
+tiny one, measured with ``resource.getrusage`` on llvmpipe (Mesa 22.3, torch 2.13 CPU) and rounded
+up:
+
+* per view and pixel, 25.5 bytes measured (views, masks and opacities as uint8 arrays, then as
+  float32 tensors; ``(H, W)`` from 960 x 1280 to 1920 x 2560, 2 to 8 views): :data:`VIEW_PIXEL_BYTES`;
+* per pixel once, 74 bytes measured (the renderer's colour and depth buffers and readback, the
+  painting's texture and mipmaps, the label): :data:`FRAME_PIXEL_BYTES`;
+* per pixel and sample of a multisampled pass (``antialias`` > 1), 8 bytes (RGBA8 colour and
+  24-bit depth, measured 31 bytes per pixel at 4 samples): :data:`MULTISAMPLE_PIXEL_BYTES`;
+* per ordered pair of views, 28.9 KB measured (the homography fit and its 17 x 17 lattice check,
+  64 to 256 views): :data:`VIEW_PAIR_BYTES`;
+* per shadow-map texel and shadowed emitter, a float32 depth texel and a quarter of an RGBA16F
+  transmittance texel: :data:`SHADOW_TEXEL_BYTES`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["estimated_sample_bytes", "shadowed_emitters"]
+
+VIEW_PIXEL_BYTES = 32
+FRAME_PIXEL_BYTES = 96
+MULTISAMPLE_PIXEL_BYTES = 8
+VIEW_PAIR_BYTES = 32 * 1024
+SHADOW_TEXEL_BYTES = 6
+
+
+def shadowed_emitters(config: Any) -> int:
+    """The most spot-light emitters one view of ``config`` can have, each with a shadow map when
+    ``shadows`` is on: ``n_lights`` high end times ``area_light_samples`` if area lights are drawn."""
+    per_light = config.area_light_samples if "area" in config.light_types else 1
+    return config.n_lights[1] * per_light
+
+
+def estimated_sample_bytes(config: Any) -> int:
+    """Bytes one sample of ``config`` (a ``SidarConfig``) needs at its peak, an upper estimate.
+
+    ``H * W * (V * 32 + 96 + 8 * antialias) + V**2 * 32768 + maps * shadow_map_size**2 * 6`` for
+    ``V`` views of ``(H, W)`` pixels (the ``8 * antialias`` term only when ``antialias`` > 1) and
+    ``maps`` shadow maps (at least the one the renderer always holds); the module docstring says
+    how each figure was measured.
+    """
+    h, w = config.image_size
+    views = config.n_views
+    multisample = MULTISAMPLE_PIXEL_BYTES * config.antialias if config.antialias > 1 else 0
+    maps = max(1, shadowed_emitters(config) if config.shadows else 0)
+    return (h * w * (views * VIEW_PIXEL_BYTES + FRAME_PIXEL_BYTES + multisample) + views * views * VIEW_PAIR_BYTES
+            + maps * config.shadow_map_size**2 * SHADOW_TEXEL_BYTES)
