@@ -93,6 +93,7 @@ def validate(config: Any) -> None:
          f"a power of two <= {MAX_GL_SIZE} (the largest texture side of Mesa's llvmpipe)")
     need(c.mesh_error_px >= 0, "mesh_error_px", ">= 0 (pixels)")
     need(c.antialias in ANTIALIAS_SAMPLES, "antialias", f"one of {ANTIALIAS_SAMPLES} (samples per pixel)")
+    need(c.max_image_pixels >= 1, "max_image_pixels", "at least 1 (pixels)")
     for f in dataclasses.fields(c):
         value = getattr(c, f.name)
         if "choices" in f.metadata and isinstance(value, tuple):
