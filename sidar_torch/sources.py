@@ -185,6 +185,7 @@ __all__ = [
     "DatasetPaintings",
     "fit_painting",
     "make_source",
+    "tensor_to_uint8",
 ]
 
 PaintingSize = tuple[int, int]
@@ -329,7 +330,7 @@ def _to_rgb(image: Image.Image) -> Image.Image:
     return image if image.mode == "RGB" else image.convert("RGB")
 
 
-def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image tensor",
+def tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image tensor",
                      grey: bool = False) -> torch.Tensor:
     """Validate an image tensor and return it as a contiguous CPU ``uint8`` tensor.
 
@@ -670,7 +671,7 @@ class TensorPaintings(_ImageSource):
 
     def __init__(self, images: torch.Tensor, *, crop: str = "center") -> None:
         super().__init__(crop)
-        self.images = _tensor_to_uint8(images, batched=True)
+        self.images = tensor_to_uint8(images, batched=True)
 
     def __len__(self) -> int:
         return self.images.shape[0]
@@ -734,7 +735,7 @@ class DatasetPaintings(_ReadingSource):
 def _item_to_image(item: Any, position: int) -> Image.Image:
     """A ``(3, h, w)`` tensor or PIL image -> PIL RGB image; else ``TypeError``."""
     if isinstance(item, torch.Tensor):
-        return _chw_to_image(_tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
+        return _chw_to_image(tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
     if isinstance(item, Image.Image):
         return _to_rgb(item)
     raise TypeError(
