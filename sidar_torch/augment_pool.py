@@ -103,8 +103,9 @@ class RenderPool:
 
         Args:
             tasks: what to render.
-            timeout: the most seconds to wait for a worker's result for one task after sending it
-                (``0``: no limit).
+            timeout: the most seconds to wait, after sending a worker a task, for its result to
+                start arriving (``0``: no limit). As with ``DataLoader``'s timeout, a worker stopped
+                in the middle of sending a result is not covered.
 
         Raises:
             The exception a worker raised (its traceback in the exception's notes), after the

@@ -18,7 +18,8 @@ Three mechanisms, because each alone has a gap:
 * :func:`release_inherited_descriptors`: a forked child holds a copy of every descriptor of its
   parent, among them the parent's ends of its own pipe (and of its siblings'), so a reply larger
   than the socket buffer blocked forever in ``send`` after the parent died. Released, the parent's
-  death closes the last copy of its ends, and a ``send`` fails at once with ``EPIPE``.
+  death closes the last copy of its ends, and a ``send`` fails at once with ``EPIPE``. (The render
+  pool calls it; a DataLoader worker cannot, as PyTorch's own pipes are among what it inherited.)
 
 The parent may die between the fork and these calls; :func:`exit_with_parent` checks ``getppid``
 after arming the signal, so that window is closed too.
@@ -29,6 +30,7 @@ from __future__ import annotations
 import ctypes
 import os
 import signal
+import stat
 import sys
 import threading
 import time
@@ -104,6 +106,10 @@ def release_inherited_descriptors(inherited: Iterable[int]) -> None:
     machinery itself (``multiprocessing``'s pipes that tell the parent the child ended) are newer,
     so they are not in it and stay open.
 
+    Sockets, pipes, regular files and folders are released; devices and anonymous kernel objects
+    (a GPU's ``/dev/dri`` node, its fences) are kept: the GL driver state the child inherited with
+    its parent's EGL display is bound to them, and they hold no pipe end.
+
     Each one is pointed at ``/dev/null`` (``dup2``) rather than closed: the parent's Python objects
     copied into the child (its connections, files, sockets) still hold those numbers, and one of
     them closing "its" number later must not close a file this child opened since. The files,
@@ -113,7 +119,16 @@ def release_inherited_descriptors(inherited: Iterable[int]) -> None:
     null = os.open(os.devnull, os.O_RDWR)
     try:
         for fd in sorted(set(inherited) - {0, 1, 2, null}):
-            if _is_open(fd):
+            if _releasable(fd):
                 os.dup2(null, fd, inheritable=False)
     finally:
         os.close(null)
+
+
+def _releasable(fd: int) -> bool:
+    """Whether ``fd`` is open and a socket, pipe, regular file or folder."""
+    try:
+        mode = os.fstat(fd).st_mode
+    except OSError:
+        return False
+    return any(kind(mode) for kind in (stat.S_ISSOCK, stat.S_ISFIFO, stat.S_ISREG, stat.S_ISDIR))

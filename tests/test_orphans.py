@@ -9,7 +9,7 @@ import time
 
 from conftest import alive
 
-from sidar_torch.orphans import exit_with_parent, open_descriptors, release_inherited_descriptors
+from sidar_torch.orphans import open_descriptors, release_inherited_descriptors
 
 # A child forks a grandchild that calls exit_with_parent, prints its pid and then blocks for good;
 # argv[1] = "signal" arms Linux's parent-death signal, "watch" relies on the getppid thread alone.
