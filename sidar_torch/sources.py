@@ -125,15 +125,15 @@ was listed, a dataset item whose loading raises or that is not an image. The
   the file is what the warning points at), and is recorded in the source's
   ``bad_images`` (``{name: reason}``; the name is the file's absolute path or
   ``"dataset item <i>"``) so that it is not read again. Which painting an index
-  then shows has two stages:
+  then shows depends on whether the source was scanned:
 
   - **after** ``source.scan()`` (recommended: call it once in the main process,
     before iterating or exporting): every image is read once up front and the
     unreadable ones are dropped, so ``len(source)`` counts readable images,
     every index shows its own painting, the main process knows every bad image
     (``scan()`` returns them) and DataLoader workers neither read nor warn
-    about them again. The scan costs one decode per image (a draft for large
-    JPEGs), which is why it is not done when the source is built.
+    about them again. The scan costs one decode per image (at reduced scale for
+    large JPEGs), which is why it is not done when the source is built.
   - **without a scan**, or for an image that turns bad after it (deleted, say):
     painting ``i`` is the first readable image of ``i, i + 1, ...`` (wrapping
     around), so the bad image's index shows the same painting as the next
