@@ -26,10 +26,10 @@ import torch
 from torch import nn
 
 from .augment_pool import RenderPool, RenderTask, render_task
-from .config import SidarConfig, as_int, load_config
+from .config import SidarConfig, as_float, as_int, load_config
 from .sample import KEYS, stack_samples
 from .scene import SceneSequence, sample_sequence
-from .sources import CROP_MODES
+from .sources import CROP_MODES, tensor_to_uint8
 
 __all__ = ["SidarAugment"]
 
@@ -37,6 +37,9 @@ Generator = torch.Generator | np.random.Generator
 
 PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
 """The 8-bit pixel keys (``images``, ``masks``, ``opacities``, ``label``): handed out in the input's dtype."""
+
+FLOAT64_FREE_DEVICES = frozenset({"mps"})
+"""Device types that hold no float64: ``homography_error`` (float64) arrives there as float32."""
 
 class SidarAugment(nn.Module):
     """Render every image of a batch as the painting of a random SIDAR scene.
@@ -48,6 +51,12 @@ class SidarAugment(nn.Module):
         crop: how images are fitted to ``image_size``, ``"center"`` or ``"none"`` (see below).
         num_workers: ``0`` (default): render in this process; ``n >= 1``: render each batch in a
             pool of ``n`` render processes (see "Render pool").
+        timeout: with a pool, the most seconds a call waits for a worker's result for one image
+            (as ``DataLoader``'s ``timeout``); ``0`` (default): no limit, also like ``DataLoader``
+            (any fixed limit would either cut off a legitimately long render of a large image or
+            be too long to help; a worker that dies is noticed at once without one, only a live
+            worker that is stopped or deadlocked needs it). Leave room for a new pool's first
+            images, which compile shaders (seconds). Attribute ``timeout``, read at each call.
         **overrides: config fields replacing the preset's, e.g. ``n_views=3``,
             ``image_size=(h, w)``, ``n_occluders=(0, 1)`` (``load_config(config, **overrides)``).
 
@@ -71,8 +80,10 @@ class SidarAugment(nn.Module):
     rank draws the same scenes for its own images.
 
     Input. :meth:`forward` takes ``images`` ``(B, 3, h, w)`` (RGB) or ``(B, 1, h, w)`` (grey,
-    copied to the three channels), on any device, either ``torch.uint8`` (``0..255``) or any
-    floating dtype with values in [0, 1], the two forms painting sources accept. Float images are
+    copied to the three channels), or one image ``(3, h, w)`` / ``(1, h, w)``, taken as a batch of
+    one (``B = 1`` in the output, as ``kornia.augmentation`` does), on any device, either
+    ``torch.uint8`` (``0..255``) or any floating dtype with values in [0, 1], the two forms painting
+    sources accept (converted by the same function). Float images are
     quantised to 8 bits (``round(x * 255)``, the texture's precision) and, if ``(h, w)`` is not
     ``image_size``, fitted to it exactly as painting sources fit images
     (:class:`sidar_torch.sources.TensorPaintings`, :func:`sidar_torch.sources.fit_painting`: the
@@ -83,9 +94,9 @@ class SidarAugment(nn.Module):
     Output. A dict with the keys of a :class:`sidar_torch.SidarDataset` sample (the table
     :data:`sidar_torch.sample.KEYS`), batched by :func:`sidar_torch.sample.stack_samples`, on the
     input's device: every tensor with a leading ``B`` (``images`` ``(B, V, 3, H, W)``, ...),
-    ``homography_error`` ``(B,)`` float32 (not float64 as a DataLoader would collate the dataset's
-    floats, so that every device can hold it) and ``index`` ``(B,)`` int64, each image's position
-    in the batch.
+    ``homography_error`` ``(B,)`` float64 (as a DataLoader collates the dataset's Python floats;
+    float32 on a device that holds no float64, Apple's MPS) and ``index`` ``(B,)`` int64, each
+    image's position in the batch.
 
     Output dtypes. As in ``kornia.augmentation`` and ``torchvision.transforms.v2``, the pixel keys
     (``images``, ``masks``, ``opacities``, ``label``: :data:`PIXEL_KEYS`) keep the input's dtype and
@@ -104,9 +115,11 @@ class SidarAugment(nn.Module):
     worker is raised again by :meth:`forward`, with the worker's traceback in its notes; a worker
     that dies raises ``RuntimeError`` and the pool restarts at the next call. A pickled or
     deep-copied module (and a module used in another process than the one that started its pool)
-    starts its own pool; ``state_dict`` holds ``calls`` only. On two cores, two workers render a
-    batch about twice as fast as one process by wall clock (``benchmarks/augment_pool.py``);
-    more workers than cores gain nothing.
+    starts its own pool; ``state_dict`` holds ``calls`` only. With ``timeout`` set, a worker that
+    sends no result for an image within it (stopped, deadlocked) raises ``TimeoutError`` naming its
+    pid; the pool is closed (its workers ended) and the next call starts a new one. On two cores,
+    two workers render a batch about twice as fast as one process by wall clock
+    (``benchmarks/augment_pool.py``); more workers than cores gain nothing.
 
     When to prefer ``SidarDataset(source=your_images)`` in DataLoader workers instead: when the
     images are a fixed set (a folder, a tensor, a dataset) rather than a batch produced by the
@@ -119,7 +132,8 @@ class SidarAugment(nn.Module):
     """
 
     def __init__(self, config: SidarConfig | str | os.PathLike | None = "misaligned", *,
-                 seed: int | None = None, crop: str = "center", num_workers: int = 0, **overrides: Any):
+                 seed: int | None = None, crop: str = "center", num_workers: int = 0, timeout: float = 0.0,
+                 **overrides: Any):
         super().__init__()
         if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
@@ -129,13 +143,16 @@ class SidarAugment(nn.Module):
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {crop!r}")
         self.crop = crop
         self.num_workers = as_int("num_workers", num_workers, 0)
+        self.timeout = as_float("timeout", timeout)
+        if self.timeout < 0:
+            raise ValueError(f"timeout: expected seconds >= 0 (0: no limit), got {timeout!r}")
         self.calls = 0
         self._pool: RenderPool | None = None
 
     def extra_repr(self) -> str:
         c = self.config
         return (f"n_views={c.n_views}, image_size={c.image_size}, seed={self.seed}, crop={self.crop!r}, "
-                f"num_workers={self.num_workers}")
+                f"num_workers={self.num_workers}, timeout={self.timeout}")
 
     def get_extra_state(self) -> dict[str, int]:
         return {"calls": self.calls}
@@ -170,7 +187,8 @@ class SidarAugment(nn.Module):
         """Render each image of ``images`` in its own scene (see the class docstring).
 
         Args:
-            images: ``(B, 3, h, w)`` or ``(B, 1, h, w)``, uint8 or float in [0, 1], any device, ``B >= 1``.
+            images: ``(B, 3, h, w)`` or ``(B, 1, h, w)`` (or one image ``(3, h, w)``, ``(1, h, w)``:
+                ``B = 1``), uint8 or float in [0, 1], any device, ``B >= 1``.
             generator: optional ``torch.Generator`` or ``numpy.random.Generator`` to draw the
                 scenes from instead of ``(seed, call)``.
 
@@ -186,15 +204,15 @@ class SidarAugment(nn.Module):
                                    enumerate(self._scene_entropy(len(pixels), generator))]
         arrays = self._render(tasks)
         batch = stack_samples([a.to_tensors(self.config.geometry_dtype) for a in arrays])
-        return {key: _in_dtype(value, images.dtype if key in PIXEL_KEYS else value.dtype).to(images.device)
-                for key, value in batch.items()}
+        return {key: _to_device(_in_dtype(value, images.dtype if key in PIXEL_KEYS else value.dtype), key,
+                                images.device) for key, value in batch.items()}
 
     def _render(self, tasks: list[RenderTask]):
         if self.num_workers == 0:
             return [render_task(self.config, self.crop, task) for task in tasks]
         if self._pool is None or not self._pool.usable:
             self._pool = RenderPool(self.config, self.crop, self.num_workers)
-        return self._pool.run(tasks)
+        return self._pool.run(tasks, self.timeout)
 
     def _scene_entropy(self, batch_size: int, generator: Generator | None) -> list[list[int]]:
         """Per image, the entropy of its generator (``numpy.random.default_rng(entropy)``)."""
@@ -224,26 +242,18 @@ def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]
                     f"got {type(generator).__name__}")
 
 
+def _to_device(values: torch.Tensor, key: str, device: torch.device) -> torch.Tensor:
+    """``values`` on ``device``; ``homography_error`` as float32 on a device that holds no float64."""
+    if key == "homography_error" and device.type in FLOAT64_FREE_DEVICES:
+        values = values.float()
+    return values.to(device)
+
+
 def _check_images(images: Any) -> np.ndarray:
     """Validate ``images`` (see :meth:`SidarAugment.forward`) and return them as ``(B, 3, h, w)``
-    uint8 NumPy pixels (float values ``round(x * 255)``, grey copied to three channels)."""
+    uint8 NumPy pixels (float values ``round(x * 255)``, grey copied to three channels), with the
+    conversion painting sources use (:func:`sidar_torch.sources.tensor_to_uint8`)."""
     if not isinstance(images, torch.Tensor):
         raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w) or (B, 1, h, w), "
                         f"got {type(images).__name__}")
-    shape = tuple(images.shape)
-    if images.ndim != 4 or shape[1] not in (1, 3) or shape[2] < 1 or shape[3] < 1:
-        raise ValueError(f"images: expected shape (B, 3, h, w) or (B, 1, h, w) with h, w >= 1, got {shape}")
-    if shape[0] == 0:
-        raise ValueError(f"images: expected at least one image, got an empty batch {shape}")
-    cpu = images.detach().cpu()
-    if cpu.dtype != torch.uint8:
-        if not cpu.is_floating_point():
-            raise ValueError(f"images: expected torch.uint8 (0..255) or a floating-point dtype with values "
-                             f"in [0, 1], got {images.dtype}")
-        low, high = (float(v) for v in torch.aminmax(cpu))
-        if not (np.isfinite(low) and np.isfinite(high)):
-            raise ValueError("images: expected finite values in [0, 1], found NaN or infinity")
-        if low < 0.0 or high > 1.0:
-            raise ValueError(f"images: expected values in [0, 1], got range [{low}, {high}]")
-        cpu = cpu.float().mul(255).round_().to(torch.uint8)
-    return np.ascontiguousarray(cpu.expand(-1, 3, -1, -1).numpy())
+    return tensor_to_uint8(images, batched=True, name="images", grey=True).numpy()

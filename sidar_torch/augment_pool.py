@@ -9,6 +9,11 @@ it is the only rendering path, whichever process runs it, so the pixels do not d
 task and reused), fed one task at a time through its own pipe: a process that finishes takes the
 next task, and results are put back in batch order.
 
+A worker ends with its parent, whatever it is doing (rendering, waiting, or blocked sending a reply
+no one reads): right after the fork it calls :func:`sidar_torch.orphans.exit_with_parent` and lets
+go of every descriptor it inherited but its own pipe end (the parent's ends of every pipe, its own
+included, and any file of the parent's), see :mod:`sidar_torch.orphans`.
+
 Processes are forked (``fork`` start method): a worker starts in milliseconds, where ``spawn`` or
 ``forkserver`` pay about 2 s of imports each. This is safe after the parent rendered because
 ``sidar_torch.render`` sets ``LP_NUM_THREADS=0`` (llvmpipe keeps no threads that a child would
@@ -18,9 +23,12 @@ and opens its own context (see :func:`sidar_torch.render.shared_renderer`).
 
 from __future__ import annotations
 
+import math
 import multiprocessing
 import os
 import pickle
+import threading
+import time
 import traceback
 import weakref
 from multiprocessing.connection import Connection, wait
@@ -30,6 +38,7 @@ import numpy as np
 import torch
 
 from .config import SidarConfig
+from .orphans import exit_with_parent, open_descriptors, release_inherited_descriptors
 from .render import preload
 from .render.context import forks_nothing
 from .sample import SampleArrays, render_arrays
@@ -41,10 +50,6 @@ __all__ = ["RenderPool", "RenderTask", "render_task"]
 RenderTask = tuple[int, Sequence[int], np.ndarray]
 """``(position, entropy, image)``: image ``position`` of the batch, the entropy of its generator
 (a list of non-negative integers) and its pixels ``(3, h, w)`` uint8."""
-
-_PARENT_CHECK_S = 1.0
-"""How often an idle worker checks that its parent is alive, seconds."""
-
 
 def render_task(config: SidarConfig, crop: str, task: RenderTask) -> SampleArrays:
     """Draw the scene of ``task`` and render it with the task's image fitted to ``config.image_size``."""
@@ -63,21 +68,24 @@ class RenderPool:
         num_workers: number of processes (``>= 1``).
 
     The processes start in the constructor and live until :meth:`close` (also called when the pool
-    is garbage-collected and at interpreter exit). A worker exits by itself when its parent dies.
-    A pool belongs to the process that made it: a forked copy of it (e.g. inside a DataLoader
-    worker) is :attr:`usable` nowhere but there.
+    is garbage-collected and at interpreter exit). A worker exits by itself within a second of its
+    parent's death (see the module docstring). A pool belongs to the process that made it: a forked
+    copy of it (e.g. inside a DataLoader worker) is :attr:`usable` nowhere but there.
     """
 
     def __init__(self, config: SidarConfig, crop: str, num_workers: int):
         context = multiprocessing.get_context("fork")
         preload()  # the workers inherit the renderer's imports
         self.pid = os.getpid()
+        # Linux's parent-death signal follows the forking thread: armed only if that is the main thread.
+        death_signal = threading.current_thread() is threading.main_thread()
         self._connections: list[Connection] = []
         processes = []
         for _ in range(num_workers):
             parent_end, child_end = context.Pipe()
-            process = context.Process(target=_worker_main, args=(child_end, config, crop, self.pid),
-                                      daemon=True, name="sidar-augment-render")
+            inherited = open_descriptors() - {child_end.fileno()}  # what the worker lets go of
+            process = context.Process(target=_worker_main, daemon=True, name="sidar-augment-render",
+                                      args=(child_end, config, crop, self.pid, death_signal, inherited))
             process.start()
             child_end.close()
             self._connections.append(parent_end)
@@ -90,38 +98,54 @@ class RenderPool:
         """Whether this process owns the pool and it is open."""
         return self._finalizer.alive and os.getpid() == self.pid
 
-    def run(self, tasks: Sequence[RenderTask]) -> list[SampleArrays]:
+    def run(self, tasks: Sequence[RenderTask], timeout: float = 0.0) -> list[SampleArrays]:
         """Render every task, each in whichever worker is free; the results in the tasks' order.
+
+        Args:
+            tasks: what to render.
+            timeout: the most seconds to wait, after sending a worker a task, for its result to
+                start arriving (``0``: no limit). As with ``DataLoader``'s timeout, a worker stopped
+                in the middle of sending a result is not covered.
 
         Raises:
             The exception a worker raised (its traceback in the exception's notes), after the
-            other workers finished their tasks; ``RuntimeError`` if a worker died (the pool is
-            then closed).
+            other workers finished their tasks; ``RuntimeError`` if a worker died, ``TimeoutError``
+            naming the worker if one sent no result within ``timeout`` (the pool is then closed).
         """
         if not self.usable:
             raise RuntimeError("RenderPool.run: the pool is closed or belongs to another process")
+        limit = timeout if timeout > 0 else math.inf
         results: list[SampleArrays | None] = [None] * len(tasks)
         pending = list(reversed(range(len(tasks))))
-        busy: dict[Connection, int] = {}
+        busy: dict[Connection, tuple[int, float]] = {}  # connection -> (task, deadline on time.monotonic)
         error: BaseException | None = None
+
+        def hand_out(connection: Connection) -> None:
+            index = pending.pop()
+            self._send(connection, tasks[index])
+            busy[connection] = index, time.monotonic() + limit
+
         try:
             for connection in self._connections:
                 if pending:
-                    busy[connection] = pending.pop()
-                    self._send(connection, tasks[busy[connection]])
+                    hand_out(connection)
             while busy:
-                for connection in wait(list(busy)):
-                    index = busy.pop(connection)
+                first = min(busy, key=lambda c: busy[c][1])
+                left = busy[first][1] - time.monotonic()
+                ready = wait(list(busy), None if math.isinf(left) else max(left, 0.0))
+                if not ready and time.monotonic() >= busy[first][1]:
+                    raise self._timed_out(first, busy[first][0], timeout)
+                for connection in ready:
+                    index, _ = busy.pop(connection)
                     status, payload = self._receive(connection)
                     if status == "ok":
                         results[index] = payload
                     elif error is None:
                         error = payload
                     if pending and error is None:
-                        busy[connection] = pending.pop()
-                        self._send(connection, tasks[busy[connection]])
+                        hand_out(connection)
         except BaseException:
-            self.close()  # a worker died, or the caller was interrupted with tasks in flight
+            self.close()  # a worker died or hangs, or the caller was interrupted with tasks in flight
             raise
         if error is not None:
             raise error
@@ -139,10 +163,18 @@ class RenderPool:
         except (EOFError, OSError):
             raise self._died(connection) from None
 
+    def _worker(self, connection: Connection) -> Any:
+        return self.processes[self._connections.index(connection)]
+
     def _died(self, connection: Connection) -> RuntimeError:
-        process = self.processes[self._connections.index(connection)]
+        process = self._worker(connection)
         process.join(1.0)
         return RuntimeError(f"SidarAugment render worker (pid {process.pid}) died with exit code {process.exitcode}")
+
+    def _timed_out(self, connection: Connection, index: int, timeout: float) -> TimeoutError:
+        return TimeoutError(f"SidarAugment render worker (pid {self._worker(connection).pid}) sent no result for "
+                            f"image {index} of the batch within timeout={timeout} s; the render pool is closed "
+                            "(the next call starts a new one)")
 
     def close(self) -> None:
         """Stop the workers (safe to call twice; does nothing in a process that does not own the pool)."""
@@ -153,29 +185,32 @@ class RenderPool:
 
 
 def _shut_down(pid: int, connections: list[Connection], processes: list) -> None:
-    """Ask each worker to stop (closing its pipe), wait a little, then terminate stragglers."""
+    """Ask each worker to stop (closing its pipe), wait a little, then terminate stragglers and kill
+    those that do not end (a stopped process does not act on SIGTERM)."""
     if os.getpid() != pid:
         return
     for connection in connections:
         connection.close()
     for process in processes:
         process.join(2.0)
-        if process.is_alive():
-            process.terminate()
-            process.join(1.0)
+        for end in (process.terminate, process.kill):
+            if process.is_alive():
+                end()
+                process.join(1.0)
 
 
-def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_pid: int) -> None:
-    """Render tasks from ``connection`` until it closes or the parent dies."""
+def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_pid: int,
+                 death_signal: bool, inherited: set[int]) -> None:
+    """Render tasks from ``connection`` until it closes or the parent dies (``inherited``: the
+    parent's descriptors at the fork, less ``connection``'s)."""
+    exit_with_parent(parent_pid, death_signal=death_signal)
+    release_inherited_descriptors(inherited)
     torch.set_num_threads(1)
     forks_nothing()  # a worker forks nothing: Mesa's disk cache may serve its shader variants
     while True:
         try:
-            while not connection.poll(_PARENT_CHECK_S):
-                if os.getppid() != parent_pid:
-                    return
             task = connection.recv()
-        except (EOFError, OSError):
+        except (EOFError, OSError):  # the pool closed this pipe, or the parent died
             return
         try:
             reply = ("ok", render_task(config, crop, task))
@@ -183,7 +218,7 @@ def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_
             reply = ("error", _portable(exc))
         try:
             connection.send(reply)
-        except (BrokenPipeError, OSError):
+        except OSError:  # BrokenPipeError: the parent is gone
             return
 
 

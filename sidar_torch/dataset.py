@@ -42,7 +42,9 @@ class SidarDataset(IterableDataset):
         source: the paintings: ``None`` (built-in procedural paintings), a folder, an image path
             or list of paths, a tensor ``(N, 3, h, w)`` / ``(3, h, w)``, a sequence of tensors or
             PIL images, or any indexable dataset of images (see ``sidar_torch.sources``). Images that
-            cannot be read raise or are skipped as ``config.on_bad_image`` says.
+            cannot be read, or whose files claim more than ``config.max_image_pixels`` pixels, raise or
+            are skipped as ``config.on_bad_image`` says; with ``"skip"``, call ``ds.source.scan()``
+            once before iterating to drop them up front (see ``sidar_torch.sources``, "Bad input").
         config: a :class:`SidarConfig`, a preset name or a YAML path (default ``"misaligned"``).
         seed: the dataset's seed (integer >= 0).
         length: ``None`` for an endless stream, or ``N``: indices ``0..N-1``, each exactly once
@@ -84,7 +86,8 @@ class SidarDataset(IterableDataset):
         if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
         self.config = load_config(config if config is not None else "misaligned")
-        self.source: PaintingSource = make_source(source, crop=crop, on_bad_image=self.config.on_bad_image)
+        self.source: PaintingSource = make_source(source, crop=crop, on_bad_image=self.config.on_bad_image,
+                                                  max_pixels=self.config.max_image_pixels)
         self.seed = as_int("seed", seed, 0)
         self.length = None if length is None else as_int("length", length, 1)
         self._epoch = torch.zeros((), dtype=torch.int64).share_memory_()

@@ -173,14 +173,16 @@ def _unit(values: np.ndarray) -> torch.Tensor:
 
 def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, torch.Tensor]:
     """Batch sample dicts of one config: every tensor key stacked (a leading ``B``),
-    ``homography_error`` as ``(B,)`` float32 (every device holds it) and ``index`` as ``(B,)`` int64."""
+    ``homography_error`` as ``(B,)`` float64 and ``index`` as ``(B,)`` int64, the dtypes
+    ``DataLoader``'s default collation gives these Python numbers, so a batch is the same whoever
+    made it (``DataLoader``, ``SidarAugment``, the Ray batches)."""
     batch = {}
     for key in samples[0]:
         values = [s[key] for s in samples]
         if isinstance(values[0], torch.Tensor):
             batch[key] = torch.stack(values)
         else:
-            batch[key] = torch.tensor(values, dtype=torch.int64 if isinstance(values[0], int) else torch.float32)
+            batch[key] = torch.tensor(values, dtype=torch.int64 if isinstance(values[0], int) else torch.float64)
     return batch
 
 

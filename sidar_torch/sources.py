@@ -7,8 +7,9 @@ passes as ``source`` into a :class:`PaintingSource`:
 * ``None`` -> :class:`ProceduralPaintings`, a deterministic generator of
   synthetic paintings, so that the package runs with no data at all;
 * a folder -> :class:`ImageFiles` over every image file below it (recursively,
-  following symbolic links to folders but not links that loop back to a folder
-  above them; extensions in :data:`IMAGE_EXTENSIONS`, case-insensitive), sorted
+  following symbolic links to folders, each real folder once however many links
+  reach it, so loops end and the listing stays linear in the number of folders;
+  extensions in :data:`IMAGE_EXTENSIONS`, case-insensitive), sorted
   by their relative POSIX path so that the order is the same on every machine;
   files are named by absolute paths, so one folder spelled two ways is one source;
 * a single image file, or a list/tuple of image files -> :class:`ImageFiles`
@@ -70,16 +71,30 @@ opens them as 8-bit ``RGB``/``RGBA``, keeping the high byte of each value
 
 Large images
 ------------
-Files are decoded only when a painting is requested. Images with more pixels
-than ``PIL.Image.MAX_IMAGE_PIXELS`` (Pillow's decompression-bomb limit) are
-not rejected: the (process-global) limit is lifted while a file is opened
-and decoded, and restored afterwards. Such an image triggers a
-:class:`UserWarning`; if it is a JPEG it is decoded directly at 1/2, 1/4 or
-1/8 scale (libjpeg DCT scaling via ``Image.draft``) but never below the
-output size, and the crop box is computed on the reduced image (the
-reduction rounds image sizes up, which can shift the crop by less than one
-reduced pixel). Other formats are decoded at full size, so a truly huge
-non-JPEG file needs the memory for all its pixels.
+Files are decoded only when a painting is requested, and only if the size
+their header claims (``Image.open`` reads the header alone) is within a pixel
+budget, ``max_pixels`` (the config field ``max_image_pixels``, default
+:data:`MAX_IMAGE_PIXELS` = ``2**28`` = 268,435,456, e.g. 16384 x 16384: far
+above any real painting), for every format. A file above it is a bad image
+(see below: :class:`ImageTooLargeError` naming the file and its size, or
+skipped), so a small file that claims a huge size (a "decompression bomb": a
+1.2 KB PNG can claim 100000 x 100000) never takes the memory. Raise the budget
+for larger paintings; decoding needs about 3 bytes per pixel, and more while
+converting.
+
+Pillow's own, process-wide limit ``PIL.Image.MAX_IMAGE_PIXELS`` (89,478,485 by
+default) applies too, and this package never changes it: Pillow warns
+(``DecompressionBombWarning``) above it and refuses images above twice it
+(178,956,970 pixels by default), which is then a bad image whose message says
+so. A program that paints with larger images sets
+``PIL.Image.MAX_IMAGE_PIXELS = None`` (Pillow's switch) and lets
+``max_image_pixels`` decide.
+
+A JPEG with more than :data:`JPEG_DRAFT_PIXELS` (89,478,485) pixels is
+decoded directly at 1/2, 1/4 or 1/8 scale (libjpeg DCT scaling via
+``Image.draft``) but never below the output size, and the crop box is computed
+on the reduced image (the reduction rounds image sizes up, which can shift the
+crop by less than one reduced pixel). Other formats are decoded at full size.
 
 Bad input
 ---------
@@ -92,29 +107,44 @@ tensor or dataset (``ValueError``); a tensor of the wrong shape or dtype, with
 NaN or infinite values, or float values outside ``[0, 1]`` (``ValueError``
 naming the item and what was expected).
 
-Files and dataset items are read only when their painting is requested, so a
-bad one is found then: a truncated or corrupt file, a non-image file with an
-image extension, a file without read permission or deleted since the folder
+Files and dataset items are read only when their painting is requested (or by
+``source.scan()``), so a bad one is found then: a truncated or corrupt file, a
+file whose header claims more pixels than ``max_pixels``, a non-image file with
+an image extension, a file without read permission or deleted since the folder
 was listed, a dataset item whose loading raises or that is not an image. The
 ``on_bad_image`` argument (``SidarConfig.on_bad_image``) decides:
 
 * ``"raise"`` (default): the error propagates. Files give ``ValueError``
-  ("cannot decode image file '<path>': <Pillow's reason>") or the OS error
-  (``PermissionError``, ``FileNotFoundError``), which names the file; dataset
-  items give whatever the dataset raised, or ``TypeError`` / ``ValueError``
-  naming the item if it is not a valid image.
-* ``"skip"``: painting ``i`` is the first readable image of ``i, i + 1, ...``
-  (wrapping around). Each unreadable image gives one :class:`BadImageWarning`
-  naming it and the error, and is recorded in the source's ``bad_images``
-  (``{name: reason}``; the name is the file's absolute path or ``"dataset item <i>"``)
-  so that it is not read again; ``len(bad_images)`` is the count. A process
-  warns once per image, whichever source met it. The painting an index shows
-  depends only on the index and on which images are readable, not on the
-  order of requests or on the process. Each DataLoader worker keeps its own
-  ``bad_images``, which never reach the main process: to learn which images
-  are unreadable there (and keep workers silent), call ``source.scan()``
-  before iterating or exporting (``SidarDataset(...).source.scan()``). If no
-  image can be read at all, ``ValueError``.
+  ("cannot decode image file '<path>': <Pillow's reason>"),
+  :class:`ImageTooLargeError` (a ``ValueError`` with the path and the size) or
+  the OS error (``PermissionError``, ``FileNotFoundError``), which names the
+  file; dataset items give whatever the dataset raised, or ``TypeError`` /
+  ``ValueError`` naming the item if it is not a valid image.
+* ``"skip"``: an unreadable image gives one :class:`BadImageWarning` per
+  process, located at the image (``<path>:0: BadImageWarning: ...``, so that
+  the file is what the warning points at), and is recorded in the source's
+  ``bad_images`` (``{name: reason}``; the name is the file's absolute path or
+  ``"dataset item <i>"``) so that it is not read again. Which painting an index
+  then shows depends on whether the source was scanned:
+
+  - **after** ``source.scan()`` (recommended: call it once in the main process,
+    before iterating or exporting): every image is read once up front and the
+    unreadable ones are dropped, so ``len(source)`` counts readable images,
+    every index shows its own painting, the main process knows every bad image
+    (``scan()`` returns them) and DataLoader workers neither read nor warn
+    about them again. The scan costs one decode per image (at reduced scale for
+    large JPEGs), which is why it is not done when the source is built.
+  - **without a scan**, or for an image that turns bad after it (deleted, say):
+    painting ``i`` is the first readable image of ``i, i + 1, ...`` (wrapping
+    around), so the bad image's index shows the same painting as the next
+    index. This keeps a sample a pure function of its index and of which images
+    are readable, in every process and any order of requests, but two samples
+    show one painting. Each process (every DataLoader worker, and a fresh set of
+    workers each epoch unless ``persistent_workers=True``) finds and warns
+    about the bad images it meets on its own, and its ``bad_images`` never
+    reach the main process.
+
+  If no image can be read at all, ``ValueError``.
 
 Damage that the decoder reads through (e.g. flipped bits inside JPEG data,
 which libjpeg decodes with artefacts) cannot be detected and gives a painting.
@@ -126,11 +156,10 @@ so that they can be pickled and sent to ``DataLoader`` worker processes.
 from __future__ import annotations
 
 import abc
-import contextlib
 import operator
 import os
 import warnings
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -139,7 +168,7 @@ import torch
 from PIL import ExifTags, Image, ImageOps
 
 from . import procedural
-from .config import ON_BAD_IMAGE
+from .config import ON_BAD_IMAGE, SidarConfig
 
 __all__ = [
     "IMAGE_EXTENSIONS",
@@ -149,11 +178,14 @@ __all__ = [
     "PaintingSource",
     "ProceduralPaintings",
     "ImageFiles",
+    "ImageTooLargeError",
+    "MAX_IMAGE_PIXELS",
     "TensorPaintings",
     "ImageList",
     "DatasetPaintings",
     "fit_painting",
     "make_source",
+    "tensor_to_uint8",
 ]
 
 PaintingSize = tuple[int, int]
@@ -176,6 +208,13 @@ whichever source (or copy of a source) met it. Forked workers inherit it."""
 
 
 _ROTATING_ORIENTATIONS = frozenset({5, 6, 7, 8})  # EXIF orientations that swap width and height
+
+MAX_IMAGE_PIXELS: int = SidarConfig.max_image_pixels
+"""Default pixel budget of an image file (``2**28``, the config field ``max_image_pixels``'s default)."""
+
+JPEG_DRAFT_PIXELS = 1024 * 1024 * 1024 // 4 // 3
+"""JPEGs with more pixels than this (89,478,485, Pillow's default decompression-bomb limit, where reduced
+decoding started before) are decoded at reduced scale (see "Large images" in the module docstring)."""
 
 
 # --------------------------------------------------------------------------- validation
@@ -291,23 +330,36 @@ def _to_rgb(image: Image.Image) -> Image.Image:
     return image if image.mode == "RGB" else image.convert("RGB")
 
 
-def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image tensor") -> torch.Tensor:
+def tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image tensor",
+                     grey: bool = False) -> torch.Tensor:
     """Validate an image tensor and return it as a contiguous CPU ``uint8`` tensor.
+
+    The one conversion of image tensors to 8-bit pixels: painting sources and ``SidarAugment`` use it.
 
     Args:
         tensor: ``(N, 3, h, w)`` or ``(3, h, w)`` if ``batched``, else
-            ``(3, h, w)``. Float values must be finite and in ``[0, 1]``
-            (converted with ``round(x * 255)``); ``uint8`` is taken as is.
+            ``(3, h, w)``; with ``grey``, one channel (``(N, 1, h, w)``,
+            ``(1, h, w)``) is accepted too and copied to the three. Float
+            values must be finite and in ``[0, 1]`` (converted with
+            ``round(x * 255)``); ``uint8`` is taken as is.
         batched: whether a leading batch dimension is allowed.
         name: how error messages name the tensor.
+        grey: whether one-channel images are accepted.
 
     Returns:
         ``uint8`` tensor, ``(N, 3, h, w)`` if ``batched`` (a single image gets
         ``N = 1``), else ``(3, h, w)``.
+
+    Raises:
+        ValueError: wrong shape (naming the shapes expected), empty, NaN or
+            infinite values, float values outside ``[0, 1]``, or a dtype that
+            is neither floating point nor ``uint8``.
     """
-    expected = "(N, 3, h, w) or (3, h, w)" if batched else "(3, h, w)"
+    channels = (1, 3) if grey else (3,)
+    single = " or ".join(f"({c}, h, w)" for c in reversed(channels))
+    expected = f"(N, 3, h, w){' or (N, 1, h, w)' if grey else ''} or {single}" if batched else single
     shape = tuple(tensor.shape)
-    if tensor.ndim not in ((3, 4) if batched else (3,)) or shape[-3] != 3:
+    if tensor.ndim not in ((3, 4) if batched else (3,)) or shape[-3] not in channels:
         raise ValueError(f"{name} must have shape {expected}, got {shape}")
     if tensor.numel() == 0:
         raise ValueError(f"{name} is empty: shape {shape}")
@@ -324,7 +376,8 @@ def _tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image 
         result = (tensor * 255).round().to(torch.uint8)
     else:
         raise ValueError(f"{name} dtype must be a float type or torch.uint8, got {tensor.dtype}")
-    return result.unsqueeze(0) if batched and result.ndim == 3 else result
+    result = result.unsqueeze(0) if batched and result.ndim == 3 else result
+    return result.expand(*result.shape[:-3], 3, *result.shape[-2:]).contiguous() if result.shape[-3] == 1 else result
 
 
 def _chw_to_image(tensor: torch.Tensor) -> Image.Image:
@@ -335,55 +388,59 @@ def _chw_to_image(tensor: torch.Tensor) -> Image.Image:
 # --------------------------------------------------------------------------- file decoding
 
 
-@contextlib.contextmanager
-def _pixel_limit_lifted() -> Iterator[int | None]:
-    """Disable Pillow's decompression-bomb check; yield the previous limit.
-
-    The limit is process-global; it is restored on exit.
-    """
-    limit = Image.MAX_IMAGE_PIXELS
-    Image.MAX_IMAGE_PIXELS = None
-    try:
-        yield limit
-    finally:
-        Image.MAX_IMAGE_PIXELS = limit
+class ImageTooLargeError(ValueError):
+    """An image file's header claims more pixels than the budget ``max_image_pixels`` allows."""
 
 
-def _draft_large_image(image: Image.Image, path: str, size: PaintingSize, limit: int) -> None:
-    """Warn about an image above the pixel limit and let JPEGs decode at reduced scale."""
-    warnings.warn(
-        f"{path}: {image.width}x{image.height} pixels exceeds PIL.Image.MAX_IMAGE_PIXELS={limit}; "
-        "decoding anyway (JPEG at reduced scale, no smaller than the output size)",
-        UserWarning,
-        stacklevel=2,
-    )
+def _check_pixels(image: Image.Image, path: str, max_pixels: int) -> None:
+    """Refuse an opened (not yet decoded) image above ``max_pixels``: Pillow has read only its header."""
+    pixels = image.width * image.height
+    if pixels > max_pixels:
+        raise ImageTooLargeError(
+            f"image file {path!r} is {image.height} x {image.width} (H x W) = {pixels} pixels, more than "
+            f"max_image_pixels={max_pixels} (read from its header; nothing decoded): raise the config field "
+            "max_image_pixels to paint with it")
+
+
+def _draft_large_jpeg(image: Image.Image, size: PaintingSize) -> None:
+    """Let a JPEG above :data:`JPEG_DRAFT_PIXELS` decode at 1/2, 1/4 or 1/8 scale, never below ``size``."""
+    if image.width * image.height <= JPEG_DRAFT_PIXELS:
+        return
     height, width = size
     if image.getexif().get(ExifTags.Base.Orientation) in _ROTATING_ORIENTATIONS:
         height, width = width, height
     image.draft(None, (width, height))  # no-op for formats other than JPEG
 
 
-def _load_image(path: str | os.PathLike[str], size: PaintingSize) -> Image.Image:
-    """Decode an image file to 8-bit RGB (EXIF orientation applied).
+def _load_image(path: str | os.PathLike[str], size: PaintingSize, max_pixels: int = MAX_IMAGE_PIXELS) -> Image.Image:
+    """Decode an image file to 8-bit RGB (EXIF orientation applied), if its header is within budget.
 
     Args:
         path: image file.
         size: ``(H, W)`` the image will be resampled to; only used to choose
-            the reduced decoding scale of JPEGs above Pillow's pixel limit.
+            the reduced decoding scale of large JPEGs.
+        max_pixels: the most pixels (width x height, from the header) decoded.
 
     Raises:
         FileNotFoundError, PermissionError, IsADirectoryError: from the OS.
+        ImageTooLargeError: the header claims more than ``max_pixels`` pixels
+            (message has path and size).
         ValueError: the file cannot be decoded (message has path and cause).
     """
     path = os.fspath(path)
     try:
-        with _pixel_limit_lifted() as limit, Image.open(path) as image:
-            if limit is not None and image.width * image.height > limit:
-                _draft_large_image(image, path, size, limit)
+        with Image.open(path) as image:  # reads the header only
+            _check_pixels(image, path, max_pixels)
+            _draft_large_jpeg(image, size)
             image.load()
             return _to_rgb(image)
-    except (FileNotFoundError, PermissionError, IsADirectoryError):
+    except (FileNotFoundError, PermissionError, IsADirectoryError, ImageTooLargeError):
         raise
+    except Image.DecompressionBombError as exc:
+        raise ValueError(
+            f"cannot decode image file {path!r}: Pillow refuses it ({exc}); PIL.Image.MAX_IMAGE_PIXELS is "
+            f"Pillow's own process-wide limit: a program that paints with such images sets it to None, and "
+            f"max_image_pixels={max_pixels} decides") from exc
     except Exception as exc:  # Pillow raises many types for corrupt data
         raise ValueError(f"cannot decode image file {path!r}: {type(exc).__name__}: {exc}") from exc
 
@@ -392,21 +449,30 @@ def _list_images(folder: Path) -> list[str]:
     """Every image file below ``folder`` (recursive, following symbolic links to folders), sorted by
     relative POSIX path.
 
-    A linked folder is listed once per path that reaches it, but a link back to a folder that
-    contains it (a loop) is not followed. Unreadable folders raise the OS error (e.g.
-    ``PermissionError``), which names the folder.
+    Each real folder is walked once, whatever number of links reach it: a folder already walked
+    (the same ``(st_dev, st_ino)``) is not entered again, so a loop ends and a tree with several
+    links per level stays linear. Sub-folders are walked in sorted order, so which of several paths
+    names a linked folder is the same on every machine: the first in that order. Unreadable folders
+    raise the OS error (e.g. ``PermissionError``), which names the folder.
     """
 
     def fail(error: OSError) -> None:
         raise error
 
+    def identity(path: str) -> tuple[int, int]:
+        status = os.stat(path)
+        return status.st_dev, status.st_ino
+
+    walked = {identity(folder)}
     found: list[tuple[str, str]] = []
     for dirpath, dirnames, filenames in os.walk(folder, onerror=fail, followlinks=True):
-        # The real folders on the way from ``folder`` down to here: a subfolder that is one of them
-        # would walk the same tree again, forever.
-        steps = Path(os.path.relpath(dirpath, folder)).parts
-        above = {os.path.realpath(os.path.join(folder, *steps[:depth])) for depth in range(len(steps) + 1)}
-        dirnames[:] = [d for d in dirnames if os.path.realpath(os.path.join(dirpath, d)) not in above]
+        fresh = []
+        for name in sorted(dirnames):
+            key = identity(os.path.join(dirpath, name))
+            if key not in walked:
+                walked.add(key)
+                fresh.append(name)
+        dirnames[:] = fresh
         for name in filenames:
             if os.path.splitext(name)[1].lower() in IMAGE_EXTENSIONS:
                 full = os.path.join(dirpath, name)
@@ -463,102 +529,135 @@ class _ImageSource(PaintingSource):
 class _ReadingSource(_ImageSource):
     """An image source that reads each image only when its painting is requested, so reading can fail.
 
-    What happens to an image that cannot be read is ``on_bad_image``'s choice
-    (see "Bad input" in the module docstring); the images skipped so far are
-    in ``bad_images``, ``{name: "<error type>: <message>"}``.
+    What happens to an image that cannot be read is ``on_bad_image``'s choice (see "Bad input" in
+    the module docstring).
+
+    Attributes:
+        bad_images: ``{name: "<error type>: <message>"}`` of the images *this process* found
+            unreadable so far (a DataLoader worker's never reach the main process: :meth:`scan`
+            finds them all up front).
+        kept: the positions, in the source's own list (files, dataset items), of the images that
+            indices ``0 .. len(self) - 1`` show: all of them, until :meth:`scan` with
+            ``on_bad_image="skip"`` drops the unreadable ones.
     """
 
-    def __init__(self, crop: str, on_bad_image: str) -> None:
+    def __init__(self, crop: str, on_bad_image: str, count: int) -> None:
         super().__init__(crop)
         self.on_bad_image = _check_choice("on_bad_image", on_bad_image, ON_BAD_IMAGE)
         self.bad_images: dict[str, str] = {}
+        self.kept: Sequence[int] = range(count)
+
+    def __len__(self) -> int:
+        return len(self.kept)
 
     def scan(self, size: PaintingSize = (64, 64)) -> dict[str, str]:
-        """Read every image once (at ``size``, a cheap draft for JPEGs) and record the unreadable ones.
+        """Read every image once (at ``size``, a cheap draft for large JPEGs) and record the unreadable ones.
 
-        Call it in the main process before handing the dataset to DataLoader workers: the workers
-        get the source with ``bad_images`` filled, so they neither read nor warn about those files
-        again, and the main process knows them (a worker's own ``bad_images`` never reaches it).
+        With ``on_bad_image="skip"`` they are then dropped: ``len(self)`` counts the readable images
+        and each index shows its own painting (no two indices show one image, as the fallback to the
+        next readable image does for an image found bad later). Indices map to other images after
+        the scan than before it: call it once, in the main process, before iterating or exporting.
+        The DataLoader workers then get the source with the bad images already dropped, so they
+        neither read nor warn about them. With ``on_bad_image="raise"`` the images are only
+        reported (requesting one still raises).
 
         Returns:
             ``bad_images``: ``{name: "<error type>: <message>"}`` of every image that cannot be read.
+
+        Raises:
+            ValueError: ``on_bad_image="skip"`` and no image can be read.
         """
         size = _check_size(size)
-        for index in range(len(self)):
-            name = self._name(index)
-            if name in self.bad_images:
-                continue
-            try:
-                self._read(index, size)
-            except Exception as exc:  # as in _image
-                self._record_bad(name, exc)
+        for position in self.kept:
+            name = self._name(position)
+            if name not in self.bad_images:
+                try:
+                    self._read(position, size)
+                except Exception as exc:  # as in _image
+                    self._record_bad(name, exc)
+        if self.on_bad_image == "skip":
+            readable = [position for position in self.kept if self._name(position) not in self.bad_images]
+            if not readable:
+                raise self._none_readable(self._name(self.kept[0]))
+            self.kept = readable
         return dict(self.bad_images)
 
     def _record_bad(self, name: str, exc: Exception) -> None:
-        """Remember that image ``name`` cannot be read; warn unless this process warned about it before."""
+        """Remember that image ``name`` cannot be read; warn unless this process warned about it before.
+
+        The warning's location is the image itself (``<name>:0``), not a line of this package: it is
+        the file to look at, wherever (which worker, which call) it was met."""
         self.bad_images[name] = f"{type(exc).__name__}: {exc}"
         if name not in _WARNED:
             _WARNED.add(name)
-            warnings.warn(f"on_bad_image='skip': skipping unreadable image {name}: {self.bad_images[name]}",
-                          BadImageWarning, stacklevel=4)
+            warnings.warn_explicit(
+                f"on_bad_image='skip': skipping unreadable image {name}: {self.bad_images[name]} (each process "
+                "warns once per image; source.scan() in the main process finds every unreadable image up front "
+                "and drops them)", BadImageWarning, filename=name, lineno=0)
+
+    def _none_readable(self, name: str) -> ValueError:
+        return ValueError(
+            f"on_bad_image='skip', but none of the {len(self.kept)} images of this {type(self).__name__} can be "
+            f"read; {name}: {self.bad_images[name]}")
 
     @abc.abstractmethod
-    def _read(self, index: int, size: PaintingSize) -> Image.Image:
-        """Read image ``index`` as in :meth:`_image`, raising whatever reading raises."""
+    def _read(self, position: int, size: PaintingSize) -> Image.Image:
+        """Read the image at ``position`` of the source's own list as in :meth:`_image`, raising whatever
+        reading raises."""
 
     @abc.abstractmethod
-    def _name(self, index: int) -> str:
-        """How warnings and errors name image ``index``."""
+    def _name(self, position: int) -> str:
+        """How warnings and errors name the image at ``position`` of the source's own list."""
 
     def _image(self, index: int, size: PaintingSize) -> Image.Image:
         if self.on_bad_image == "raise":
-            return self._read(index, size)
+            return self._read(self.kept[index], size)
         for offset in range(len(self)):
-            candidate = (index + offset) % len(self)
-            name = self._name(candidate)
+            position = self.kept[(index + offset) % len(self)]
+            name = self._name(position)
             if name in self.bad_images:
                 continue
             try:
-                return self._read(candidate, size)
+                return self._read(position, size)
             except Exception as exc:  # Pillow and users' datasets raise many types for bad data
                 self._record_bad(name, exc)
-        name = self._name(index)
-        raise ValueError(
-            f"on_bad_image='skip', but none of the {len(self)} images of this {type(self).__name__} can be read; "
-            f"{name}: {self.bad_images[name]}"
-        )
+        raise self._none_readable(self._name(self.kept[index]))
 
 
 class ImageFiles(_ReadingSource):
     """Paintings read lazily from image files, in the given order.
 
     Args:
-        paths: image files; they are opened only in :meth:`painting`.
+        paths: image files; they are opened only in :meth:`painting` (or :meth:`scan`).
         crop: see :func:`fit_painting`.
         on_bad_image: ``"raise"`` or ``"skip"``, for a file that cannot be
             read (see "Bad input" in the module docstring).
+        max_pixels: the pixel budget of a file (width x height, read from its
+            header before decoding; the config field ``max_image_pixels``): a
+            larger file is a bad image.
 
     With ``"raise"``, a file that cannot be decoded raises ``ValueError``
-    naming it and the cause; a missing or unreadable one raises the OS error
-    (``FileNotFoundError``, ``PermissionError``), which names it too.
+    naming it and the cause (:class:`ImageTooLargeError`, a ``ValueError``,
+    for one above ``max_pixels``, with its size); a missing or unreadable one
+    raises the OS error (``FileNotFoundError``, ``PermissionError``), which
+    names it too.
     """
 
-    def __init__(
-        self, paths: Sequence[str | os.PathLike[str]], *, crop: str = "center", on_bad_image: str = "raise"
-    ) -> None:
-        super().__init__(crop, on_bad_image)
+    def __init__(self, paths: Sequence[str | os.PathLike[str]], *, crop: str = "center", on_bad_image: str = "raise",
+                 max_pixels: int = MAX_IMAGE_PIXELS) -> None:
+        super().__init__(crop, on_bad_image, len(paths))
         self.paths = tuple(os.path.abspath(path) for path in paths)
         if not self.paths:
             raise ValueError("ImageFiles needs at least one path, got an empty list")
+        self.max_pixels = operator.index(max_pixels)
+        if self.max_pixels < 1:
+            raise ValueError(f"max_pixels must be at least 1, got {self.max_pixels}")
 
-    def __len__(self) -> int:
-        return len(self.paths)
+    def _name(self, position: int) -> str:
+        return self.paths[position]
 
-    def _name(self, index: int) -> str:
-        return self.paths[index]
-
-    def _read(self, index: int, size: PaintingSize) -> Image.Image:
-        return _load_image(self.paths[index], size)
+    def _read(self, position: int, size: PaintingSize) -> Image.Image:
+        return _load_image(self.paths[position], size, self.max_pixels)
 
 
 class TensorPaintings(_ImageSource):
@@ -572,7 +671,7 @@ class TensorPaintings(_ImageSource):
 
     def __init__(self, images: torch.Tensor, *, crop: str = "center") -> None:
         super().__init__(crop)
-        self.images = _tensor_to_uint8(images, batched=True)
+        self.images = tensor_to_uint8(images, batched=True)
 
     def __len__(self) -> int:
         return self.images.shape[0]
@@ -618,28 +717,25 @@ class DatasetPaintings(_ReadingSource):
     """
 
     def __init__(self, dataset: Any, *, crop: str = "center", on_bad_image: str = "raise") -> None:
-        super().__init__(crop, on_bad_image)
+        super().__init__(crop, on_bad_image, len(dataset))
         if len(dataset) == 0:
             raise ValueError("source dataset is empty")
         self.dataset = dataset
 
-    def __len__(self) -> int:
-        return len(self.dataset)
+    def _name(self, position: int) -> str:
+        return f"dataset item {position}"
 
-    def _name(self, index: int) -> str:
-        return f"dataset item {index}"
-
-    def _read(self, index: int, size: PaintingSize) -> Image.Image:
-        item = self.dataset[index]
+    def _read(self, position: int, size: PaintingSize) -> Image.Image:
+        item = self.dataset[position]
         if isinstance(item, (tuple, list)) and item:
             item = item[0]
-        return _item_to_image(item, index)
+        return _item_to_image(item, position)
 
 
 def _item_to_image(item: Any, position: int) -> Image.Image:
     """A ``(3, h, w)`` tensor or PIL image -> PIL RGB image; else ``TypeError``."""
     if isinstance(item, torch.Tensor):
-        return _chw_to_image(_tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
+        return _chw_to_image(tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
     if isinstance(item, Image.Image):
         return _to_rgb(item)
     raise TypeError(
@@ -688,24 +784,24 @@ _ACCEPTED = (
 )
 
 
-def _source_from_path(path: str | os.PathLike[str], crop: str, on_bad_image: str) -> ImageFiles:
+def _source_from_path(path: str | os.PathLike[str], crop: str, on_bad_image: str, max_pixels: int) -> ImageFiles:
     if not os.path.isdir(path):
         _check_files([path])
-        return ImageFiles([path], crop=crop, on_bad_image=on_bad_image)
+        return ImageFiles([path], crop=crop, on_bad_image=on_bad_image, max_pixels=max_pixels)
     files = _list_images(Path(path))
     if not files:
         raise ValueError(
             f"no image files ({', '.join(sorted(IMAGE_EXTENSIONS))}) found in folder {os.fspath(path)!r} or below"
         )
-    return ImageFiles(files, crop=crop, on_bad_image=on_bad_image)
+    return ImageFiles(files, crop=crop, on_bad_image=on_bad_image, max_pixels=max_pixels)
 
 
-def _source_from_sequence(items: Sequence[Any], crop: str, on_bad_image: str) -> PaintingSource:
+def _source_from_sequence(items: Sequence[Any], crop: str, on_bad_image: str, max_pixels: int) -> PaintingSource:
     if len(items) == 0:
         raise ValueError("source is an empty list/tuple")
     if all(isinstance(item, (str, os.PathLike)) for item in items):
         _check_files(items)
-        return ImageFiles(items, crop=crop, on_bad_image=on_bad_image)
+        return ImageFiles(items, crop=crop, on_bad_image=on_bad_image, max_pixels=max_pixels)
     if all(isinstance(item, (torch.Tensor, Image.Image)) for item in items):
         return ImageList(items, crop=crop)
     raise TypeError(
@@ -722,7 +818,8 @@ def _is_dataset(obj: Any) -> bool:
     )
 
 
-def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise") -> PaintingSource:
+def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise",
+                max_pixels: int = MAX_IMAGE_PIXELS) -> PaintingSource:
     """Build the painting source for ``source`` (see the module docstring for the accepted kinds).
 
     Args:
@@ -734,6 +831,8 @@ def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise
             lazily (files, folders, datasets) do with an image that cannot be
             read (see "Bad input" in the module docstring; ignored for the
             other kinds and for an existing source).
+        max_pixels: the pixel budget of an image file (see "Large images" in
+            the module docstring; the config field ``max_image_pixels``).
 
     Raises:
         TypeError: ``source`` is of no accepted kind.
@@ -750,11 +849,11 @@ def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise
     if isinstance(source, PaintingSource):
         return source
     if isinstance(source, (str, os.PathLike)):
-        return _source_from_path(source, crop, on_bad_image)
+        return _source_from_path(source, crop, on_bad_image, max_pixels)
     if isinstance(source, torch.Tensor):
         return TensorPaintings(source, crop=crop)
     if isinstance(source, (list, tuple)):
-        return _source_from_sequence(source, crop, on_bad_image)
+        return _source_from_sequence(source, crop, on_bad_image, max_pixels)
     if _is_dataset(source):
         return DatasetPaintings(source, crop=crop, on_bad_image=on_bad_image)
     raise TypeError(f"source must be one of: {_ACCEPTED}; got {type(source).__name__}")

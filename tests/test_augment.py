@@ -48,7 +48,7 @@ def test_output_format_from_a_float64_batch_of_another_size():
     for key, shape in shapes.items():
         assert out[key].shape == shape, key
         assert out[key].device.type == "cpu", key
-        pixel = key in {"images", "masks", "label"}
+        pixel = key in {"images", "masks", "label", "homography_error"}  # homography_error: float64 as DataLoader's
         assert out[key].dtype == (torch.int64 if key == "index" else torch.float64 if pixel else torch.float32), key
     assert out["index"].tolist() == [0, 1]
     assert 0 <= out["images"].min() and out["images"].max() <= 1
@@ -138,21 +138,40 @@ def test_outputs_follow_the_input_device():
 
 
 @pytest.mark.parametrize("images, match", [
-    (torch.rand(3, *TINY), r"images: expected shape \(B, 3, h, w\)"),
-    (torch.rand(1, 2, *TINY), r"images: expected shape \(B, 3, h, w\) or \(B, 1, h, w\)"),
-    (torch.rand(1, 3, 0, 5), r"images: expected shape \(B, 3, h, w\) or \(B, 1, h, w\) with h, w >= 1"),
-    (torch.rand(0, 3, *TINY), "images: expected at least one image"),
-    (torch.zeros(1, 3, *TINY, dtype=torch.int32), r"images: expected torch.uint8 \(0..255\) or a floating-point"),
-    (torch.full((1, 3, *TINY), float("nan")), "images: expected finite values"),
-    (torch.full((1, 3, *TINY), float("inf")), "images: expected finite values"),
-    (torch.full((1, 3, *TINY), 1.5), r"images: expected values in \[0, 1\], got range \[1.5, 1.5\]"),
-    (torch.full((1, 3, *TINY), -0.1, dtype=torch.float64), r"images: expected values in \[0, 1\]"),
+    (torch.rand(2, *TINY), r"images must have shape \(N, 3, h, w\) or \(N, 1, h, w\) or \(3, h, w\) or \(1, h, w\)"),
+    (torch.rand(1, 2, *TINY), r"images must have shape .*, got \(1, 2, 48, 64\)"),
+    (torch.rand(2, *TINY)[None, None], r"images must have shape .*, got \(1, 1, 2, 48, 64\)"),
+    (torch.rand(1, 3, 0, 5), r"images is empty: shape \(1, 3, 0, 5\)"),
+    (torch.rand(0, 3, *TINY), "images is empty"),
+    (torch.zeros(1, 3, *TINY, dtype=torch.int32), r"images dtype must be a float type or torch.uint8, got torch.int32"),
+    (torch.full((1, 3, *TINY), float("nan")), "images values must be finite"),
+    (torch.full((1, 3, *TINY), float("inf")), "images values must be finite"),
+    (torch.full((1, 3, *TINY), 1.5), r"images float values must be in \[0, 1\], got range \[1.5, 1.5\]"),
+    (torch.full((1, 3, *TINY), -0.1, dtype=torch.float64), r"images float values must be in \[0, 1\]"),
 ])
 def test_bad_images_are_rejected(images, match):
     aug = tiny_augment()
     with pytest.raises(ValueError, match=match):
         aug(images)
     assert aug.calls == 0
+
+
+def test_one_image_without_a_batch_dimension_is_a_batch_of_one():
+    # issue 20 item 6: kornia takes (C, H, W); SidarAugment refused it.
+    image = paintings(1, TINY)
+    for single in (image[0], image[0, :1]):  # (3, h, w) and (1, h, w)
+        batched = single[None]
+        out, expected = tiny_augment(seed=5)(single), tiny_augment(seed=5)(batched)
+        assert out["images"].shape == (1, 3, 3, *TINY)
+        assert_same_batch(out, expected)
+
+
+def test_homography_error_has_the_dataloaders_dtype():
+    # issue 20 item 6: float64 from a DataLoader, float32 from SidarAugment.
+    config = small_config(n_views=2, image_size=(24, 32), shadow_map_size=256, n_occluders=(0, 0))
+    loader_batch = next(iter(torch.utils.data.DataLoader(SidarDataset(config=config, length=2), batch_size=2)))
+    out = SidarAugment(config, seed=0)(torch.rand(2, 3, 24, 32))
+    assert out["homography_error"].dtype == loader_batch["homography_error"].dtype == torch.float64
 
 
 def test_uint8_grey_and_float64_batches_give_the_float32_pixels_in_their_own_dtype():

@@ -8,11 +8,11 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 import pytest
 import torch
 
 import sidar_torch.augment_pool
+from conftest import alive, child_pids
 from sidar_torch import SidarAugment
 
 pytestmark = pytest.mark.gl  # renders
@@ -29,16 +29,6 @@ def assert_same_batch(a, b):
     assert a.keys() == b.keys()
     for key in a:
         assert torch.equal(a[key], b[key]), key
-
-
-def alive(pid):
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # A zombie (exited, not yet reaped) counts as gone.
-    with open(f"/proc/{pid}/stat") as stat:
-        return stat.read().split(")")[-1].split()[0] != "Z"
 
 
 def wait_gone(pids, seconds=10.0):
@@ -137,3 +127,90 @@ def test_workers_exit_when_the_parent_ends(ending):
     pids = [int(p) for p in run.stdout.split()]
     assert len(pids) == 2, run.stderr
     assert wait_gone(pids) == []
+
+
+def test_a_worker_holds_no_descriptor_of_its_parent_but_its_own_pipe(tmp_path):
+    # issue 25 item 2: each worker kept the parent's end of its own pipe (and of its siblings').
+    with open(tmp_path / "parent.txt", "w") as parent_file:
+        module = augment(2)
+        module(torch.rand(1, 3, *TINY))
+        pool = module._pool
+        parent_ends = {f"socket:[{os.fstat(c.fileno()).st_ino}]" for c in pool._connections}
+        for process in pool.processes:
+            targets = set()
+            for fd in os.listdir(f"/proc/{process.pid}/fd"):
+                try:
+                    targets.add(os.readlink(f"/proc/{process.pid}/fd/{fd}"))
+                except OSError:
+                    continue
+            assert not targets & parent_ends, process.pid
+            assert parent_file.name not in targets
+            assert os.devnull in targets  # the inherited numbers now point at /dev/null
+        module.close()
+
+
+def test_a_stopped_worker_makes_the_call_raise_within_the_timeout_naming_it():
+    # issue 25 item 2: a worker stopped with SIGSTOP blocked the call for good.
+    images = torch.rand(4, 3, *TINY)
+    with pytest.raises(ValueError, match=r"timeout: expected seconds >= 0"):
+        augment(2, timeout=-1)
+    module = augment(2)
+    module(images[:2])  # warm: the workers have rendered once
+    victim = module._pool.processes[0]
+    os.kill(victim.pid, signal.SIGSTOP)
+    module.timeout = 1.0
+    start = time.monotonic()
+    with pytest.raises(TimeoutError, match=rf"render worker \(pid {victim.pid}\) sent no result for image \d of "
+                                           r"the batch within timeout=1.0 s"):
+        module(images)
+    assert time.monotonic() - start < 1.0 + 6.0  # the timeout, then closing: join, SIGTERM, SIGKILL
+    assert wait_gone([victim.pid], 5.0) == []  # the pool is closed, the stopped worker ended
+    module.timeout = 0.0  # a new pool's first images compile shaders: seconds
+    again = module(images[:2])  # call 2: a new pool
+    expected = augment(0)
+    expected.calls = 2
+    assert_same_batch(again, expected(images[:2]))
+    module.close()
+
+
+ORPHAN_PARENT = """
+import fcntl, struct, termios, time, numpy as np
+from sidar_torch import load_config
+from sidar_torch.augment_pool import RenderPool
+config = load_config("misaligned", image_size=(256, 384), n_views=3)
+pool = RenderPool(config, "center", 2)
+image = np.random.default_rng(0).integers(0, 256, (3, 64, 96), dtype=np.uint8)
+for position, connection in enumerate(pool._connections):
+    connection.send((position, [0, position], image))  # replies of about 1.3 MB each, never read
+
+def queued(connection):  # bytes waiting in this end: a full socket buffer means the worker is blocked sending
+    return struct.unpack("i", fcntl.ioctl(connection.fileno(), termios.FIONREAD, bytes(4)))[0]
+
+deadline = time.monotonic() + 120
+while time.monotonic() < deadline and min(map(queued, pool._connections)) < 65536:
+    time.sleep(0.1)
+print(min(map(queued, pool._connections)), *[p.pid for p in pool.processes], flush=True)
+time.sleep(600)
+"""
+
+
+def test_workers_blocked_sending_a_reply_exit_when_the_parent_is_killed():
+    # issue 25 item 2: after kill -9 of the parent, workers blocked in send stayed alive for good.
+    parent = subprocess.Popen([sys.executable, "-c", ORPHAN_PARENT], stdout=subprocess.PIPE, text=True,
+                              cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    pids = []
+    try:
+        queued, *pids = (int(p) for p in parent.stdout.readline().split())
+        assert len(pids) == 2 and set(pids) == child_pids(parent.pid)
+        assert queued >= 65536, "the workers never filled their socket buffers"  # both are blocked in send
+        time.sleep(0.5)
+        assert all(alive(p) for p in pids)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
+        assert wait_gone(pids, 5.0) == []
+    finally:
+        parent.kill()
+        parent.wait()
+        for pid in pids:
+            if alive(pid):
+                os.kill(pid, signal.SIGKILL)

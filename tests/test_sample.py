@@ -78,7 +78,7 @@ def test_stack_samples_batches_every_key():
     batch = stack_samples(samples)
     assert list(batch) == list(samples[0])
     assert batch["images"].shape == (3, 2, 3, 8, 12) and torch.equal(batch["K"][1], samples[1]["K"])
-    assert batch["homography_error"].dtype == torch.float32 and batch["homography_error"].shape == (3,)
+    assert batch["homography_error"].dtype == torch.float64 and batch["homography_error"].shape == (3,)
     assert batch["index"].tolist() == [0, 1, 2] and batch["index"].dtype == torch.int64
 
 
@@ -147,7 +147,7 @@ def test_float64_geometry_through_the_dataloader_and_augment():
         assert torch.equal(sample["homographies"], sequence_homographies(ds.scene(k))[0])
     out = SidarAugment(config, seed=0)(torch.rand(2, 3, 24, 32))
     assert out["homographies"].dtype == torch.float64 and out["K"].dtype == torch.float64
-    assert out["images"].dtype == torch.float32 and out["homography_error"].dtype == torch.float32
+    assert out["images"].dtype == torch.float32 and out["homography_error"].dtype == torch.float64
 
 
 def test_geometry_dtype_is_validated():

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import struct
+import subprocess
+import sys
 import warnings
 import zlib
 from pathlib import Path
@@ -16,11 +19,12 @@ from PIL import Image
 from PIL import JpegImagePlugin
 
 from conftest import SMALL, small_config
-from sidar_torch import SidarDataset
+from sidar_torch import SidarDataset, sources
 from sidar_torch.sources import (
     BadImageWarning,
     DatasetPaintings,
     ImageFiles,
+    ImageTooLargeError,
     ImageList,
     PaintingSource,
     ProceduralPaintings,
@@ -637,7 +641,7 @@ def test_files_are_opened_lazily(tmp_path, monkeypatch):
     assert opened == [str(paths[1])]
 
 
-def test_bomb_sized_jpeg_is_decoded_reduced_with_warning(tmp_path, monkeypatch):
+def test_a_large_jpeg_is_decoded_reduced_never_below_the_output_size(tmp_path, monkeypatch):
     path = _save(_thirds(720, 240), tmp_path / "huge.jpg", quality=95)
     drafts = []
     real_draft = JpegImagePlugin.JpegImageFile.draft
@@ -647,21 +651,111 @@ def test_bomb_sized_jpeg_is_decoded_reduced_with_warning(tmp_path, monkeypatch):
         return real_draft(self, mode, size)
 
     monkeypatch.setattr(JpegImagePlugin.JpegImageFile, "draft", spy)
-    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # 720 * 240 > 2 * 1000: Pillow would raise
-    with pytest.warns(UserWarning, match="huge.jpg"):
-        out = make_source(path).painting(0, (30, 30))
+    monkeypatch.setattr(sources, "JPEG_DRAFT_PIXELS", 1000)  # 720 * 240 is "large"
+    out = make_source(path).painting(0, (30, 30))
     assert drafts == [(30, 30)]
-    assert Image.MAX_IMAGE_PIXELS == 1000  # limit restored
     assert (np.abs(out[:, 3:-3].astype(int) - GREEN) <= 12).all()
 
 
-def test_bomb_sized_png_is_decoded_with_warning(tmp_path, monkeypatch):
-    pixels = _random_rgb(60, 80)
-    path = _save(Image.fromarray(pixels), tmp_path / "huge.png")
-    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 100)
-    with pytest.warns(UserWarning, match="huge.png"):
-        out = make_source(path).painting(0, (60, 80))
-    np.testing.assert_array_equal(out, pixels)
+def test_an_image_above_the_pixel_budget_raises_naming_it_and_its_size_or_is_skipped(tmp_path):
+    # issue 25 item 1: the budget is checked from the header, for every format, before decoding.
+    small = _solid(tmp_path / "a.png", RED, size=(10, 10))
+    for name in ("b.png", "b.jpg", "b.bmp", "b.tif", "b.webp", "b.gif"):
+        big = _solid(tmp_path / name, BLUE, size=(11, 10))  # 110 pixels, one more than the budget
+        strict = make_source([small, big], max_pixels=100)
+        assert (strict.painting(0, (4, 4)) == RED).all()
+        with pytest.raises(ImageTooLargeError, match=r"is 10 x 11 \(H x W\) = 110 pixels, more than "
+                                                     r"max_image_pixels=100") as info:
+            strict.painting(1, (4, 4))
+        assert str(big) in str(info.value)
+        lenient = make_source([small, big], on_bad_image="skip", max_pixels=100)
+        with pytest.warns(BadImageWarning, match="110 pixels"):
+            assert (lenient.painting(1, (4, 4)) == RED).all()
+        assert list(lenient.bad_images) == [str(big)]
+        at_budget = make_source(big, max_pixels=110).painting(0, (4, 4))  # decoded (JPEG, WebP: lossy)
+        assert (np.abs(at_budget.astype(int) - BLUE) <= 8).all(), name
+
+
+def test_the_dataset_takes_the_pixel_budget_from_its_config(tmp_path):
+    big = _solid(tmp_path / "b.png", BLUE, size=(20, 20))
+    with pytest.raises(ValueError, match=r"config field 'max_image_pixels': expected 1 <= value <= "):
+        small_config(max_image_pixels=0)
+    assert SidarDataset(big, config=small_config()).source.max_pixels == 2**28 == sources.MAX_IMAGE_PIXELS
+    with pytest.raises(ImageTooLargeError, match="b.png"):
+        SidarDataset(big, config=small_config(max_image_pixels=399)).source.painting(0, (4, 4))
+
+
+def test_pillows_process_wide_limit_is_neither_changed_nor_bypassed(tmp_path, monkeypatch):
+    # The former code lifted PIL.Image.MAX_IMAGE_PIXELS (process-wide) around every decode.
+    path = _solid(tmp_path / "b.png", BLUE, size=(60, 40))  # 2400 pixels
+    seen = []
+    real_open = Image.open
+
+    def spy(fp, *args, **kwargs):
+        seen.append(Image.MAX_IMAGE_PIXELS)
+        return real_open(fp, *args, **kwargs)
+
+    monkeypatch.setattr(Image, "open", spy)
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 1000)  # Pillow refuses above 2000 pixels
+    with pytest.raises(ValueError, match=r"b\.png.*Pillow refuses it .*2400 pixels.*PIL\.Image\.MAX_IMAGE_PIXELS"):
+        make_source(path).painting(0, (4, 4))
+    assert seen == [1000] and Image.MAX_IMAGE_PIXELS == 1000
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", None)  # a program that lifted Pillow's limit: ours decides
+    assert (make_source(path).painting(0, (4, 4)) == BLUE).all()
+    with pytest.raises(ImageTooLargeError, match="2400 pixels"):
+        make_source(path, max_pixels=2399).painting(0, (4, 4))
+
+
+def _png_bomb(path: Path, side: int = 100_000) -> Path:
+    """A PNG whose header claims ``side x side`` 8-bit RGB pixels, with a short zlib stream of zeros."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+    header = struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0)
+    stream = zlib.compress(bytes(1_200_000), 9)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", stream) + chunk(b"IEND", b""))
+    return path
+
+
+BOMB_CHILD = """
+import json, resource, sys, time, warnings
+resource.setrlimit(resource.RLIMIT_AS, (4 << 30, 4 << 30))  # a regression fails here, not the machine
+from PIL import Image
+from sidar_torch import SidarDataset, load_config
+if sys.argv[2] == "lifted":
+    Image.MAX_IMAGE_PIXELS = None  # a program that lifted Pillow's own limit: max_image_pixels decides
+for on_bad_image in ("raise", "skip"):
+    config = load_config("misaligned", image_size=(24, 32), n_views=1, on_bad_image=on_bad_image)
+    dataset = SidarDataset(source=sys.argv[1], config=config)
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            dataset.sample(0)
+    except Exception as exc:
+        print(json.dumps({"error": f"{type(exc).__name__} {exc}", "warnings": [str(w.message) for w in caught],
+                          "seconds": time.perf_counter() - start}))
+"""
+
+
+@pytest.mark.parametrize("pillow_limit", ["default", "lifted"])
+def test_a_png_bomb_is_refused_from_its_header_in_a_memory_capped_child(tmp_path, pillow_limit):
+    # issue 25 item 1: a 1.2 KB PNG claiming 100000 x 100000 pixels took 21.5 GB before the OOM killer.
+    bomb = _png_bomb(tmp_path / "b.png")
+    assert bomb.stat().st_size < 2000
+    run = subprocess.run([sys.executable, "-c", BOMB_CHILD, str(bomb), pillow_limit],
+                         capture_output=True, text=True, timeout=300, cwd=Path(__file__).parent.parent)
+    assert run.returncode == 0, run.stderr[-2000:]
+    strict, lenient = (json.loads(line) for line in run.stdout.splitlines())
+    for result in (strict, lenient):
+        assert str(bomb) in result["error"] and "10000000000 pixels" in result["error"], result
+        assert result["seconds"] < 5.0
+    if pillow_limit == "lifted":
+        assert strict["error"].startswith("ImageTooLargeError") and "max_image_pixels=268435456" in strict["error"]
+    else:
+        assert strict["error"].startswith("ValueError cannot decode image file") and "Pillow refuses" in strict["error"]
+    assert lenient["error"].startswith("ValueError on_bad_image='skip', but none of the 1 images")
+    assert len(lenient["warnings"]) == 1 and str(bomb) in lenient["warnings"][0]
 
 
 # --------------------------------------------------------------------------- tensors, lists, datasets
@@ -772,6 +866,79 @@ def test_symlinked_subfolders_are_followed_and_loops_are_not(tmp_path):
     source = make_source(photos)
     assert len(source) == 21  # own.png and the 20 linked ones, each once
     assert sorted(Path(p).name for p in source.paths) == sorted(["own.png"] + [f"{k:02d}.png" for k in range(20)])
+
+
+def test_a_folder_reached_by_many_links_is_walked_once(tmp_path, monkeypatch):
+    # issue 25 item 6: two links per level reach 2**depth paths (depth 16 listed for more than 300 s).
+    depth = 12
+    levels = [tmp_path / f"level{k}" for k in range(depth + 1)]
+    for level in levels:
+        level.mkdir()
+    for upper, lower in zip(levels, levels[1:]):
+        for link in "ab":
+            (upper / link).symlink_to(lower, target_is_directory=True)
+    _solid(levels[-1] / "deep.png", RED)
+    walked = []
+    real_walk = os.walk
+
+    def spy(*args, **kwargs):
+        for step in real_walk(*args, **kwargs):
+            walked.append(step[0])
+            yield step
+
+    monkeypatch.setattr(os, "walk", spy)
+    source = make_source(levels[0])
+    assert len(walked) == depth + 1  # each real folder once
+    assert source.paths == (str(levels[0].joinpath(*["a"] * depth, "deep.png")),)  # the first path in sorted order
+
+
+def test_the_bad_image_warning_points_at_the_image(tmp_path):
+    # issue 20 item 6: it pointed at a line of dataset.py, the same for every file.
+    _solid(tmp_path / "a.png", RED)
+    (tmp_path / "b.png").write_text("not an image")
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        make_source(tmp_path, on_bad_image="skip").painting(1, (4, 4))
+    [warning] = record
+    assert warning.category is BadImageWarning
+    assert (warning.filename, warning.lineno) == (str(tmp_path / "b.png"), 0)
+    assert "source.scan()" in str(warning.message)
+
+
+def test_scan_drops_unreadable_images_so_every_index_shows_its_own_painting(tmp_path):
+    # issue 20 item 6: a skipped image's index showed the next image, so two samples showed one painting.
+    pixels = [_random_rgb(8, 8, seed) for seed in range(4)]
+    paths = [_save(Image.fromarray(p), tmp_path / f"{name}.png") for p, name in zip(pixels, "abcd")]
+    paths[1].write_text("not an image")
+    source = make_source(tmp_path, on_bad_image="skip")
+    assert len(source) == 4
+    with pytest.warns(BadImageWarning, match="b.png"):
+        assert list(source.scan()) == [str(paths[1])]
+    assert len(source) == 3 and list(source.kept) == [0, 2, 3]
+    for copy in (source, pickle.loads(pickle.dumps(source))):  # as DataLoader workers get it
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # the dropped image is neither read nor warned about again
+            got = [copy.painting(index, (8, 8)) for index in range(4)]
+        for painting, expected in zip(got, [pixels[0], pixels[2], pixels[3], pixels[0]]):
+            np.testing.assert_array_equal(painting, expected)
+    strict = make_source(tmp_path)  # "raise": the scan only reports (silent: warned once in this process)
+    assert list(strict.scan()) == [str(paths[1])]
+    assert len(strict) == 4
+    with pytest.raises(ValueError, match="b.png"):
+        strict.painting(1, (8, 8))
+    for path in paths:
+        path.write_text("not an image")
+    with pytest.warns(BadImageWarning), pytest.raises(ValueError, match="none of the 4 images"):
+        make_source(tmp_path, on_bad_image="skip").scan()
+
+
+def test_scan_drops_unreadable_dataset_items():
+    lenient = make_source(FlakyDataset(), on_bad_image="skip")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", BadImageWarning)  # warned once per process: maybe by another test
+        assert sorted(lenient.scan()) == ["dataset item 1", "dataset item 2"]
+    assert len(lenient) == len(FlakyDataset()) - 2
+    assert (lenient.painting(1, (4, 4)) == 76).all()  # item 3: round(0.3 * 255)
 
 
 @pytest.mark.gl

@@ -239,6 +239,13 @@ class SidarConfig:
     on_bad_image: str = _field("raise", choices=ON_BAD_IMAGE, meaning=(
         'what a painting source does with an unreadable image: ``"raise"`` (an error naming the file) or '
         '``"skip"`` (a warning, and the next readable image).'))
+    max_image_pixels: int = _field(2**28, bounds=(1, 2**34), meaning=(
+        "the most pixels (width x height, read from the file's header before anything is decoded) an image "
+        "file may have; a larger one is an unreadable image (``on_bad_image``). The default, 2**28 "
+        "(268,435,456, e.g. 16384 x 16384), is far above any real painting and stops a small file that "
+        "claims a huge size (a decompression bomb) before it takes the memory; Pillow's own process-wide "
+        "limit ``PIL.Image.MAX_IMAGE_PIXELS`` applies too (see docs/failures.md). At most 2**34: decoding "
+        "takes about 3 bytes a pixel."))
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):

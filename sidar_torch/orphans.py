@@ -1,0 +1,134 @@
+"""Child processes that render end with their parent: the one "exit when the parent dies" helper.
+
+Every fan-out of rendering into forked children calls :func:`exit_with_parent` first thing in the
+child: the ``SidarAugment`` render pool (:mod:`sidar_torch.augment_pool`) does, and a DataLoader
+``worker_init_fn`` can (``exit_with_parent(parent_pid)`` with the pid read before the fork, or
+``os.getppid()`` read at once in the worker). A render child has nothing worth saving when its
+parent is gone (its results would go nowhere), so it ends at once, with ``os._exit``/``SIGKILL``,
+whatever it is doing: rendering, waiting for a task, or blocked sending a reply no one reads.
+
+Three mechanisms, because each alone has a gap:
+
+* ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (Linux): the kernel kills the child when the parent *thread*
+  that forked it ends. Used only if that thread is the parent's main thread (``death_signal``):
+  a pool started from a short-lived thread would otherwise lose its workers with the thread.
+* a daemon thread that checks ``os.getppid()`` every :data:`POLL_S` seconds and leaves with
+  ``os._exit(1)`` when the parent is gone (it is reparented): works on every POSIX system and for
+  children forked by any thread; it needs the GIL, which a blocked ``send`` or a GL call releases.
+* :func:`release_inherited_descriptors`: a forked child holds a copy of every descriptor of its
+  parent, among them the parent's ends of its own pipe (and of its siblings'), so a reply larger
+  than the socket buffer blocked forever in ``send`` after the parent died. Released, the parent's
+  death closes the last copy of its ends, and a ``send`` fails at once with ``EPIPE``. (The render
+  pool calls it; a DataLoader worker cannot, as PyTorch's own pipes are among what it inherited.)
+
+The parent may die between the fork and these calls; :func:`exit_with_parent` checks ``getppid``
+after arming the signal, so that window is closed too.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import stat
+import sys
+import threading
+import time
+from typing import Iterable
+
+__all__ = ["POLL_S", "exit_with_parent", "open_descriptors", "release_inherited_descriptors"]
+
+POLL_S = 0.25
+"""How often, in seconds, the watching thread checks that the parent is alive."""
+
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+def _arm_death_signal() -> bool:
+    """Ask Linux to send this process SIGKILL when its parent thread ends; False where unavailable."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def exit_with_parent(parent_pid: int, *, death_signal: bool = True) -> None:
+    """Make this process (a forked child) end within :data:`POLL_S` seconds of its parent's death.
+
+    Args:
+        parent_pid: the pid of the parent, read *before* the fork (or at once after it), so that a
+            parent that died in between is noticed.
+        death_signal: also arm Linux's parent-death signal (SIGKILL); pass False when the fork was
+            made by a thread other than the parent's main thread (see the module docstring).
+
+    Ends the process at once (``os._exit(1)``) if the parent is already gone.
+    """
+    if death_signal:
+        _arm_death_signal()
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="sidar-exit-with-parent", daemon=True).start()
+
+
+def open_descriptors() -> set[int]:
+    """The descriptors open in this process (from ``/proc/self/fd`` or ``/dev/fd``; empty if neither)."""
+    for folder in ("/proc/self/fd", "/dev/fd"):
+        try:
+            names = os.listdir(folder)
+        except OSError:
+            continue
+        return {fd for fd in map(int, names) if _is_open(fd)}  # listing used a descriptor, closed by now
+    return set()
+
+
+def _is_open(fd: int) -> bool:
+    try:
+        os.fstat(fd)
+    except OSError:
+        return False
+    return True
+
+
+def release_inherited_descriptors(inherited: Iterable[int]) -> None:
+    """Let go of the descriptors ``inherited`` (except stdin, stdout and stderr) in a forked child.
+
+    ``inherited`` is what the parent had open just before the fork (:func:`open_descriptors`, read
+    in the parent), less what the child keeps (its own pipe end). Descriptors made by the fork
+    machinery itself (``multiprocessing``'s pipes that tell the parent the child ended) are newer,
+    so they are not in it and stay open.
+
+    Sockets, pipes, regular files and folders are released; devices and anonymous kernel objects
+    (a GPU's ``/dev/dri`` node, its fences) are kept: the GL driver state the child inherited with
+    its parent's EGL display is bound to them, and they hold no pipe end.
+
+    Each one is pointed at ``/dev/null`` (``dup2``) rather than closed: the parent's Python objects
+    copied into the child (its connections, files, sockets) still hold those numbers, and one of
+    them closing "its" number later must not close a file this child opened since. The files,
+    pipes and sockets themselves are released, so the parent's ends of every pipe close for good
+    when the parent dies.
+    """
+    null = os.open(os.devnull, os.O_RDWR)
+    try:
+        for fd in sorted(set(inherited) - {0, 1, 2, null}):
+            if _releasable(fd):
+                os.dup2(null, fd, inheritable=False)
+    finally:
+        os.close(null)
+
+
+def _releasable(fd: int) -> bool:
+    """Whether ``fd`` is open and a socket, pipe, regular file or folder."""
+    try:
+        mode = os.fstat(fd).st_mode
+    except OSError:
+        return False
+    return any(kind(mode) for kind in (stat.S_ISSOCK, stat.S_ISFIFO, stat.S_ISREG, stat.S_ISDIR))
