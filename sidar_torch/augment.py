@@ -117,9 +117,10 @@ class SidarAugment(nn.Module):
     deep-copied module (and a module used in another process than the one that started its pool)
     starts its own pool; ``state_dict`` holds ``calls`` only. With ``timeout`` set, a worker that
     sends no result for an image within it (stopped, deadlocked) raises ``TimeoutError`` naming its
-    pid; the pool is closed (its workers ended) and the next call starts a new one. On two cores,
-    two workers render a batch about twice as fast as one process by wall clock
-    (``benchmarks/augment_pool.py``); more workers than cores gain nothing.
+    pid; the pool is closed (its workers ended) and the next call starts a new one. A pool pays only
+    with idle cores and a warm shader cache, and then less than the number of workers (the
+    measured ratio is in ``docs/speed.md``; ``python -m benchmarks.augment_pool``); more workers than
+    cores gain nothing.
 
     When to prefer ``SidarDataset(source=your_images)`` in DataLoader workers instead: when the
     images are a fixed set (a folder, a tensor, a dataset) rather than a batch produced by the

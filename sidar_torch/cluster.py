@@ -171,7 +171,7 @@ def torch_batch(batch: dict[str, np.ndarray], geometry_dtype: str = "float32") -
     """A batch of :func:`ray_dataset` rows (a dict of NumPy columns) -> the batch of their samples as
     :class:`SidarDataset` makes them: :meth:`SampleArrays.to_tensors` of each row, stacked by
     :func:`~sidar_torch.sample.stack_samples` (``images`` ``(B, V, 3, H, W)`` float32 in [0, 1], ...,
-    homographies and cameras in ``geometry_dtype``, ``homography_error`` ``(B,)`` float32,
+    homographies and cameras in ``geometry_dtype``, ``homography_error`` ``(B,)`` float64,
     ``index`` ``(B,)`` int64)."""
     # Copies: Ray hands out read-only arrays, which torch.from_numpy would wrap as they are.
     rows = [SampleArrays(**{name: np.array(column[b]) for name, column in batch.items()})

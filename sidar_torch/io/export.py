@@ -10,7 +10,6 @@ import dataclasses
 import itertools
 import os
 import sys
-import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,6 +19,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from ..config import as_int
 from ..dataset import SidarDataset
+from ..orphans import exit_with_parent
 from ..sample import SampleArrays
 from . import folders
 from . import shards as tar_shards  # the name "shards" is export_dataset's argument
@@ -212,16 +212,10 @@ def _exit_with_parent(worker_id: int) -> None:
 
     PyTorch's workers notice a dead parent only between tasks and then wait for their result queue
     to drain, which no one reads any more: after a ``kill -9`` of the export they stayed alive for
-    good. A daemon thread polls the parent's pid and leaves at once (nothing of the worker's is
-    worth saving: the export writes only what reached it, atomically)."""
-    parent = os.getppid()
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(0.2)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+    good. :func:`~sidar_torch.orphans.exit_with_parent` leaves at once (nothing of the worker's is
+    worth saving: the export writes only what reached it, atomically); without the death signal, as
+    the worker cannot know which of its parent's threads forked it."""
+    exit_with_parent(os.getppid(), death_signal=False)
 
 
 class Progress:
