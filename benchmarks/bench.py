@@ -47,12 +47,13 @@ _WARMUP_INDEX = 1_000_000
 TARGET_SIZES = {"small": (192, 256), "default": (384, 512), "large": (768, 1024)}
 """The sizes the speed goals name, ``(H, W)``."""
 
-TARGETS = {"seconds_per_sequence": 0.2, "kornia_ratio": {"small": 1.5, "default": 1.0, "large": 1.0},
-           "augment_ratio": 3.0, "pool_speedup": 1.7, "worker_scaling": 1.8}
+TARGETS = {"seconds_per_sequence": 0.2, "kornia_ratio": {"small": 1.2, "default": 0.8, "large": 1.0},
+           "augment_ratio": 4.0, "pool_speedup": 1.8, "worker_scaling": 1.8, "first_sample_s": 0.5}
 """The speed goals: the default preset at 384x512 (6 views) in 0.2 s of CPU per sequence; per-view
-cost at most 1.5x kornia's per image at 192x256 and 1.0x at 384x512 and 768x1024; ``SidarAugment``
-(batch 8, 2 views, 192x256) at most 3x kornia per image on one core, and a pool of 2 render
-processes at least 1.7x its single-process throughput; 2 DataLoader workers at least 1.8x one."""
+cost at most 1.2x kornia's per image at 192x256, 0.8x at 384x512 and 1.0x at 768x1024;
+``SidarAugment`` (batch 8, 2 views, 192x256) at most 4x kornia per image on one core, and a pool of
+2 render processes at least 1.8x its single-process throughput; 2 DataLoader workers at least 1.8x
+one; a fresh DataLoader worker's first sample within 0.5 s of asking for it (wall clock)."""
 
 
 @dataclass(frozen=True)
@@ -169,8 +170,9 @@ class _Stamped(IterableDataset):
             yield {**self.dataset.sample(index), "worker": k, "done": time.perf_counter()}
 
 
-def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> float:
-    """Steady-state sequences/s through a DataLoader with ``workers`` (default start method) workers.
+def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[float, float]:
+    """Steady-state sequences/s through a DataLoader with ``workers`` (default start method) workers,
+    and the seconds from creating its iterator (which starts the workers) to the first sample.
 
     Each worker makes a warm-up sample (start-up, shaders), then ``per_worker`` measured samples
     (samples ``0 .. workers * per_worker - 1`` in all, round robin), stamping each with its clock.
@@ -178,12 +180,14 @@ def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> float:
     its share (warm-up stamp to last stamp: making, handing over, any wait for this process), so a
     worker that drew cheaper samples does not inflate it.
     """
+    begin = time.perf_counter()
     loader = iter(DataLoader(_Stamped(SidarDataset(config=config, seed=seed)), batch_size=None,
                              num_workers=workers))
     stamps: dict[int, list[float]] = defaultdict(list)
     indices = []
     for n in range(workers * (1 + per_worker)):  # in-order delivery: round robin over the workers
         sample = next(loader)
+        first = time.perf_counter() - begin if n == 0 else first
         stamps[sample["worker"]].append(sample["done"])
         if n >= workers:
             indices.append(sample["index"])
@@ -191,7 +195,7 @@ def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> float:
     if indices != list(range(workers * per_worker)):
         raise RuntimeError(f"DataLoader delivered samples {indices}, not round robin over its workers")
     busy = sum(s[-1] - s[0] for s in stamps.values())
-    return workers * workers * per_worker / busy
+    return workers * workers * per_worker / busy, first
 
 
 def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> dict[str, Any]:
@@ -207,11 +211,12 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
         augment = augment_row(settings)
         log(f"SidarAugment: done ({time.perf_counter() - start:.0f} s)")
         config = _config(settings.presets[0], settings.loader_size, settings.views)
-        rates = {w: loader_rate(config, w, settings.loader_samples, settings.seed) for w in (1, 2)}
+        measured = {w: loader_rate(config, w, settings.loader_samples, settings.seed) for w in (1, 2)}
+        rates = {w: rate for w, (rate, _) in measured.items()}
         log(f"DataLoader 1 and 2 workers: done ({time.perf_counter() - start:.0f} s)")
     loaders = {"preset": settings.presets[0], "size": size_label(settings.loader_size), "views": config.n_views,
                "samples_per_worker": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
-               "scaling": rates[2] / rates[1]}
+               "scaling": rates[2] / rates[1], "first_sample_s": measured[1][1]}
     report = {"settings": asdict(settings), "machine": {"before": before, "after": machine()}, "views": rows,
               "augment": augment, "loaders": loaders, "seconds": time.perf_counter() - start}
     report["targets"] = targets(report)
@@ -254,6 +259,9 @@ def targets(report: dict[str, Any]) -> list[dict[str, Any]]:
     add(f"2 DataLoader workers >= {limit}x one worker (on an idle machine)",
         f"{loaders['scaling']:.2f}x ({loaders['preset']} {loaders['size']}, load average up to {load:.1f} "
         f"on {report['machine']['before']['cpus']} cores)", loaders["scaling"] >= limit)
+    limit = TARGETS["first_sample_s"]
+    add(f"first sample of a fresh DataLoader worker, after this process rendered: <= {limit} s (wall clock)",
+        f"{loaders['first_sample_s']:.2f} s", loaders["first_sample_s"] <= limit)
     return rows
 
 
@@ -281,9 +289,10 @@ def format_report(report: dict[str, Any]) -> str:
     w = report["loaders"]
     rates = w["sequences_per_s"]
     lines += ["", "## DataLoader workers (wall clock, steady state after each worker's first sample)", "",
-              "| preset | size (H x W) | views | 1 worker seq/s | 2 workers seq/s | scaling |", "|---|---|---|---|---|---|",
+              "| preset | size (H x W) | views | 1 worker seq/s | 2 workers seq/s | scaling | first sample s |",
+              "|---|---|---|---|---|---|---|",
               f"| {w['preset']} | {w['size']} | {w['views']} | {rates['1']:.2f} | {rates['2']:.2f} "
-              f"| {w['scaling']:.2f}x |",
+              f"| {w['scaling']:.2f}x | {w['first_sample_s']:.2f} |",
               "", "## Targets (reported, never asserted)", "", "| target | measured | met |",
               "|---|---|---|"]
     verdict = {True: "met", False: "not met", None: "-"}
