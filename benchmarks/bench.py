@@ -187,7 +187,8 @@ def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[
     indices = []
     for n in range(workers * (1 + per_worker)):  # in-order delivery: round robin over the workers
         sample = next(loader)
-        first = time.perf_counter() - begin if n == 0 else first
+        if n == 0:
+            first = time.perf_counter() - begin
         stamps[sample["worker"]].append(sample["done"])
         if n >= workers:
             indices.append(sample["index"])

@@ -302,11 +302,11 @@ def test_exported_files_match_the_records_stored_on_main():
     recorded_on = stored["recorded_with"]["gl_renderer"]
     same_rasteriser = gl_renderer() == recorded_on  # after rendering: it asks the current context
     differences = []
-    for layout, expected in stored["exports"].items():
-        assert sorted(now[layout]) == sorted(expected), f"{layout}: other files or entries than on main"
+    for kind, expected in stored["exports"].items():
+        assert sorted(now[kind]) == sorted(expected), f"{kind}: other files or entries than on main"
         differences += [difference for name, record in expected.items()
                         if same_rasteriser or not export_digests.is_pixel_file(name)
-                        for difference in mismatches(f"{layout}: {name}", record, now[layout][name])]
+                        for difference in mismatches(f"{kind}: {name}", record, now[kind][name])]
     assert not differences, "\n".join(differences)
     if not same_rasteriser:
         pytest.skip(f"pixel files not compared: recorded on {recorded_on!r}, this is {gl_renderer()!r}")
