@@ -36,7 +36,8 @@ __all__ = ["SidarAugment"]
 Generator = torch.Generator | np.random.Generator
 
 PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
-"""The 8-bit pixel keys (``images``, ``masks``, ``opacities``, ``label``): handed out in the input's dtype."""
+"""The 8-bit pixel keys of the sample table (those with an export entry: ``images``, ``masks``, ``label``
+and the optional ``opacities`` and ``shadow_masks``): handed out in the input's dtype."""
 
 FLOAT64_FREE_DEVICES = frozenset({"mps"})
 """Device types that hold no float64: ``homography_error`` (float64) arrives there as float32."""
@@ -99,7 +100,7 @@ class SidarAugment(nn.Module):
     image's position in the batch.
 
     Output dtypes. As in ``kornia.augmentation`` and ``torchvision.transforms.v2``, the pixel keys
-    (``images``, ``masks``, ``opacities``, ``label``: :data:`PIXEL_KEYS`) keep the input's dtype and
+    (``images``, ``masks``, ``label``, ``opacities``, ``shadow_masks``: :data:`PIXEL_KEYS`) keep the input's dtype and
     its scale: uint8 in gives uint8 ``0..255`` out (masks ``0`` or ``255``, the values export
     writes), a float dtype in gives that dtype out, in [0, 1] (``k / 255`` for the rendered 8-bit
     value ``k``, exact to that dtype's precision: float32 values equal a dataset sample's). The

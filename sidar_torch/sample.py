@@ -66,6 +66,12 @@ KEYS: tuple[SampleKey, ...] = (
               "transparent occluders k cover it, a_k the opacity the view blends them with (material alpha "
               "raised by Fresnel towards grazing views; their highlights are left out). Every visible occluder "
               "counts, whatever mask_min_opacity is", switch="opacity_output", entry="{v}-o.png"),
+    SampleKey("shadow_masks", "(V, 1, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "the fraction of the direct light falling on the visible painting that occluders block: each "
+              "light weighted by its irradiance there (luminance; a transparent occluder's coloured shadow "
+              "counts by its luminance), 0 where no occluder blocks any light, off the painting and where the "
+              "painting is hidden (masks); ambient light counts for nothing",
+              switch="shadow_mask_output", entry="{v}-s.png"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -108,6 +114,8 @@ class SampleArrays:
         index: the dataset index.
         opacities: ``(V, H, W)`` uint8, 255 times the fraction of the painting hidden, or None
             (not rendered).
+        shadow_masks: ``(V, H, W)`` uint8, 255 times the fraction of the direct light occluders
+            block, or None (not rendered).
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -123,6 +131,7 @@ class SampleArrays:
     t: np.ndarray
     index: int
     opacities: np.ndarray | None = None
+    shadow_masks: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
@@ -132,8 +141,9 @@ class SampleArrays:
         expected = {"images": ((V, H, W, 3), np.uint8), "masks": ((V, H, W), np.uint8),
                     "label": ((H, W, 3), np.uint8), "homographies": ((V, V, 3, 3), np.float64),
                     "K": ((V, 3, 3), np.float64), "R": ((V, 3, 3), np.float64), "t": ((V, 3), np.float64)}
-        if self.opacities is not None:
-            expected["opacities"] = ((V, H, W), np.uint8)
+        for name in ("opacities", "shadow_masks"):
+            if getattr(self, name) is not None:
+                expected[name] = ((V, H, W), np.uint8)
         for name, (shape, dtype) in expected.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
@@ -156,6 +166,7 @@ class SampleArrays:
             "images": _unit(self.images).permute(0, 3, 1, 2),
             "masks": _unit(self.masks).unsqueeze(1),
             **({} if self.opacities is None else {"opacities": _unit(self.opacities).unsqueeze(1)}),
+            **({} if self.shadow_masks is None else {"shadow_masks": _unit(self.shadow_masks).unsqueeze(1)}),
             "label": _unit(self.label).permute(2, 0, 1),
             "homographies": torch.from_numpy(self.homographies).to(dtype),
             "homography_error": self.homography_error,
@@ -215,7 +226,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
         config: gives the renderer's settings (image size, shadow-map size and filter,
-            ``opacity_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
+            ``opacity_output``, ``shadow_mask_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
@@ -234,7 +245,8 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         homographies, homography_error = sequence_homographies(sequence)
     K, R, t = sequence.cameras()
     return SampleArrays(views, rendered.masks.astype(np.uint8) * np.uint8(255), rendered.label,
-                        homographies.numpy(), homography_error, K, R, t, index, rendered.opacities)
+                        homographies.numpy(), homography_error, K, R, t, index, rendered.opacities,
+                        rendered.shadow_masks)
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

@@ -160,6 +160,11 @@ class SidarConfig:
         "(1 off the painting and behind opaque occluders, 0 where it is seen unobstructed, ``1 - prod(1 - "
         "a_k)`` through transparent occluders of opacity ``a_k``), whatever ``mask_min_opacity`` is. Costs one "
         "unlit draw per view."))
+    shadow_mask_output: bool = _field(False, meaning=(
+        "also hand out ``shadow_masks``, per view the fraction of the direct light falling on the visible "
+        "painting that occluders block (each light weighted by its irradiance there, coloured shadows of "
+        "transparent occluders by their luminance; 0 off the painting and where it is hidden). Costs one draw "
+        "of the painting per view with a shadowed light; see docs/rendering.md, \"Shadow masks\"."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

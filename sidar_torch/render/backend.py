@@ -203,7 +203,9 @@ class ProgramCache(ShaderProgramCache):
     While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant
     that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7). While
     :attr:`mirror` names a define of ``mirror.MIRROR_DEFINES``, lit programs are that variant
-    (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``).
+    (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``). While
+    :attr:`shadow_fraction` is true, lit programs with spot-light shadows output the fraction of the
+    direct light the occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9).
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
@@ -214,6 +216,7 @@ class ProgramCache(ShaderProgramCache):
         self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
         self.transmittance = False
         self.mirror: str | None = None
+        self.shadow_fraction = False
 
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
         defines = {**(defines or {}), **self._extra_defines}
@@ -221,6 +224,8 @@ class ProgramCache(ShaderProgramCache):
             defines["TRANSMITTANCE_SHADOWS"] = 1
         if self.mirror and fragment_shader == "mesh.frag":
             defines[self.mirror] = 1
+        if self.shadow_fraction and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+            defines["SHADOW_FRACTION"] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:
@@ -510,7 +515,8 @@ class GLRenderer(pyrender.Renderer):
     def draw(self, scene: pyrender.Scene, flags: int, seen: set, casters: set = frozenset(),
              transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None,
-             painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None) -> np.ndarray:
+             painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None,
+             shadow_fraction: bool = False) -> np.ndarray:
         """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -532,6 +538,10 @@ class GLRenderer(pyrender.Renderer):
                 others' maps must already hold what this scene would draw into them.
             painting_parts: ``(painting node, parts)``: with ``SHADOWS_SPOT``, the painting is drawn
                 once per part, each with only its lookups (``render.footprints``).
+            shadow_fraction: lit draws output, in every colour channel, the fraction of the direct
+                light the occluders block (the shadow-mask draw; ``SHADOW_FRACTION``, quirk 9). It
+                reads the shadow and transmittance maps the colour pass of the same scene just drew:
+                none is drawn again (``stale`` is ignored).
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -543,7 +553,7 @@ class GLRenderer(pyrender.Renderer):
             self._update_context(scene, flags)
         filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
-        if flags & RenderFlags.SHADOWS_SPOT:
+        if flags & RenderFlags.SHADOWS_SPOT and not shadow_fraction:
             with timed(timings, "shadow", GL.glFinish):
                 opaque = False
                 for node in scene.mesh_nodes:
@@ -563,6 +573,7 @@ class GLRenderer(pyrender.Renderer):
                         self._transmittance_pass(scene, light_node, k, filters, flags)
         self._n_shadowed = len(shadowed)
         self._program_cache.transmittance = self._filtered
+        self._program_cache.shadow_fraction = shadow_fraction
         split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
         self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1]) if split else None
         with timed(timings, step, GL.glFinish):
@@ -572,5 +583,6 @@ class GLRenderer(pyrender.Renderer):
                 self._forward_pass(scene, flags, seg_node_map=seg_node_map)
             finally:
                 self._split = None
+                self._program_cache.shadow_fraction = False
         with timed(timings, "readback"):
             return self._target.end_drawing()

@@ -86,6 +86,8 @@ class RenderedSequence:
             writes alpha 1: it blends with the painting it shows itself, see ``render.mirror``).
         opacities: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
             painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
+        shadow_masks: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
+            direct light on the visible painting that occluders block (:meth:`SceneRenderer._render_shadow_mask`).
     """
 
     views: np.ndarray
@@ -93,6 +95,7 @@ class RenderedSequence:
     label: np.ndarray
     background: np.ndarray
     opacities: np.ndarray | None = None
+    shadow_masks: np.ndarray | None = None
 
 
 class SceneRenderer:
@@ -169,16 +172,18 @@ class SceneRenderer:
             texture = self._painting_texture(painting)
         with timed(timings, "graph"):
             plans = plan_views(sequence, self.settings)
-        views, masks, hidden = [], [], []
+        views, masks, hidden, shadow_masks = [], [], [], []
         for view, plan in zip(sequence.views, plans):
-            image, mask, opacity = self._render_view(view, plan, sequence, texture, timings)
+            image, mask, opacity, shadow = self._render_view(view, plan, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
             hidden.append(opacity)
+            shadow_masks.append(shadow)
         label = render_label(self._gl, sequence.views[0].camera, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
-                                np.stack(hidden) if self.settings.opacities else None)
+                                np.stack(hidden) if self.settings.opacities else None,
+                                np.stack(shadow_masks) if self.settings.shadow_masks else None)
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
@@ -205,9 +210,11 @@ class SceneRenderer:
         return self._texture
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
-                     timings: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and, with
-        ``settings.opacities``, its opacity ``(H, W)`` uint8 (else None), drawing what ``plan`` says."""
+                     timings: dict[str, float] | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool, with
+        ``settings.opacities`` its opacity and with ``settings.shadow_masks`` its shadow mask (each
+        ``(H, W)`` uint8, else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = new_scene(view.camera, view.ambient, self._plane, view.plane_material, texture,
                                      self.image_size)
@@ -255,7 +262,31 @@ class SceneRenderer:
                                 timings=timings, step="mask")
             mask = seg[..., 0] < 128
         opacity = render_opacity(self._gl, scene, plane, drawn, mask, timings) if self.settings.opacities else None
-        return image, mask, opacity
+        shadow = None
+        if self.settings.shadow_masks:
+            shadow = self._render_shadow_mask(scene, plane, plan, casters, transmitting, shadowed, mask, timings)
+        return image, mask, opacity, shadow
+
+    def _render_shadow_mask(self, scene: pyrender.Scene, plane: pyrender.Node, plan: ViewPlan, casters: set,
+                            transmitting: set, shadowed: set, mask: np.ndarray,
+                            timings: dict[str, float] | None) -> np.ndarray:
+        """``(H, W)`` uint8: 255 times the fraction of the direct light on the visible painting that
+        occluders block, 0 where ``mask`` (painting not visible) is true.
+
+        One draw of the painting alone with the lit program's ``SHADOW_FRACTION`` variant (quirk 9),
+        the same shadow and transmittance maps as the colour pass (drawn by it just before: none is
+        drawn again), in the footprint parts that have lookups only: elsewhere no light is blocked
+        and the cleared framebuffer's 0 is the answer (``render.footprints``). A view without a
+        shadowed light, or whose parts have no lookup, has no shadow, and no draw.
+        """
+        parts = [part for part in plan.painting_parts if part.begin < part.end]
+        if not shadowed or (plan.painting_parts and not parts):
+            return np.zeros(self.image_size, np.uint8)
+        fraction = self._gl.draw(scene, RenderFlags.SHADOWS_SPOT, seen={plane}, casters=casters,
+                                 transmitting=transmitting, shadowed=shadowed, timings=timings,
+                                 step="shadow_mask", stale=set(), painting_parts=(plane, parts),
+                                 shadow_fraction=True)
+        return np.where(mask, 0, fraction[..., 0]).astype(np.uint8)
 
 
 _SHARED: dict[tuple, SceneRenderer] = {}

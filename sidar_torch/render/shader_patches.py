@@ -106,6 +106,14 @@ pyrender override.
    switch would be paid by every fragment), so the painting and other materials run the programs
    they did before, pixel for pixel.
 
+9. **pyrender knows nothing of shadows as an output.** The program variant ``SHADOW_FRACTION``
+   (``render.renderer``'s shadow-mask draw of the painting alone) accumulates, in the same three
+   light loops, each light's direct irradiance (``spot_irradiance``: cone and distance falloff
+   times ``n . l``, per channel) and what of it passes the occluders (the lookup's ``1 - shadow``
+   times the transmittance, per channel), and outputs ``1 - lit / all`` of their luminances
+   instead of a colour (``shaders/shadow_fraction_*.glsl``). The colour it would compute is dead
+   code the compiler removes; lights outside the lookup range pass whole, as in the colour pass.
+
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
 ``#include "file"`` lines expanded by :func:`glsl`; ``*.frag`` whole shaders of our own;
@@ -142,7 +150,7 @@ def _after(anchor: str, text: str) -> tuple[str, str]:
     return anchor, anchor + text
 
 
-PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION")
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION", "SHADOW_FRACTION")
 """Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
 
 SHADER_SOURCES = ("transmittance.frag",)
@@ -170,7 +178,7 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
                "        res = res * (1.0 - shadow);\n",
                "#ifdef TRANSMITTANCE_SHADOWS\n"
                "        res *= spot_transmittance(spot_lights[i].light_matrix, i);  // in the shadowed loop only\n"
-               "#endif\n"),
+               "#endif\n" + glsl("shadow_fraction_lookup.glsl")),
         # Quirks 4 and 5: exact sRGB output, Fresnel and specular opacity, clear coat, specular level.
         ("vec4(pow(color.xyz, vec3(1.0/2.2)), color.a * base_color.a)",
          "vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n))"),
@@ -182,7 +190,7 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("    color.xyz += emissive * material.emissive_factor;\n", ""),
         # Quirk 8: the painting reflected and refracted by occluders, in their program variants only.
         _before(_MAIN, "painting_mirror.glsl"),
-        _before("\n    frag_color = clamp(vec4(", "painting_mirror_main.glsl"),
+        _before("\n    frag_color = clamp(vec4(", "painting_mirror_main.glsl", "shadow_fraction_main.glsl"),
     ],
     # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
     "flat.frag": [

@@ -1,0 +1,74 @@
+"""Shadow masks (``shadow_mask_output``): per view, the fraction of the direct light falling on the
+visible painting that occluders block, proved against the same scene rendered with and without
+shadows: for a white Lambertian painting and no ambient light, the view's linear luminance with
+shadows is ``1 - fraction`` times the one without, whatever the lights, their weights and the tints
+of transparent casters."""
+
+import numpy as np
+import pytest
+import torch
+
+from sidar_torch import SidarDataset, geometry, load_config
+from sidar_torch.artifacts import srgb_to_linear
+from sidar_torch.render import RenderSettings, shared_renderer
+from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
+
+from conftest import SMALL, small_config
+
+pytestmark = pytest.mark.gl  # renders
+
+LAMBERTIAN = Material(np.array([1.0, 1.0, 1.0, 1.0]), 0.0, 1.0, specular=0.0)
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+def spot(x, y, irradiance):
+    position = np.array([x, y, 2.0])
+    return Light("spot", position[None], np.ones(3), irradiance * float(position @ position), 0.6, 0.7)
+
+
+def ball(at, rgba, radius=0.12, height=0.3):
+    return Occluder("sphere", np.array([*at, height]), np.eye(3), np.full(3, radius),
+                    Material(np.array(rgba), 0.0, 1.0, specular=0.0))
+
+
+def render(occluders, lights, shadows=True):
+    """A white painting through the reference camera: the rendered sequence (one view)."""
+    view = ViewScene(Camera(*geometry.reference_camera(SMALL, 0.9)), tuple(lights), tuple(occluders), LAMBERTIAN, 0.0)
+    settings = RenderSettings(SMALL, shadows=shadows, shadow_masks=True)
+    timings = {}
+    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), 255, np.uint8), timings)
+    return out, timings
+
+
+def luminance(image):
+    return srgb_to_linear(torch.from_numpy(image / 255.0)).numpy() @ LUMINANCE
+
+
+def test_the_shadow_mask_is_the_light_the_occluders_take_from_the_painting():
+    lights = [spot(-1.0, 0.0, 0.5), spot(0.8, -0.6, 0.35)]
+    casters = [ball((0.0, 0.0), [0.2, 0.3, 0.9, 1.0]), ball((0.35, 0.2), [0.9, 0.1, 0.1, 0.4])]  # opaque, red glass
+    shadowed, _ = render(casters, lights)
+    unshadowed, _ = render(casters, lights, shadows=False)
+    fraction = shadowed.shadow_masks[0] / 255.0
+    seen = ~shadowed.masks[0] & (luminance(unshadowed.views[0]) > 0.05)
+    assert (fraction[seen] > 0.5).sum() > 100 and ((fraction[seen] > 0.05) & (fraction[seen] < 0.5)).sum() > 50
+    ratio = luminance(shadowed.views[0])[seen] / luminance(unshadowed.views[0])[seen]
+    assert np.percentile(np.abs(ratio - (1 - fraction[seen])), 99) < 0.03
+    assert (fraction[shadowed.masks[0]] == 0).all()  # off the painting and behind the occluders
+
+
+def test_no_occluder_no_shadow_and_no_draw():
+    out, timings = render([], [spot(-1.0, 0.0, 0.5)])
+    assert out.shadow_masks.shape == (1, *SMALL) and not out.shadow_masks.any()
+    assert "shadow_mask" not in timings
+
+
+def test_the_dataset_hands_them_out_only_when_asked_and_the_rest_is_unchanged():
+    config = small_config("shadows_only", n_views=2, n_occluders=(2, 3))
+    plain = SidarDataset(None, config, seed=1).sample(0)
+    with_masks = SidarDataset(None, config.replace(shadow_mask_output=True), seed=1).sample(0)
+    assert "shadow_masks" not in plain
+    assert with_masks["shadow_masks"].shape == (2, 1, *SMALL) and with_masks["shadow_masks"].dtype == torch.float32
+    assert with_masks["shadow_masks"].max() > 0.2  # several lights: a shadow blocks a part of the light
+    for key in plain:
+        assert torch.equal(torch.as_tensor(plain[key]), torch.as_tensor(with_masks[key])), key
