@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import itertools
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, ClassVar, Iterable
 
 import numpy as np
 
 from ..sample import SampleArrays
-from .files import replace_folder
-from .layout import SEQUENCE_NAME, encode, sample_entries, sequence_name
+from .files import read_inside, remove_stale_temporary, replace_folder
+from .layout import SEQUENCE_NAME, WriteUnit, encode, sample_entries, sequence_name
 
 
 def homography_entry(i: int, j: int) -> str:
@@ -38,11 +38,6 @@ def entries(arrays: SampleArrays) -> dict[str, Any]:
     for i, j in itertools.permutations(range(len(arrays.images)), 2):
         files[homography_entry(i, j)] = arrays.homographies[i, j]
     return files
-
-
-def write_sequence(out: Path, arrays: SampleArrays) -> None:
-    """Write sequence ``arrays.index`` as folder ``out/<index>``: complete or absent."""
-    replace_folder(out / sequence_name(arrays.index), encode(entries(arrays)))
 
 
 def present(out: Path, wanted: Iterable[int]) -> set[int]:
@@ -64,3 +59,57 @@ def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
     for i, j in itertools.permutations(range(n_views), 2):
         homographies[i, j] = read(homography_entry(i, j))
     return homographies
+
+
+class FolderLayout:
+    """The folder layout as a :class:`~.layout.Layout`: one write unit per sequence folder."""
+
+    name: ClassVar[str] = "folders"
+    units_per_task: ClassVar[int] = 16
+    """Sequences one Ray export task writes at most: a task costs Ray a few milliseconds, a
+    sequence 0.1-1 s (fewer per task when there are few per CPU, so that no CPU idles at the end)."""
+
+    @property
+    def shard_size(self) -> None:
+        """Always ``None``: the manifest's ``shard_size`` of a folder export."""
+        return None
+
+    @classmethod
+    def from_record(cls, shard_size: Any) -> FolderLayout:
+        """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it is ``None``."""
+        if shard_size is not None:
+            raise ValueError("expected null for the folder layout")
+        return cls()
+
+    def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
+        """``(held, frozenset())``: the indices of ``wanted`` whose folder ``out`` holds; a folder is
+        never damaged (it is moved into place whole)."""
+        return present(out, wanted), frozenset()
+
+    def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
+        """One unit per missing index (``damaged`` is always empty here)."""
+        return [WriteUnit(index, (index,)) for index in missing]
+
+    def write(self, out: Path, unit: WriteUnit, render: Callable[[int], SampleArrays],
+              written: Callable[[], None]) -> None:
+        """Write the folder of ``unit.indices`` (one index) unless ``out`` holds it, removing the
+        temporary of an attempt that died first (see :meth:`.layout.Layout.write`)."""
+        for index in unit.indices:
+            path = out / sequence_name(index)
+            if path.is_dir():
+                continue
+            remove_stale_temporary(path)
+            replace_folder(path, encode(entries(render(index))))
+            written()
+
+    def sequences(self, out: Path) -> list[tuple[int, Path]]:
+        """``(index, folder)`` of every sequence folder in ``out``, ascending."""
+        return sequences(out)
+
+    def read(self, out: Path, where: Path, name: str, limit: int) -> tuple[Path, bytes]:
+        """``(where / name, its bytes)``, read as :func:`.files.read_inside` ``out``."""
+        return where / name, read_inside(where / name, out, limit)
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """See :func:`read_homographies`."""
+        return read_homographies(read, n_views)

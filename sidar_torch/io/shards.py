@@ -13,15 +13,17 @@ from __future__ import annotations
 import io
 import os
 import tarfile
+import itertools
 from contextlib import nullcontext
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from ..sample import SampleArrays
 from .files import open_inside, temporary_path
-from .layout import SEQUENCE_NAME, SHARD_NAME, encode, sample_entries, sequence_name
+from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, encode, sample_entries, sequence_name
 
 HOMOGRAPHIES = "homographies.npy"
 END_MARKER = 2 * tarfile.BLOCKSIZE
@@ -107,11 +109,12 @@ def present(out: Path, wanted: range, shard_size: int) -> tuple[set[int], set[in
     return held, damaged
 
 
-def write_shard(out: Path, shard: int, new: list[int], arrays: Iterator[SampleArrays],
+def write_shard(out: Path, shard: int, new: tuple[int, ...], render: Callable[[int], SampleArrays],
                 written: Callable[[], None]) -> None:
     """(Re)write one shard: the sequences it holds copied over (of a damaged shard, those before
-    the damage), those of ``new`` (ascending) taken from ``arrays``, all in index order, into
-    ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is called after each new sequence."""
+    the damage), those of ``new`` (ascending) it lacks made by ``render(index)``, all in index order,
+    into ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is called after each
+    sequence rendered."""
     path = shard_path(out, shard)
     old = held_sequences(path)
     tmp = temporary_path(path)
@@ -123,10 +126,7 @@ def write_shard(out: Path, shard: int, new: list[int], arrays: Iterator[SampleAr
                         old_file.seek(member.offset_data)
                         _add_entry(tar, member.name, old_file.read(member.size))
                     continue
-                sample = next(arrays)
-                if sample.index != index:
-                    raise RuntimeError(f"internal: shard {shard} expected sequence {index}, got {sample.index}")
-                for name, data in encode(entries(sample)).items():
+                for name, data in encode(entries(render(index))).items():
                     _add_entry(tar, f"{sequence_name(index)}.{name}", data)
                 written()
         tmp.replace(path)
@@ -176,3 +176,52 @@ def read_entry(entries: dict[str, tuple[Path, int, int]], name: str, limit: int)
 def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
     """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry."""
     return read(HOMOGRAPHIES)
+
+
+@dataclass(frozen=True)
+class ShardLayout:
+    """The shard layout as a :class:`~.layout.Layout`: one write unit per tar shard of ``shard_size``
+    sequences (shard ``k`` holds the indices in ``[k N, (k + 1) N)``)."""
+
+    shard_size: int
+    name: ClassVar[str] = "shards"
+    units_per_task: ClassVar[int] = 1
+    """Shards one Ray export task writes: one (a shard holds many sequences)."""
+
+    @classmethod
+    def from_record(cls, shard_size: Any) -> ShardLayout:
+        """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it
+        is an integer ``>= 1`` (not a bool)."""
+        if type(shard_size) is not int or shard_size < 1:
+            raise ValueError("an integer >= 1 for shards")
+        return cls(shard_size)
+
+    def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
+        """See :func:`present`."""
+        held, damaged = present(out, wanted, self.shard_size)
+        return held, frozenset(damaged)
+
+    def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
+        """One unit per shard that lacks a sequence of ``missing`` or is ``damaged``, ascending."""
+        units = {shard: () for shard in damaged}
+        by_shard = itertools.groupby(missing, lambda index: index // self.shard_size)
+        units.update((shard, tuple(new)) for shard, new in by_shard)
+        return [WriteUnit(shard, new) for shard, new in sorted(units.items())]
+
+    def write(self, out: Path, unit: WriteUnit, render: Callable[[int], SampleArrays],
+              written: Callable[[], None]) -> None:
+        """See :func:`write_shard`: shard ``unit.number`` with ``unit.indices`` added."""
+        write_shard(out, unit.number, unit.indices, render, written)
+
+    def sequences(self, out: Path) -> list[tuple[int, dict[str, tuple[Path, int, int]]]]:
+        """See :func:`sequences`."""
+        return sequences(out)
+
+    def read(self, out: Path, where: dict[str, tuple[Path, int, int]], name: str, limit: int) -> tuple[Path, bytes]:
+        """``(shard, bytes)`` of entry ``name`` (see :func:`read_entry`)."""
+        data = read_entry(where, name, limit)
+        return where[name][0], data
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """See :func:`read_homographies`."""
+        return read_homographies(read, n_views)
