@@ -18,6 +18,7 @@ it bit for bit). ``H[i, i]`` is the identity and not written.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, ClassVar, Iterable
 
@@ -61,6 +62,7 @@ def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
     return homographies
 
 
+@dataclass(frozen=True)
 class FolderLayout:
     """The folder layout as a :class:`~.layout.Layout`: one write unit per sequence folder."""
 
@@ -78,7 +80,7 @@ class FolderLayout:
     def from_record(cls, shard_size: Any) -> FolderLayout:
         """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it is ``None``."""
         if shard_size is not None:
-            raise ValueError("expected null for the folder layout")
+            raise ValueError(f"field 'shard_size': expected null for the folder layout, got {shard_size!r}")
         return cls()
 
     def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:

@@ -72,7 +72,7 @@ class Layout(Protocol):
     @classmethod
     def from_record(cls, shard_size: Any) -> Layout:
         """The layout of an ``export.json`` with this ``layout`` and ``shard_size``; ``ValueError``
-        saying what ``shard_size`` should be otherwise."""
+        (``"field 'shard_size': expected ..., got ..."``) if the layout takes no such ``shard_size``."""
 
     def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
         """``(held, damaged)``: the indices of ``wanted`` (non-empty) that ``out`` holds whole, and

@@ -122,8 +122,8 @@ def check_manifest(manifest: Any, where: Path) -> None:
     check("layout", manifest["layout"], lambda v: isinstance(v, str) and v in LAYOUTS, f"one of {list(LAYOUTS)}")
     try:
         LAYOUTS[manifest["layout"]].from_record(manifest["shard_size"])
-    except ValueError as expected:
-        raise ValueError(f"{str(where)!r}: field 'shard_size': {expected}, got {manifest['shard_size']!r}") from None
+    except ValueError as error:
+        raise ValueError(f"{str(where)!r}: {error}") from None
     check("seed", manifest["seed"], lambda v: _is_int(v, 0), "an integer >= 0")
     check("source", manifest["source"], lambda v: isinstance(v, dict), "a JSON object")
     config = manifest["config"]

@@ -193,7 +193,7 @@ class ShardLayout:
         """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it
         is an integer ``>= 1`` (not a bool)."""
         if type(shard_size) is not int or shard_size < 1:
-            raise ValueError("an integer >= 1 for shards")
+            raise ValueError(f"field 'shard_size': expected an integer >= 1 for shards, got {shard_size!r}")
         return cls(shard_size)
 
     def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
