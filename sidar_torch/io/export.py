@@ -156,7 +156,8 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
                    shard_size: int | None) -> Iterator[ExportPlan]:
     """The part every export shares, local or distributed: check the arguments, create ``out_dir``,
     hold its lock for the block, write (or check) the manifest, delete stale temporaries and find what
-    is missing. The block writes the :class:`ExportPlan`'s units with its layout; a ``KeyboardInterrupt`` in it becomes an :class:`ExportInterrupted` saying how many are done.
+    is missing. The block writes the :class:`ExportPlan`'s units with its layout; a
+    ``KeyboardInterrupt`` in it becomes an :class:`ExportInterrupted` saying how many are done.
 
     Raises:
         the exceptions of :func:`export_dataset` (but for ``workers``).

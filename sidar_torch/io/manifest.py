@@ -102,9 +102,10 @@ def read_manifest(path: Path) -> dict[str, Any]:
 
 def check_manifest(manifest: Any, where: Path) -> None:
     """Check the fields of a decoded ``export.json`` (``where`` names it in errors): the format and
-    version, ``layout`` a key of :data:`.layouts.LAYOUTS` with a ``shard_size`` its row accepts, an integer ``seed``,
-    a ``source`` and a ``config`` dict whose fields the reader uses (``image_size``, ``n_views``,
-    ``opacity_output``, ``geometry_dtype``) hold what they should.
+    version, ``layout`` a key of :data:`.layouts.LAYOUTS` with a ``shard_size`` its row accepts
+    (:meth:`.layout.Layout.from_record`), an integer ``seed``, a ``source`` and a ``config`` dict
+    whose fields the reader uses (``image_size``, ``n_views``, ``opacity_output``,
+    ``geometry_dtype``) hold what they should.
 
     Raises:
         ValueError: naming ``where`` and the first wrong field.
