@@ -20,7 +20,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Iterable
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
@@ -39,27 +39,6 @@ def entries(arrays: SampleArrays) -> dict[str, Any]:
     for i, j in itertools.permutations(range(len(arrays.images)), 2):
         files[homography_entry(i, j)] = arrays.homographies[i, j]
     return files
-
-
-def present(out: Path, wanted: Iterable[int]) -> set[int]:
-    """The indices of ``wanted`` whose sequence folder exists in ``out``."""
-    wanted = set(wanted)
-    return {int(p.name) for p in out.iterdir() if SEQUENCE_NAME.match(p.name) and int(p.name) in wanted}
-
-
-def sequences(out: Path) -> list[tuple[int, Path]]:
-    """``(index, folder)`` of every sequence folder in ``out``, ascending."""
-    names = [p.name for p in out.iterdir() if p.is_dir() and SEQUENCE_NAME.match(p.name)]
-    return [(int(name), out / name) for name in sorted(names, key=int)]
-
-
-def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
-    """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
-    homographies = np.zeros((n_views, n_views, 3, 3))
-    homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
-    for i, j in itertools.permutations(range(n_views), 2):
-        homographies[i, j] = read(homography_entry(i, j))
-    return homographies
 
 
 @dataclass(frozen=True)
@@ -86,7 +65,9 @@ class FolderLayout:
     def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
         """``(held, frozenset())``: the indices of ``wanted`` whose folder ``out`` holds; a folder is
         never damaged (it is moved into place whole)."""
-        return present(out, wanted), frozenset()
+        wanted = set(wanted)
+        held = {int(p.name) for p in out.iterdir() if SEQUENCE_NAME.match(p.name) and int(p.name) in wanted}
+        return held, frozenset()
 
     def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
         """One unit per missing index (``damaged`` is always empty here)."""
@@ -106,12 +87,17 @@ class FolderLayout:
 
     def sequences(self, out: Path) -> list[tuple[int, Path]]:
         """``(index, folder)`` of every sequence folder in ``out``, ascending."""
-        return sequences(out)
+        names = [p.name for p in out.iterdir() if p.is_dir() and SEQUENCE_NAME.match(p.name)]
+        return [(int(name), out / name) for name in sorted(names, key=int)]
 
     def read(self, out: Path, where: Path, name: str, limit: int) -> tuple[Path, bytes]:
         """``(where / name, its bytes)``, read as :func:`.files.read_inside` ``out``."""
         return where / name, read_inside(where / name, out, limit)
 
     def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
-        """See :func:`read_homographies`."""
-        return read_homographies(read, n_views)
+        """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
+        homographies = np.zeros((n_views, n_views, 3, 3))
+        homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
+        for i, j in itertools.permutations(range(n_views), 2):
+            homographies[i, j] = read(homography_entry(i, j))
+        return homographies
