@@ -12,6 +12,7 @@ import yaml
 
 from ..sample import GEOMETRY_DTYPES
 from ..sources import PaintingSource
+from ..version import __version__
 from .files import LOCK, is_own_temporary, read_inside, replace_file
 from .layout import CONFIG, MANIFEST, Layout
 from .layouts import LAYOUTS
@@ -35,8 +36,6 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
     Raises:
         ValueError: ``out`` holds an export made with other settings, or holds files but no ``export.json``.
     """
-    from .. import __version__
-
     manifest = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
