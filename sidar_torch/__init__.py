@@ -15,9 +15,9 @@ from .augment import SidarAugment
 from .dataset import SidarDataset
 from .io import ExportedDataset, export_dataset
 from .pairs import homography_pairs
+from .version import __version__  # noqa: F401  (the package's version, recorded in export manifests)
 
 __all__ = [
     "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "export_dataset",
     "homography_pairs", "load_config",
 ]
-__version__ = "0.1.0"

@@ -42,11 +42,8 @@ import torch
 
 from .config import as_int
 from .dataset import SidarDataset
-from .io import folders
-from .io import shards as tar_shards
 from .io.export import ExportPlan, ExportSummary, Progress, either_shard_size, planned_export
-from .io.files import remove_stale_temporary
-from .io.layout import sequence_name
+from .io.layout import Layout, WriteUnit
 from .sample import KEYS, SampleArrays, stack_samples
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
@@ -55,10 +52,6 @@ RAY_REQUIREMENT = "ray[data]>=2.9"
 """What the ``ray`` extra of ``pyproject.toml`` installs (a test keeps them equal)."""
 
 INSTALL_HINT = f'Ray is not installed: pip install "{RAY_REQUIREMENT}"'
-
-MAX_FOLDERS_PER_TASK = 16
-"""Folder layout: most sequences one export task renders (fewer when there are few per CPU, so that
-the last tasks do not leave CPUs idle); a task costs Ray a few milliseconds, a sequence 0.1-1 s."""
 
 MAX_INDEX_BLOCKS = 10_000
 """:func:`ray_dataset`: most blocks the indices are cut into (each an object the driver puts in Ray's store)."""
@@ -247,38 +240,26 @@ def _exit_with_driver(driver: _Driver) -> None:
     threading.Thread(target=watch, name="exit-with-driver", daemon=True).start()
 
 
-def _write(dataset: SidarDataset, out: Path, shard_size: int | None, job: tuple[int | None, list[int]],
+def _write(dataset: SidarDataset, out: Path, layout: Layout, units: list[WriteUnit],
            driver: _Driver) -> tuple[int, float]:
-    """Ray task: render ``job``'s indices and write them into ``out`` with the layout's writer;
-    returns how many sequences it wrote and the seconds it took.
+    """Ray task: render and write ``units`` of ``layout`` into ``out``; returns how many sequences
+    the units add and the seconds it took.
 
-    ``job`` is ``(shard, new indices in it)`` (a damaged shard may have none: it is rewritten),
-    or ``(None, indices)`` for sequence folders. Safe to run again after an attempt died part-way
-    (Ray retries a task whose worker died): a sequence folder already there is kept, the attempt's
-    stale temporary is removed (the driver holds the export's lock, so no one else writes it), and
-    a shard is rewritten from what it holds plus what it lacks, as a local rerun does."""
+    Safe to run again after an attempt died part-way (Ray retries a task whose worker died): the
+    layout keeps what ``out`` holds and writes only what is missing (see :meth:`.io.layout.Layout.write`),
+    as a local rerun does; the driver holds the export's lock, so no one else writes there."""
     _exit_with_driver(driver)
     begin = time.perf_counter()
-    shard, indices = job
-    if shard is None:
-        for index in indices:
-            path = out / sequence_name(index)
-            if path.is_dir():
-                continue
-            remove_stale_temporary(path)
-            folders.write_sequence(out, dataset.sample_arrays(index))
-    else:
-        held = tar_shards.held_sequences(tar_shards.shard_path(out, shard))
-        new = [i for i in indices if i not in held]
-        tar_shards.write_shard(out, shard, new, (dataset.sample_arrays(i) for i in new), lambda: None)
-    return len(indices), time.perf_counter() - begin
+    for unit in units:
+        layout.write(out, unit, dataset.sample_arrays, lambda: None)
+    return sum(len(unit.indices) for unit in units), time.perf_counter() - begin
 
 
-def _folder_tasks(missing: list[int], cpus: int) -> list[list[int]]:
-    """``missing`` cut into runs of consecutive items, at least 4 per CPU when there are enough items
-    and at most :data:`MAX_FOLDERS_PER_TASK` items each."""
-    size = max(1, min(MAX_FOLDERS_PER_TASK, math.ceil(len(missing) / (4 * max(cpus, 1)))))
-    return [missing[k:k + size] for k in range(0, len(missing), size)]
+def _tasks(units: list[WriteUnit], units_per_task: int, cpus: int) -> list[list[WriteUnit]]:
+    """``units`` cut into runs of consecutive units, at least 4 per CPU when there are enough units
+    and at most ``units_per_task`` units each (the layout's :attr:`~.io.layout.Layout.units_per_task`)."""
+    size = max(1, min(units_per_task, math.ceil(len(units) / (4 * max(cpus, 1)))))
+    return [units[k:k + size] for k in range(0, len(units), size)]
 
 
 def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
@@ -289,7 +270,7 @@ def ray_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, st
     This process checks the arguments, holds the export's lock, writes the manifest and finds what
     is missing, exactly as :func:`export_dataset` does; then Ray tasks of one CPU render and write
     straight into ``out_dir``: one task per tar shard (``shard_size=N``), or per run of up to
-    :data:`MAX_FOLDERS_PER_TASK` sequence folders. So ``out_dir`` must be the same shared folder
+    16 sequence folders (the layout's ``units_per_task``). So ``out_dir`` must be the same shared folder
     on every node (a local cluster: any folder). Resumption is the local export's: each folder or
     shard appears complete or not at all, a rerun renders only what is missing; a task whose
     worker dies is retried by Ray (up to 3 times) without writing anything twice. If this process
@@ -329,13 +310,10 @@ def _run_tasks(ray: ModuleType, dataset: SidarDataset, plan: ExportPlan, progres
     each finished task's sequences and busy time; if one fails (or this process is interrupted),
     the others are cancelled before the lock is released."""
     cpus = int(ray.cluster_resources().get("CPU", 1))
-    if plan.shard_size is None:
-        jobs = [(None, indices) for indices in _folder_tasks(plan.missing, cpus)]
-    else:
-        jobs = plan.shards()
+    jobs = _tasks(plan.units(), plan.layout.units_per_task, cpus)
     task = ray.remote(_write).options(num_cpus=1, max_retries=3)
     dataset_ref, out, driver = ray.put(dataset), plan.out.absolute(), _Driver.this_process()
-    pending = [task.remote(dataset_ref, out, plan.shard_size, job, driver) for job in jobs]
+    pending = [task.remote(dataset_ref, out, plan.layout, job, driver) for job in jobs]
     with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
         try:
             while pending:

@@ -156,6 +156,7 @@ so that they can be pickled and sent to ``DataLoader`` worker processes.
 from __future__ import annotations
 
 import abc
+import hashlib
 import operator
 import os
 import warnings
@@ -510,6 +511,11 @@ class PaintingSource(abc.ABC):
             ValueError: ``index < 0`` or ``size`` is not two positive ints.
         """
 
+    def describe(self) -> dict[str, Any]:
+        """Plain data (JSON-ready) that tells this source from another, as an export records it:
+        ``{"type": class name, "paintings": len(self)}``; sources add what sets their paintings apart."""
+        return {"type": type(self).__name__, "paintings": len(self)}
+
 
 class _ImageSource(PaintingSource):
     """A source backed by images of their own size, fitted with :func:`fit_painting`."""
@@ -524,6 +530,10 @@ class _ImageSource(PaintingSource):
     def painting(self, index: int, size: PaintingSize) -> np.ndarray:
         size = _check_size(size)
         return fit_painting(self._image(_check_index(index, len(self)), size), size, self.crop)
+
+    def describe(self) -> dict[str, Any]:
+        """:meth:`PaintingSource.describe` and ``"crop"``."""
+        return {**super().describe(), "crop": self.crop}
 
 
 class _ReadingSource(_ImageSource):
@@ -652,6 +662,12 @@ class ImageFiles(_ReadingSource):
         self.max_pixels = operator.index(max_pixels)
         if self.max_pixels < 1:
             raise ValueError(f"max_pixels must be at least 1, got {self.max_pixels}")
+
+    def describe(self) -> dict[str, Any]:
+        """:meth:`PaintingSource.describe`, ``"crop"``, the ``"first_path"`` and ``"paths_sha256"``,
+        the SHA-256 of the paths' bytes joined by newlines (so that any name the system allows is described)."""
+        paths_sha256 = hashlib.sha256(b"\n".join(map(os.fsencode, self.paths))).hexdigest()
+        return {**super().describe(), "first_path": self.paths[0], "paths_sha256": paths_sha256}
 
     def _name(self, position: int) -> str:
         return self.paths[position]

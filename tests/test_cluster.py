@@ -27,6 +27,7 @@ from sidar_torch import cluster as cluster_module
 from sidar_torch.cluster import RAY_REQUIREMENT, ray_dataset, ray_export, torch_batches
 from sidar_torch.io import export as export_module
 from sidar_torch.io.export import ExportPlan
+from sidar_torch.io.folders import FolderLayout
 from sidar_torch.sample import SampleArrays
 
 HINT = r'pip install "ray\[data\]>=2.9"'
@@ -90,8 +91,8 @@ class FakeRay:
     def remote(self, function):
         return SimpleNamespace(options=lambda **_: SimpleNamespace(remote=self._submit))
 
-    def _submit(self, dataset, out, shard_size, job, driver):
-        _, indices = job
+    def _submit(self, dataset, out, layout, units, driver):
+        indices = [index for unit in units for index in unit.indices]
         worker = min(range(self.cpus), key=self.free.__getitem__)
         self.free[worker] += len(indices) * self.per_sequence
         return SimpleNamespace(finish=self.free[worker], result=(len(indices), len(indices) * self.per_sequence))
@@ -129,7 +130,7 @@ def test_the_ray_progress_line_estimates_the_time_left(monkeypatch, cpus):
     stderr = Recorder(ray)
     monkeypatch.setattr(export_module, "time", SimpleNamespace(perf_counter=lambda: ray.clock))
     monkeypatch.setattr(sys, "stderr", stderr)
-    plan = ExportPlan(Path("out"), None, set(), list(range(400)))
+    plan = ExportPlan(Path("out"), FolderLayout(), set(), list(range(400)))
     cluster_module._run_tasks(ray, None, plan, progress=True)
     end = ray.clock
     estimates = [(at, float(line.split(" s left")[0].rsplit(", ", 1)[1])) for at, line in stderr.lines

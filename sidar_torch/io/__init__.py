@@ -4,8 +4,12 @@
 paper's file layout (the default, :mod:`.folders`) or in WebDataset-style tar shards
 (:mod:`.shards`); :class:`ExportedDataset` (:mod:`.reader`) loads either back into the dict
 :meth:`SidarDataset.sample` returns, tensor for tensor byte-identical (the views are 8-bit
-renders, so 8-bit PNGs hold them exactly). What the layouts share: names and codecs
-(:mod:`.layout`), atomic writes, the lock and bounded reads (:mod:`.files`), the manifest (:mod:`.manifest`).
+renders, so 8-bit PNGs hold them exactly). Each layout is one class answering the same interface
+(:class:`.layout.Layout`: which sequences are here, how missing ones group into write units, write
+a unit, list the sequences, read an entry), one row of the table :data:`.layouts.LAYOUTS` keyed by
+the manifest's ``layout`` name; export, the reader and Ray look it up there and ask it. What the
+layouts share: that interface, names and codecs (:mod:`.layout`), atomic writes, the lock and
+bounded reads (:mod:`.files`), the manifest (:mod:`.manifest`).
 
 Folder layout (``shard_size=None``)::
 

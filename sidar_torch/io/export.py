@@ -1,13 +1,13 @@
 """``export_dataset``: freeze sequences of a :class:`~sidar_torch.SidarDataset` to disk.
 
 Sequences are rendered (here, or in DataLoader workers) as :class:`sidar_torch.sample.SampleArrays`
-and written by the layout's writer: :mod:`.folders` (the paper's, the default) or :mod:`.shards`.
+and written unit by unit by the export's layout (:data:`.layouts.LAYOUTS`): :mod:`.folders` (the
+paper's, the default) or :mod:`.shards`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import os
 import sys
 import time
@@ -21,9 +21,9 @@ from ..config import as_int
 from ..dataset import SidarDataset
 from ..orphans import exit_with_parent
 from ..sample import SampleArrays
-from . import folders
-from . import shards as tar_shards  # the name "shards" is export_dataset's argument
 from .files import locked, remove_stale
+from .layout import Layout, WriteUnit
+from .layouts import layout_for
 from .manifest import write_manifest
 
 
@@ -92,14 +92,9 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     workers = as_int("workers", workers, 0)
     with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards)) as plan:
         with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
-            samples = _render(dataset, plan.missing, workers)
-            if plan.shard_size is None:
-                for arrays in samples:
-                    folders.write_sequence(plan.out, arrays)
-                    bar.advance()
-            else:
-                for shard, new in plan.shards():
-                    tar_shards.write_shard(plan.out, shard, new, samples, bar.advance)
+            take = _InOrder(_render(dataset, plan.missing, workers))
+            for unit in plan.units():
+                plan.layout.write(plan.out, unit, take, bar.advance)
     return ExportSummary(plan.out, tuple(plan.missing), len(plan.present), time.perf_counter() - begin)
 
 
@@ -122,33 +117,38 @@ class ExportPlan:
 
     Attributes:
         out: the export folder.
-        shard_size: ``None`` for the folder layout, else sequences per tar shard.
+        layout: the export's layout (a :class:`~.layout.Layout`).
         present: the requested indices an earlier run already wrote.
         missing: the requested indices to render and write, ascending.
-        damaged: shard layout: the shards to rewrite whole because they are damaged (a truncated copy).
+        damaged: the numbers of the layout's units to rewrite whole because they are damaged (a
+            truncated shard).
     """
 
     out: Path
-    shard_size: int | None
+    layout: Layout
     present: set[int]
     missing: list[int]
     damaged: frozenset[int] = frozenset()
 
-    def shards(self) -> list[tuple[int, list[int]]]:
-        """``(shard, [missing index in it, ascending])`` for every shard that lacks a sequence or is
-        damaged, ascending (shard layout)."""
-        groups = {shard: [] for shard in self.damaged}
-        by_shard = itertools.groupby(self.missing, lambda index: index // self.shard_size)
-        groups.update((shard, list(new)) for shard, new in by_shard)
-        return sorted(groups.items())
+    def units(self) -> list[WriteUnit]:
+        """The layout's write units that add the ``missing`` sequences or rewrite the ``damaged``
+        units, ascending (see :meth:`.layout.Layout.groups`)."""
+        return self.layout.groups(self.missing, self.damaged)
 
 
-def _present(out: Path, wanted: range, shard_size: int | None) -> tuple[set[int], set[int]]:
-    """``(held, damaged)``: the indices of ``wanted`` whose sequences ``out`` holds, and (shards) the
-    damaged shards among theirs."""
-    if shard_size is None:
-        return folders.present(out, wanted), set()
-    return tar_shards.present(out, wanted, shard_size)
+class _InOrder:
+    """``render`` for :meth:`.layout.Layout.write` from samples that arrive in the order of the
+    plan's missing indices: each call takes the next one and checks it is the index asked for."""
+
+    def __init__(self, samples: Iterator[SampleArrays]):
+        self.samples = samples
+
+    def __call__(self, index: int) -> SampleArrays:
+        """The next sample, which is sequence ``index``'s (``RuntimeError`` otherwise: a bug)."""
+        sample = next(self.samples)
+        if sample.index != index:
+            raise RuntimeError(f"internal: the export expected sequence {index}, got {sample.index}")
+        return sample
 
 
 @contextmanager
@@ -156,8 +156,8 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
                    shard_size: int | None) -> Iterator[ExportPlan]:
     """The part every export shares, local or distributed: check the arguments, create ``out_dir``,
     hold its lock for the block, write (or check) the manifest, delete stale temporaries and find what
-    is missing. The block writes the :class:`ExportPlan`'s ``missing`` sequences with the layout's
-    writer; a ``KeyboardInterrupt`` in it becomes an :class:`ExportInterrupted` saying how many are done.
+    is missing. The block writes the :class:`ExportPlan`'s units with its layout; a
+    ``KeyboardInterrupt`` in it becomes an :class:`ExportInterrupted` saying how many are done.
 
     Raises:
         the exceptions of :func:`export_dataset` (but for ``workers``).
@@ -165,20 +165,20 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     if not isinstance(dataset, SidarDataset):
         raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
     count, start = as_int("count", count, 1), as_int("start", start, 0)
-    shard_size = None if shard_size is None else as_int("shard_size", shard_size, 1)
+    layout = layout_for(shard_size)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")
     out.mkdir(parents=True, exist_ok=True)
     with locked(out):
-        write_manifest(out, dataset.seed, dataset.source, dataset.config.to_dict(), shard_size)
+        write_manifest(out, dataset.seed, dataset.source, dataset.config.to_dict(), layout)
         remove_stale(out)
         wanted = range(start, start + count)
-        present, damaged = _present(out, wanted, shard_size)
+        present, damaged = layout.present(out, wanted)
         try:
-            yield ExportPlan(out, shard_size, present, [i for i in wanted if i not in present], frozenset(damaged))
+            yield ExportPlan(out, layout, present, [i for i in wanted if i not in present], damaged)
         except KeyboardInterrupt:
-            raise ExportInterrupted(out, len(_present(out, wanted, shard_size)[0]), count) from None
+            raise ExportInterrupted(out, len(layout.present(out, wanted)[0]), count) from None
 
 
 class _Renders(Dataset):

@@ -18,14 +18,15 @@ it bit for bit). ``H[i, i]`` is the identity and not written.
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from ..sample import SampleArrays
-from .files import replace_folder
-from .layout import SEQUENCE_NAME, encode, sample_entries, sequence_name
+from .files import read_inside, remove_stale_temporary, replace_folder
+from .layout import SEQUENCE_NAME, WriteUnit, encode, sample_entries, sequence_name
 
 
 def homography_entry(i: int, j: int) -> str:
@@ -40,27 +41,63 @@ def entries(arrays: SampleArrays) -> dict[str, Any]:
     return files
 
 
-def write_sequence(out: Path, arrays: SampleArrays) -> None:
-    """Write sequence ``arrays.index`` as folder ``out/<index>``: complete or absent."""
-    replace_folder(out / sequence_name(arrays.index), encode(entries(arrays)))
+@dataclass(frozen=True)
+class FolderLayout:
+    """The folder layout as a :class:`~.layout.Layout`: one write unit per sequence folder."""
 
+    name: ClassVar[str] = "folders"
+    units_per_task: ClassVar[int] = 16
+    """Sequences one Ray export task writes at most: a task costs Ray a few milliseconds, a
+    sequence 0.1-1 s (fewer per task when there are few per CPU, so that no CPU idles at the end)."""
 
-def present(out: Path, wanted: Iterable[int]) -> set[int]:
-    """The indices of ``wanted`` whose sequence folder exists in ``out``."""
-    wanted = set(wanted)
-    return {int(p.name) for p in out.iterdir() if SEQUENCE_NAME.match(p.name) and int(p.name) in wanted}
+    @property
+    def shard_size(self) -> None:
+        """Always ``None``: the manifest's ``shard_size`` of a folder export."""
+        return None
 
+    @classmethod
+    def from_record(cls, shard_size: Any) -> FolderLayout:
+        """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it is ``None``."""
+        if shard_size is not None:
+            raise ValueError(f"field 'shard_size': expected null for the folder layout, got {shard_size!r}")
+        return cls()
 
-def sequences(out: Path) -> list[tuple[int, Path]]:
-    """``(index, folder)`` of every sequence folder in ``out``, ascending."""
-    names = [p.name for p in out.iterdir() if p.is_dir() and SEQUENCE_NAME.match(p.name)]
-    return [(int(name), out / name) for name in sorted(names, key=int)]
+    def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
+        """``(held, frozenset())``: the indices of ``wanted`` whose folder ``out`` holds; a folder is
+        never damaged (it is moved into place whole)."""
+        wanted = set(wanted)
+        held = {int(p.name) for p in out.iterdir() if SEQUENCE_NAME.match(p.name) and int(p.name) in wanted}
+        return held, frozenset()
 
+    def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
+        """One unit per missing index (``damaged`` is always empty here)."""
+        return [WriteUnit(index, (index,)) for index in missing]
 
-def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
-    """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
-    homographies = np.zeros((n_views, n_views, 3, 3))
-    homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
-    for i, j in itertools.permutations(range(n_views), 2):
-        homographies[i, j] = read(homography_entry(i, j))
-    return homographies
+    def write(self, out: Path, unit: WriteUnit, render: Callable[[int], SampleArrays],
+              written: Callable[[], None]) -> None:
+        """Write the folder of ``unit.indices`` (one index) unless ``out`` holds it, removing the
+        temporary of an attempt that died first (see :meth:`.layout.Layout.write`)."""
+        for index in unit.indices:
+            path = out / sequence_name(index)
+            if path.is_dir():
+                continue
+            remove_stale_temporary(path)
+            replace_folder(path, encode(entries(render(index))))
+            written()
+
+    def sequences(self, out: Path) -> list[tuple[int, Path]]:
+        """``(index, folder)`` of every sequence folder in ``out``, ascending."""
+        names = [p.name for p in out.iterdir() if p.is_dir() and SEQUENCE_NAME.match(p.name)]
+        return [(int(name), out / name) for name in sorted(names, key=int)]
+
+    def read(self, out: Path, where: Path, name: str, limit: int) -> tuple[Path, bytes]:
+        """``(where / name, its bytes)``, read as :func:`.files.read_inside` ``out``."""
+        return where / name, read_inside(where / name, out, limit)
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
+        homographies = np.zeros((n_views, n_views, 3, 3))
+        homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
+        for i, j in itertools.permutations(range(n_views), 2):
+            homographies[i, j] = read(homography_entry(i, j))
+        return homographies

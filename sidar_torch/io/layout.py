@@ -1,5 +1,6 @@
-"""What the two export layouts share: names and codecs (the files are :mod:`.files`, the manifest
-:mod:`.manifest`).
+"""What the export layouts share: the interface each answers (:class:`Layout`, its write unit
+:class:`WriteUnit`), names and codecs (the files are :mod:`.files`, the manifest :mod:`.manifest`,
+the table of layouts :mod:`.layouts`).
 
 A sequence is written as named entries (``0.png``, ``gt.png``, ``cameras.json``, ...): the
 writers (:mod:`.folders`, :mod:`.shards`) name them, :data:`ENCODERS` turns each into bytes by its
@@ -15,7 +16,9 @@ import json
 import os
 import re
 import struct
-from typing import Any, Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 import scipy.io
@@ -31,6 +34,79 @@ CAMERAS = "cameras.json"
 MAT_HEADER = b"MATLAB 5.0 MAT-file, written by sidar_torch"
 """Replaces scipy's header text, which holds the time of writing, so equal data gives equal files."""
 
+
+@dataclass(frozen=True)
+class WriteUnit:
+    """What one write of a layout makes whole or not at all: a sequence folder, a tar shard.
+
+    Attributes:
+        number: the unit's number in its layout (the sequence's index for a folder, ``k`` for shard ``k``).
+        indices: the dataset indices this write adds to the unit, ascending (a damaged shard that
+            only needs rewriting has none).
+    """
+
+    number: int
+    indices: tuple[int, ...]
+
+
+@runtime_checkable
+class Layout(Protocol):
+    """The questions every export layout answers (one class per layout: :class:`.folders.FolderLayout`,
+    :class:`.shards.ShardLayout`; the table :data:`.layouts.LAYOUTS` keys them by ``name``).
+
+    Export, the reader and Ray look the layout up once (:func:`.layouts.layout_for`,
+    :func:`.layouts.recorded_layout`) and ask it; they never ask which layout it is.
+
+    Attributes:
+        name: the manifest's ``layout`` (``"folders"``, ``"shards"``).
+        shard_size: the manifest's ``shard_size`` (``None`` for folders).
+        units_per_task: most write units one Ray export task writes.
+    """
+
+    name: ClassVar[str]
+    units_per_task: ClassVar[int]
+
+    @property
+    def shard_size(self) -> int | None: ...
+
+    @classmethod
+    def from_record(cls, shard_size: Any) -> Layout:
+        """The layout of an ``export.json`` with this ``layout`` and ``shard_size``; ``ValueError``
+        (``"field 'shard_size': expected ..., got ..."``) if the layout takes no such ``shard_size``."""
+
+    def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
+        """``(held, damaged)``: the indices of ``wanted`` (non-empty) that ``out`` holds whole, and
+        the numbers of the damaged units among theirs (to rewrite)."""
+
+    def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
+        """The write units that add the ``missing`` indices (ascending) or rewrite the ``damaged``
+        units, ascending by number."""
+
+    def write(self, out: Path, unit: WriteUnit, render: Callable[[int], SampleArrays],
+              written: Callable[[], None]) -> None:
+        """Write ``unit`` into ``out`` atomically: each of ``unit.indices`` that ``out`` does not hold
+        yet is ``render(index)``-ed (ascending) and added, ``written()`` called after each; what
+        ``out`` holds is kept (so a retry after a killed attempt writes only what is missing)."""
+
+    def sequences(self, out: Path) -> list[tuple[int, Any]]:
+        """``(index, where)`` of every sequence in ``out``, ascending; ``where`` is what :meth:`read` takes.
+
+        Raises:
+            ValueError: a damaged unit (the message names its file).
+        """
+
+    def read(self, out: Path, where: Any, name: str, limit: int) -> tuple[Path, bytes]:
+        """``(file, bytes)`` of entry ``name`` of the sequence at ``where``: the file it is in (for
+        messages) and its bytes, at most ``limit`` of them, read only inside ``out``.
+
+        Raises:
+            FileNotFoundError: the sequence has no entry ``name``.
+            ValueError: the entry is larger than ``limit`` bytes or not a regular file inside ``out``.
+        """
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64 homographies of a sequence from its decoded entries (``read``:
+        entry name -> value), the identity on the diagonal."""
 
 
 def sequence_name(index: int) -> str:

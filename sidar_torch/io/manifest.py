@@ -4,24 +4,21 @@ the same command resumes, and read back checked field by field."""
 
 from __future__ import annotations
 
-import hashlib
 import json
-import os
 from pathlib import Path
 from typing import Any, Callable
 
 import yaml
 
 from ..sample import GEOMETRY_DTYPES
-from ..sources import ImageFiles, PaintingSource
+from ..sources import PaintingSource
+from ..version import __version__
 from .files import LOCK, is_own_temporary, read_inside, replace_file
-from .layout import CONFIG, MANIFEST
+from .layout import CONFIG, MANIFEST, Layout
+from .layouts import LAYOUTS
 
 FORMAT = "sidar_torch export"
 FORMAT_VERSION = 1
-LAYOUTS = ("folders", "shards")
-"""The layouts an export is written in: ``"folders"`` (``shard_size`` None) or ``"shards"``."""
-
 RESUME_KEYS = ("format", "format_version", "package_version", "layout", "shard_size", "seed", "source", "config")
 """``export.json`` fields a rerun into an existing export must match."""
 
@@ -29,25 +26,7 @@ MANIFEST_LIMIT = 16 * 2**20
 """Most bytes an ``export.json`` is read to (a real one holds a config: a few kB)."""
 
 
-def layout_name(shard_size: int | None) -> str:
-    """The layout of an export with ``shard_size`` sequences per shard (``None``: one folder per sequence)."""
-    return LAYOUTS[0] if shard_size is None else LAYOUTS[1]
-
-
-def source_description(source: PaintingSource) -> dict[str, Any]:
-    """Plain-data description of a painting source: its kind, size, crop and, for files, their paths' hash
-    (of the paths' bytes, so that any file name the system allows is described)."""
-    description: dict[str, Any] = {"type": type(source).__name__, "paintings": len(source)}
-    if hasattr(source, "crop"):
-        description["crop"] = source.crop
-    if isinstance(source, ImageFiles):
-        description["first_path"] = source.paths[0]
-        description["paths_sha256"] = hashlib.sha256(b"\n".join(map(os.fsencode, source.paths))).hexdigest()
-    return description
-
-
-def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any],
-                   shard_size: int | None) -> None:
+def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
     """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
 
     ``export.json`` is written first, each file atomically: an interruption before it leaves no
@@ -57,16 +36,14 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
     Raises:
         ValueError: ``out`` holds an export made with other settings, or holds files but no ``export.json``.
     """
-    from .. import __version__
-
     manifest = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
         "package_version": __version__,
-        "layout": layout_name(shard_size),
-        "shard_size": shard_size,
+        "layout": layout.name,
+        "shard_size": layout.shard_size,
         "seed": seed,
-        "source": source_description(source),
+        "source": source.describe(),
         "config": config,
         "homographies": "H[i, j] maps view-i pixels to view-j pixels; Kornia pixels (centre of the top-left "
                         "pixel at (0, 0)); det = 1; float64",
@@ -124,9 +101,10 @@ def read_manifest(path: Path) -> dict[str, Any]:
 
 def check_manifest(manifest: Any, where: Path) -> None:
     """Check the fields of a decoded ``export.json`` (``where`` names it in errors): the format and
-    version, ``layout`` one of :data:`LAYOUTS` with a fitting ``shard_size``, an integer ``seed``,
-    a ``source`` and a ``config`` dict whose fields the reader uses (``image_size``, ``n_views``,
-    ``opacity_output``, ``geometry_dtype``) hold what they should.
+    version, ``layout`` a key of :data:`.layouts.LAYOUTS` with a ``shard_size`` its row accepts
+    (:meth:`.layout.Layout.from_record`), an integer ``seed``, a ``source`` and a ``config`` dict
+    whose fields the reader uses (``image_size``, ``n_views``, ``opacity_output``,
+    ``geometry_dtype``) hold what they should.
 
     Raises:
         ValueError: naming ``where`` and the first wrong field.
@@ -141,11 +119,11 @@ def check_manifest(manifest: Any, where: Path) -> None:
                          f"got {manifest.get('format')!r} version {manifest.get('format_version')!r}")
     for key in RESUME_KEYS:
         check(key, key in manifest, bool, "a value (the field is missing)")
-    check("layout", manifest["layout"], lambda v: v in LAYOUTS, f"one of {list(LAYOUTS)}")
-    if manifest["layout"] == layout_name(None):
-        check("shard_size", manifest["shard_size"], lambda v: v is None, "null for the folder layout")
-    else:
-        check("shard_size", manifest["shard_size"], lambda v: _is_int(v, 1), "an integer >= 1 for shards")
+    check("layout", manifest["layout"], lambda v: isinstance(v, str) and v in LAYOUTS, f"one of {list(LAYOUTS)}")
+    try:
+        LAYOUTS[manifest["layout"]].from_record(manifest["shard_size"])
+    except ValueError as error:
+        raise ValueError(f"{str(where)!r}: {error}") from None
     check("seed", manifest["seed"], lambda v: _is_int(v, 0), "an integer >= 0")
     check("source", manifest["source"], lambda v: isinstance(v, dict), "a JSON object")
     config = manifest["config"]

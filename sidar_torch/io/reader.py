@@ -10,10 +10,9 @@ from typing import Any
 import numpy as np
 from torch.utils.data import Dataset
 
-from . import folders, shards
-from .files import read_inside
 from .layout import decode, png_size, sample_from_entries
-from .manifest import layout_name, read_manifest
+from .layouts import recorded_layout
+from .manifest import read_manifest
 
 
 def entry_size_limit(config: dict[str, Any]) -> int:
@@ -32,8 +31,8 @@ class ExportedDataset(Dataset):
     the export wrote and converted by the same :meth:`~sidar_torch.sample.SampleArrays.to_tensors`
     as :meth:`SidarDataset.sample`, so for the same seed, config and source it is that sample bit
     for bit (keys, shapes, dtypes: the table :data:`sidar_torch.sample.KEYS`; geometry in the
-    recorded config's ``geometry_dtype``, from the float64 files). Reads both layouts; works in
-    DataLoader workers.
+    recorded config's ``geometry_dtype``, from the float64 files). Reads every layout of
+    :data:`.layouts.LAYOUTS` through its interface; works in DataLoader workers.
 
     Only regular files inside ``path`` are read (a link out of it, a FIFO or a device is an error
     naming it), each of at most :func:`entry_size_limit` bytes, and a PNG only if its header gives
@@ -64,9 +63,9 @@ class ExportedDataset(Dataset):
         self.config: dict[str, Any] = manifest["config"]
         self.seed: int = manifest["seed"]
         self.layout: str = manifest["layout"]
-        # Per item: its index and where its entries are: a folder, or {name: (shard, offset, size)}.
-        folder_layout = self.layout == layout_name(None)
-        self._items = folders.sequences(self.path) if folder_layout else shards.sequences(self.path)
+        self._layout = recorded_layout(manifest)
+        # Per item: its index and where the layout finds its entries (a folder, a shard's offsets).
+        self._items = self._layout.sequences(self.path)
         self.indices = [index for index, _ in self._items]
 
     def __len__(self) -> int:
@@ -77,21 +76,14 @@ class ExportedDataset(Dataset):
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -len(self) <= k < len(self):
             raise IndexError(f"index {k!r}: expected an integer in [{-len(self)}, {len(self)})")
         index, where = self._items[k]
-        if isinstance(where, Path):
-            read, layout = partial(self._read_file, where), folders
-        else:
-            read, layout = partial(self._read_entry, where), shards
-        arrays = sample_from_entries(read, index, self.config, partial(layout.read_homographies, read))
+        read = partial(self._read, where)
+        arrays = sample_from_entries(read, index, self.config, partial(self._layout.read_homographies, read))
         return arrays.to_tensors(self.config.get("geometry_dtype", "float32"))
 
-    def _read_file(self, folder: Path, name: str) -> Any:
-        """Entry ``name`` of a sequence folder, decoded."""
-        return self._decode(folder / name, name, read_inside(folder / name, self.path, entry_size_limit(self.config)))
-
-    def _read_entry(self, entries: dict[str, tuple[Path, int, int]], name: str) -> Any:
-        """Entry ``name`` of a sequence in a shard, decoded."""
-        data = shards.read_entry(entries, name, entry_size_limit(self.config))
-        return self._decode(entries[name][0], name, data)
+    def _read(self, where: Any, name: str) -> Any:
+        """Entry ``name`` of the sequence the layout finds at ``where``, decoded."""
+        path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config))
+        return self._decode(path, name, data)
 
     def _decode(self, where: Path, name: str, data: bytes) -> Any:
         """``data`` decoded by ``name``'s extension; a PNG only if its header gives the recorded size."""

@@ -13,15 +13,17 @@ from __future__ import annotations
 import io
 import os
 import tarfile
+import itertools
 from contextlib import nullcontext
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from ..sample import SampleArrays
 from .files import open_inside, temporary_path
-from .layout import SEQUENCE_NAME, SHARD_NAME, encode, sample_entries, sequence_name
+from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, encode, sample_entries, sequence_name
 
 HOMOGRAPHIES = "homographies.npy"
 END_MARKER = 2 * tarfile.BLOCKSIZE
@@ -86,53 +88,11 @@ def _without_last(contents: dict[int, list[tarfile.TarInfo]]) -> dict[int, list[
 
 def held_sequences(path: Path) -> dict[int, list[tarfile.TarInfo]]:
     """What a rerun of the export keeps of the shard at ``path``: all of it, or of a damaged shard
-    the sequences before the damage (the rerun rewrites it: :func:`write_shard`)."""
+    the sequences before the damage (the rerun rewrites it: :meth:`ShardLayout.write`)."""
     try:
         return shard_contents(path)
     except DamagedShard as damaged:
         return damaged.complete
-
-
-def present(out: Path, wanted: range, shard_size: int) -> tuple[set[int], set[int]]:
-    """``(held, damaged)``: the indices of ``wanted`` (non-empty) that the shards in ``out`` hold
-    whole, and the shards among ``wanted``'s that are damaged (to rewrite)."""
-    held, damaged = set(), set()
-    for shard in range(wanted.start // shard_size, (wanted.stop - 1) // shard_size + 1):
-        try:
-            contents = shard_contents(shard_path(out, shard))
-        except DamagedShard as error:
-            contents = error.complete
-            damaged.add(shard)
-        held |= {i for i in contents if i in wanted}
-    return held, damaged
-
-
-def write_shard(out: Path, shard: int, new: list[int], arrays: Iterator[SampleArrays],
-                written: Callable[[], None]) -> None:
-    """(Re)write one shard: the sequences it holds copied over (of a damaged shard, those before
-    the damage), those of ``new`` (ascending) taken from ``arrays``, all in index order, into
-    ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is called after each new sequence."""
-    path = shard_path(out, shard)
-    old = held_sequences(path)
-    tmp = temporary_path(path)
-    try:
-        with tarfile.open(tmp, "w") as tar, (open_inside(path, out) if old else nullcontext()) as old_file:
-            for index in sorted({*old, *new}):
-                if index in old:
-                    for member in old[index]:
-                        old_file.seek(member.offset_data)
-                        _add_entry(tar, member.name, old_file.read(member.size))
-                    continue
-                sample = next(arrays)
-                if sample.index != index:
-                    raise RuntimeError(f"internal: shard {shard} expected sequence {index}, got {sample.index}")
-                for name, data in encode(entries(sample)).items():
-                    _add_entry(tar, f"{sequence_name(index)}.{name}", data)
-                written()
-        tmp.replace(path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
 
 
 def _add_entry(tar: tarfile.TarFile, name: str, data: bytes) -> None:
@@ -142,37 +102,99 @@ def _add_entry(tar: tarfile.TarFile, name: str, data: bytes) -> None:
     tar.addfile(info, io.BytesIO(data))
 
 
-def sequences(out: Path) -> list[tuple[int, dict[str, tuple[Path, int, int]]]]:
-    """``(index, {entry name: (shard, offset, size)})`` of every sequence in the shards of ``out``, ascending.
+@dataclass(frozen=True)
+class ShardLayout:
+    """The shard layout as a :class:`~.layout.Layout`: one write unit per tar shard of ``shard_size``
+    sequences (shard ``k`` holds the indices in ``[k N, (k + 1) N)``)."""
 
-    Raises:
-        DamagedShard, ValueError: as :func:`shard_contents`, for any shard.
-    """
-    items = []
-    for shard in sorted(p for p in out.iterdir() if SHARD_NAME.match(p.name)):
-        for index, members in sorted(shard_contents(shard).items()):
-            items.append((index, {m.name.partition(".")[2]: (shard, m.offset_data, m.size) for m in members}))
-    return items
+    shard_size: int
+    name: ClassVar[str] = "shards"
+    units_per_task: ClassVar[int] = 1
+    """Shards one Ray export task writes: one (a shard holds many sequences)."""
 
+    @classmethod
+    def from_record(cls, shard_size: Any) -> ShardLayout:
+        """The layout of a manifest whose ``shard_size`` is ``shard_size``; ``ValueError`` unless it
+        is an integer ``>= 1`` (not a bool)."""
+        if type(shard_size) is not int or shard_size < 1:
+            raise ValueError(f"field 'shard_size': expected an integer >= 1 for shards, got {shard_size!r}")
+        return cls(shard_size)
 
-def read_entry(entries: dict[str, tuple[Path, int, int]], name: str, limit: int) -> bytes:
-    """The bytes of entry ``name`` of one sequence, at most ``limit`` of them.
+    def present(self, out: Path, wanted: range) -> tuple[set[int], frozenset[int]]:
+        """``(held, damaged)``: the indices of ``wanted`` (non-empty) that the shards in ``out`` hold
+        whole, and the shards among ``wanted``'s that are damaged (to rewrite)."""
+        held, damaged = set(), set()
+        for shard in range(wanted.start // self.shard_size, (wanted.stop - 1) // self.shard_size + 1):
+            try:
+                contents = shard_contents(shard_path(out, shard))
+            except DamagedShard as error:
+                contents = error.complete
+                damaged.add(shard)
+            held |= {i for i in contents if i in wanted}
+        return held, frozenset(damaged)
 
-    Raises:
-        FileNotFoundError: the sequence has no entry ``name``.
-        ValueError: the entry is larger than ``limit`` bytes, or its shard is no longer a regular file.
-    """
-    if name not in entries:
-        raise FileNotFoundError(f"shard entry {name!r} missing (entries: {sorted(entries)})")
-    shard, offset, size = entries[name]
-    if size > limit:
-        raise ValueError(f"{str(shard)!r}: entry {name!r} holds {size} bytes, more than the {limit} "
-                         f"this export's files can hold")
-    with open_inside(shard, shard.parent) as f:
-        f.seek(offset)
-        return f.read(size)
+    def groups(self, missing: list[int], damaged: frozenset[int]) -> list[WriteUnit]:
+        """One unit per shard that lacks a sequence of ``missing`` or is ``damaged``, ascending."""
+        units = {shard: () for shard in damaged}
+        by_shard = itertools.groupby(missing, lambda index: index // self.shard_size)
+        units.update((shard, tuple(new)) for shard, new in by_shard)
+        return [WriteUnit(shard, new) for shard, new in sorted(units.items())]
 
+    def write(self, out: Path, unit: WriteUnit, render: Callable[[int], SampleArrays],
+              written: Callable[[], None]) -> None:
+        """(Re)write shard ``unit.number``: the sequences it holds copied over (of a damaged shard,
+        those before the damage), those of ``unit.indices`` it lacks made by ``render(index)``, all
+        in index order, into ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is
+        called after each sequence rendered."""
+        path = shard_path(out, unit.number)
+        old = held_sequences(path)
+        tmp = temporary_path(path)
+        try:
+            with tarfile.open(tmp, "w") as tar, (open_inside(path, out) if old else nullcontext()) as old_file:
+                for index in sorted({*old, *unit.indices}):
+                    if index in old:
+                        for member in old[index]:
+                            old_file.seek(member.offset_data)
+                            _add_entry(tar, member.name, old_file.read(member.size))
+                        continue
+                    for name, data in encode(entries(render(index))).items():
+                        _add_entry(tar, f"{sequence_name(index)}.{name}", data)
+                    written()
+            tmp.replace(path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
-def read_homographies(read: Callable[[str], Any], n_views: int) -> np.ndarray:
-    """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry."""
-    return read(HOMOGRAPHIES)
+    def sequences(self, out: Path) -> list[tuple[int, dict[str, tuple[Path, int, int]]]]:
+        """``(index, {entry name: (shard, offset, size)})`` of every sequence in the shards of ``out``, ascending.
+
+        Raises:
+            DamagedShard, ValueError: as :func:`shard_contents`, for any shard.
+        """
+        items = []
+        for shard in sorted(p for p in out.iterdir() if SHARD_NAME.match(p.name)):
+            for index, members in sorted(shard_contents(shard).items()):
+                items.append((index, {m.name.partition(".")[2]: (shard, m.offset_data, m.size) for m in members}))
+        return items
+
+    def read(self, out: Path, where: dict[str, tuple[Path, int, int]], name: str, limit: int) -> tuple[Path, bytes]:
+        """``(shard, bytes)`` of entry ``name`` of the sequence whose entries are ``where``, at most
+        ``limit`` bytes.
+
+        Raises:
+            FileNotFoundError: the sequence has no entry ``name``.
+            ValueError: the entry is larger than ``limit`` bytes, or its shard is no longer a regular file.
+        """
+        if name not in where:
+            raise FileNotFoundError(f"shard entry {name!r} missing (entries: {sorted(where)})")
+        shard, offset, size = where[name]
+        if size > limit:
+            raise ValueError(f"{str(shard)!r}: entry {name!r} holds {size} bytes, more than the {limit} "
+                             f"this export's files can hold")
+        with open_inside(shard, shard.parent) as f:
+            f.seek(offset)
+            return shard, f.read(size)
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry."""
+        return read(HOMOGRAPHIES)
