@@ -6,6 +6,7 @@
       0.png .. <V-1>.png   the views, 8-bit RGB; view 0 is the reference camera
       0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
       0-o.png ..           only with ``opacity_output``: 255 times the fraction of the painting hidden
+      0-s.png ..           only with ``shadow_mask_output``: 255 times the fraction of the direct light blocked
       gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
       H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: variable ``H``, 3 x 3 float64
       cameras.json         index, image_size [H, W], K, R, t per view (float64), homography_error

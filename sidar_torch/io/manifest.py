@@ -26,6 +26,14 @@ MANIFEST_LIMIT = 16 * 2**20
 """Most bytes an ``export.json`` is read to (a real one holds a config: a few kB)."""
 
 
+OPTIONAL_OUTPUTS = {
+    "opacity_output": ("opacities", "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"),
+    "shadow_mask_output": ("shadow_masks", "<i>-s.png: 255 x the fraction of the direct light on the visible painting "
+                                           "that occluders block (0 off the painting and where it is hidden)"),
+}
+"""Config switch of an optional pixel output -> (its key, the manifest's description of its files)."""
+
+
 def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
     """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
 
@@ -49,8 +57,7 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
                         "pixel at (0, 0)); det = 1; float64",
         "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
     }
-    if config["opacity_output"]:
-        manifest["opacities"] = "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"
+    manifest.update({key: text for switch, (key, text) in OPTIONAL_OUTPUTS.items() if config.get(switch)})
     if (out / MANIFEST).exists():
         old = read_manifest(out)
         differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS
@@ -103,7 +110,7 @@ def check_manifest(manifest: Any, where: Path) -> None:
     """Check the fields of a decoded ``export.json`` (``where`` names it in errors): the format and
     version, ``layout`` a key of :data:`.layouts.LAYOUTS` with a ``shard_size`` its row accepts
     (:meth:`.layout.Layout.from_record`), an integer ``seed``, a ``source`` and a ``config`` dict
-    whose fields the reader uses (``image_size``, ``n_views``, ``opacity_output``,
+    whose fields the reader uses (``image_size``, ``n_views``, the switches of :data:`OPTIONAL_OUTPUTS`,
     ``geometry_dtype``) hold what they should.
 
     Raises:
@@ -131,8 +138,8 @@ def check_manifest(manifest: Any, where: Path) -> None:
     check("config.image_size", config.get("image_size"),
           lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(n, 1) for n in v), "[H, W], integers >= 1")
     check("config.n_views", config.get("n_views"), lambda v: _is_int(v, 1), "an integer >= 1")
-    check("config.opacity_output", config.get("opacity_output", False), lambda v: isinstance(v, bool),
-          "true or false")
+    for switch in OPTIONAL_OUTPUTS:
+        check(f"config.{switch}", config.get(switch, False), lambda v: isinstance(v, bool), "true or false")
     check("config.geometry_dtype", config.get("geometry_dtype", "float32"), lambda v: v in GEOMETRY_DTYPES,
           f"one of {list(GEOMETRY_DTYPES)}")
 

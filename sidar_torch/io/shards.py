@@ -2,8 +2,8 @@
 
 ``shard-00000.tar``, ``shard-00001.tar``, ... hold, in index order, entries named
 ``<key>.<name>`` with ``key`` the 6-digit index: the shared entries (``000007.0.png``,
-``000007.0-m.png``, ``000007.0-o.png`` with ``opacity_output``, ..., ``000007.gt.png``,
-``000007.cameras.json``) and ``000007.homographies.npy`` (all ``(V, V, 3, 3)`` float64), so
+``000007.0-m.png``, ``000007.0-o.png`` with ``opacity_output``, ``000007.0-s.png`` with
+``shadow_mask_output``, ..., ``000007.gt.png``, ``000007.cameras.json``) and ``000007.homographies.npy`` (all ``(V, V, 3, 3)`` float64), so
 ``webdataset.WebDataset("out/shard-{00000..00009}.tar")`` reads them too. Entries have mode 644
 and time 0: equal data gives equal tars.
 """
