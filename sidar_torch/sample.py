@@ -72,6 +72,10 @@ KEYS: tuple[SampleKey, ...] = (
               "counts by its luminance), 0 where no occluder blocks any light, off the painting and where the "
               "painting is hidden (masks); ambient light counts for nothing",
               switch="shadow_mask_output", entry="{v}-s.png"),
+    SampleKey("shadow_free", "(V, 3, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
+              "blocked: the target of shadow removal; equal to images wherever no shadow falls",
+              switch="shadow_free_output", entry="{v}-f.png"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -116,6 +120,7 @@ class SampleArrays:
             (not rendered).
         shadow_masks: ``(V, H, W)`` uint8, 255 times the fraction of the direct light occluders
             block, or None (not rendered).
+        shadow_free: ``(V, H, W, 3)`` uint8 sRGB, the views with no light blocked, or None.
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -132,6 +137,7 @@ class SampleArrays:
     index: int
     opacities: np.ndarray | None = None
     shadow_masks: np.ndarray | None = None
+    shadow_free: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
@@ -144,6 +150,8 @@ class SampleArrays:
         for name in ("opacities", "shadow_masks"):
             if getattr(self, name) is not None:
                 expected[name] = ((V, H, W), np.uint8)
+        if self.shadow_free is not None:
+            expected["shadow_free"] = ((V, H, W, 3), np.uint8)
         for name, (shape, dtype) in expected.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
@@ -167,6 +175,7 @@ class SampleArrays:
             "masks": _unit(self.masks).unsqueeze(1),
             **({} if self.opacities is None else {"opacities": _unit(self.opacities).unsqueeze(1)}),
             **({} if self.shadow_masks is None else {"shadow_masks": _unit(self.shadow_masks).unsqueeze(1)}),
+            **({} if self.shadow_free is None else {"shadow_free": _unit(self.shadow_free).permute(0, 3, 1, 2)}),
             "label": _unit(self.label).permute(2, 0, 1),
             "homographies": torch.from_numpy(self.homographies).to(dtype),
             "homography_error": self.homography_error,
@@ -226,7 +235,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
         config: gives the renderer's settings (image size, shadow-map size and filter,
-            ``opacity_output``, ``shadow_mask_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
+            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
@@ -237,16 +246,18 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     rendered = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting, timings)
-    views = rendered.views
+    views, shadow_free = rendered.views, rendered.shadow_free
     if effects is not None:
         with timed(timings, "effects"):
             views = apply_effects(views, rendered.background, effects)
+            if shadow_free is not None:  # the same draws: the same exposure, noise and JPEG
+                shadow_free = apply_effects(shadow_free, rendered.background, effects)
     with timed(timings, "homographies"):
         homographies, homography_error = sequence_homographies(sequence)
     K, R, t = sequence.cameras()
     return SampleArrays(views, rendered.masks.astype(np.uint8) * np.uint8(255), rendered.label,
                         homographies.numpy(), homography_error, K, R, t, index, rendered.opacities,
-                        rendered.shadow_masks)
+                        rendered.shadow_masks, shadow_free)
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

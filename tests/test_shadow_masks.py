@@ -1,8 +1,8 @@
-"""Shadow masks (``shadow_mask_output``): per view, the fraction of the direct light falling on the
-visible painting that occluders block, proved against the same scene rendered with and without
-shadows: for a white Lambertian painting and no ambient light, the view's linear luminance with
-shadows is ``1 - fraction`` times the one without, whatever the lights, their weights and the tints
-of transparent casters."""
+"""Shadow masks and shadow-free views (``shadow_mask_output``, ``shadow_free_output``), proved by
+rendering the same scene with and without shadows: for a white Lambertian painting and no ambient
+light, the view's linear luminance with shadows is ``1 - shadow_masks`` times the shadow-free one,
+whatever the lights, their weights and the tints of transparent casters; and the shadow-free view is
+the view itself wherever no shadow falls."""
 
 import numpy as np
 import pytest
@@ -34,7 +34,7 @@ def ball(at, rgba, radius=0.12, height=0.3):
 def render(occluders, lights, shadows=True):
     """A white painting through the reference camera: the rendered sequence (one view)."""
     view = ViewScene(Camera(*geometry.reference_camera(SMALL, 0.9)), tuple(lights), tuple(occluders), LAMBERTIAN, 0.0)
-    settings = RenderSettings(SMALL, shadows=shadows, shadow_masks=True)
+    settings = RenderSettings(SMALL, shadows=shadows, shadow_masks=True, shadow_free=True)
     timings = {}
     out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), 255, np.uint8), timings)
     return out, timings
@@ -55,20 +55,36 @@ def test_the_shadow_mask_is_the_light_the_occluders_take_from_the_painting():
     ratio = luminance(shadowed.views[0])[seen] / luminance(unshadowed.views[0])[seen]
     assert np.percentile(np.abs(ratio - (1 - fraction[seen])), 99) < 0.03
     assert (fraction[shadowed.masks[0]] == 0).all()  # off the painting and behind the occluders
+    # The shadow-free view is the scene without shadows (other programs: within a level or two).
+    assert np.abs(shadowed.shadow_free[0].astype(int) - unshadowed.views[0]).max() <= 2
+    free = luminance(shadowed.shadow_free[0])[seen]
+    assert np.percentile(np.abs(luminance(shadowed.views[0])[seen] / free - (1 - fraction[seen])), 99) < 0.03
 
 
 def test_no_occluder_no_shadow_and_no_draw():
     out, timings = render([], [spot(-1.0, 0.0, 0.5)])
     assert out.shadow_masks.shape == (1, *SMALL) and not out.shadow_masks.any()
-    assert "shadow_mask" not in timings
+    assert np.array_equal(out.shadow_free, out.views)
+    assert "shadow_mask" not in timings and "shadow_free" not in timings
 
 
-def test_the_dataset_hands_them_out_only_when_asked_and_the_rest_is_unchanged():
-    config = small_config("shadows_only", n_views=2, n_occluders=(2, 3))
+@pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
+def test_the_dataset_hands_them_out_only_when_asked_and_the_rest_is_unchanged(preset):
+    # View effects on (exposure, noise): the shadow-free view gets the same draws.
+    config = small_config(preset, n_views=2, n_occluders=(2, 3), exposure_jitter=True, sensor_noise=True)
     plain = SidarDataset(None, config, seed=1).sample(0)
-    with_masks = SidarDataset(None, config.replace(shadow_mask_output=True), seed=1).sample(0)
-    assert "shadow_masks" not in plain
-    assert with_masks["shadow_masks"].shape == (2, 1, *SMALL) and with_masks["shadow_masks"].dtype == torch.float32
-    assert with_masks["shadow_masks"].max() > 0.2  # several lights: a shadow blocks a part of the light
+    both = SidarDataset(None, config.replace(shadow_mask_output=True, shadow_free_output=True), seed=1).sample(0)
+    assert "shadow_masks" not in plain and "shadow_free" not in plain
+    assert both["shadow_masks"].shape == (2, 1, *SMALL) and both["shadow_masks"].dtype == torch.float32
+    assert both["shadow_free"].shape == (2, 3, *SMALL) and both["shadow_free"].dtype == torch.float32
+    assert both["shadow_masks"].max() > 0.2  # several lights: a shadow blocks a part of the light
     for key in plain:
-        assert torch.equal(torch.as_tensor(plain[key]), torch.as_tensor(with_masks[key])), key
+        assert torch.equal(torch.as_tensor(plain[key]), torch.as_tensor(both[key])), key
+    # Where no light is blocked on the painting, the shadow-free view is the view: a level apart at a
+    # few pixels, where the blocked fraction rounds to 0 in the 8-bit mask.
+    unshadowed = (both["shadow_masks"][:, 0] == 0) & (both["masks"][:, 0] == 0)
+    levels = ((both["shadow_free"] - both["images"]).abs().amax(1) * 255).round()[unshadowed]
+    assert levels.max() <= 1 and (levels > 0).float().mean() < 1e-3
+    shadowed = both["shadow_masks"][:, 0] > 0.1
+    brighter = both["shadow_free"].mean(1)[shadowed] >= both["images"].mean(1)[shadowed]
+    assert shadowed.sum() > 20 and brighter.float().mean() > 0.99

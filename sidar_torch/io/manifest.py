@@ -30,6 +30,7 @@ OPTIONAL_OUTPUTS = {
     "opacity_output": ("opacities", "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"),
     "shadow_mask_output": ("shadow_masks", "<i>-s.png: 255 x the fraction of the direct light on the visible painting "
                                            "that occluders block (0 off the painting and where it is hidden)"),
+    "shadow_free_output": ("shadow_free", "<i>-f.png: the view with no light blocked (the target of shadow removal)"),
 }
 """Config switch of an optional pixel output -> (its key, the manifest's description of its files)."""
 

@@ -516,7 +516,7 @@ class GLRenderer(pyrender.Renderer):
              transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None,
              painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None,
-             shadow_fraction: bool = False) -> np.ndarray:
+             shadow_fraction: bool = False, lookups: bool = True) -> np.ndarray:
         """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
 
         Args:
@@ -542,6 +542,9 @@ class GLRenderer(pyrender.Renderer):
                 light the occluders block (the shadow-mask draw; ``SHADOW_FRACTION``, quirk 9). It
                 reads the shadow and transmittance maps the colour pass of the same scene just drew:
                 none is drawn again (``stale`` is ignored).
+            lookups: false: no draw looks a shadow up (every light reaches every fragment), with the
+                programs of the colour pass, so pixels no shadow falls on come out the same (the
+                shadow-free draw); no map is drawn and ``painting_parts`` is not used.
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -553,7 +556,8 @@ class GLRenderer(pyrender.Renderer):
             self._update_context(scene, flags)
         filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
-        if flags & RenderFlags.SHADOWS_SPOT and not shadow_fraction:
+        maps_ready = shadow_fraction or not lookups  # drawn by this scene's colour pass just before
+        if flags & RenderFlags.SHADOWS_SPOT and not maps_ready:
             with timed(timings, "shadow", GL.glFinish):
                 opaque = False
                 for node in scene.mesh_nodes:
@@ -571,10 +575,11 @@ class GLRenderer(pyrender.Renderer):
                     self.transmittance.reserve(tiles[-1][0] + 1)
                     for k, light_node in tiles:
                         self._transmittance_pass(scene, light_node, k, filters, flags)
-        self._n_shadowed = len(shadowed)
+        self._n_shadowed = len(shadowed) if lookups else 0
         self._program_cache.transmittance = self._filtered
         self._program_cache.shadow_fraction = shadow_fraction
-        split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
+        split = (painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
+                 and lookups)
         self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1]) if split else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:

@@ -88,6 +88,8 @@ class RenderedSequence:
             painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
         shadow_masks: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
             direct light on the visible painting that occluders block (:meth:`SceneRenderer._render_shadow_mask`).
+        shadow_free: ``(V, H, W, 3)`` uint8 sRGB or None (not asked for): the views with no light
+            blocked (:meth:`SceneRenderer._render_shadow_free`).
     """
 
     views: np.ndarray
@@ -96,6 +98,7 @@ class RenderedSequence:
     background: np.ndarray
     opacities: np.ndarray | None = None
     shadow_masks: np.ndarray | None = None
+    shadow_free: np.ndarray | None = None
 
 
 class SceneRenderer:
@@ -172,18 +175,20 @@ class SceneRenderer:
             texture = self._painting_texture(painting)
         with timed(timings, "graph"):
             plans = plan_views(sequence, self.settings)
-        views, masks, hidden, shadow_masks = [], [], [], []
+        views, masks, hidden, shadow_masks, shadow_free = [], [], [], [], []
         for view, plan in zip(sequence.views, plans):
-            image, mask, opacity, shadow = self._render_view(view, plan, sequence, texture, timings)
+            image, mask, opacity, shadow, unshadowed = self._render_view(view, plan, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
             hidden.append(opacity)
             shadow_masks.append(shadow)
+            shadow_free.append(unshadowed)
         label = render_label(self._gl, sequence.views[0].camera, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 np.stack(hidden) if self.settings.opacities else None,
-                                np.stack(shadow_masks) if self.settings.shadow_masks else None)
+                                np.stack(shadow_masks) if self.settings.shadow_masks else None,
+                                np.stack(shadow_free) if self.settings.shadow_free else None)
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
@@ -211,10 +216,11 @@ class SceneRenderer:
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
                      timings: dict[str, float] | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
         """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool, with
         ``settings.opacities`` its opacity and with ``settings.shadow_masks`` its shadow mask (each
-        ``(H, W)`` uint8, else None), drawing what ``plan`` says."""
+        ``(H, W)`` uint8, else None), and with ``settings.shadow_free`` the view with no light blocked
+        (``(H, W, 3)`` uint8, else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             scene, plane = new_scene(view.camera, view.ambient, self._plane, view.plane_material, texture,
                                      self.image_size)
@@ -247,6 +253,13 @@ class SceneRenderer:
             image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
                                   shadowed=shadowed, timings=timings, step="colour", stale=stale,
                                   painting_parts=(plane, plan.painting_parts))
+            unshadowed = None
+            if self.settings.shadow_free:
+                # With no lookup every light reaches every fragment; the programs, and so the pixels
+                # no shadow falls on, are the colour pass's. Without a shadowed light it is the view.
+                unshadowed = image[..., :3] if not shadowed else self._gl.draw(
+                    scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting, shadowed=shadowed,
+                    timings=timings, step="shadow_free", lookups=False)[..., :3]
         self._shadows.drawn(map_keys)
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}
@@ -265,7 +278,7 @@ class SceneRenderer:
         shadow = None
         if self.settings.shadow_masks:
             shadow = self._render_shadow_mask(scene, plane, plan, casters, transmitting, shadowed, mask, timings)
-        return image, mask, opacity, shadow
+        return image, mask, opacity, shadow, unshadowed
 
     def _render_shadow_mask(self, scene: pyrender.Scene, plane: pyrender.Node, plan: ViewPlan, casters: set,
                             transmitting: set, shadowed: set, mask: np.ndarray,

@@ -46,6 +46,8 @@ class RenderSettings:
             outputs are the same either way (config ``opacity_output``).
         shadow_masks: also render each view's shadow mask (``RenderedSequence.shadow_masks``); the
             other outputs are the same either way (config ``shadow_mask_output``).
+        shadow_free: also render each view with no light blocked (``RenderedSequence.shadow_free``);
+            the other outputs are the same either way (config ``shadow_free_output``).
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
@@ -69,6 +71,7 @@ class RenderSettings:
     mask_min_opacity: float = 0.0
     opacities: bool = False
     shadow_masks: bool = False
+    shadow_free: bool = False
     antialias: int = 1
     mirrors: bool = True
     skip_idle_shadows: bool = True
@@ -108,7 +111,8 @@ class RenderSettings:
             mesh_error_px=config.mesh_error_px if config.mesh_detail == "auto" else None,
             texture_filter=config.texture_filter, shadows=config.shadows,
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
-            opacities=config.opacity_output, shadow_masks=config.shadow_mask_output, antialias=config.antialias,
+            opacities=config.opacity_output, shadow_masks=config.shadow_mask_output,
+            shadow_free=config.shadow_free_output, antialias=config.antialias,
         )
 
     def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:

@@ -1,9 +1,9 @@
-"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``footprint_cost``, ``shadow_mask_cost``, over ``benchmarks.paired``) on tiny
+"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``footprint_cost``, ``shadow_outputs_cost``, over ``benchmarks.paired``) on tiny
 settings: what they print and that a wrong override is named, never speed."""
 
 import pytest
 
-from benchmarks import footprint_cost, mirror_cost, opacity_cost, shadow_mask_cost
+from benchmarks import footprint_cost, mirror_cost, opacity_cost, shadow_outputs_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -35,7 +35,9 @@ def test_footprint_cost_prints_the_lookups_kept_and_both_clocks(capsys):
     assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
 
 
-def test_shadow_mask_cost_prints_both_clocks_and_the_draw(capsys):
-    shadow_mask_cost.main(["--size", "24x32", "--samples", "2"])
+@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free"])
+def test_shadow_outputs_cost_prints_both_clocks_and_the_draw(capsys, output):
+    shadow_outputs_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
     out = capsys.readouterr().out.splitlines()
-    assert [line.split(":")[0].strip() for line in out[1:]] == ["wall", "cpu", "shadow-mask draw (wall)"]
+    assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
+        "wall", "cpu", f"{output} draw (wall)"]
