@@ -3,13 +3,7 @@
     float irradiance_lit = 0.0;  // ... and what reaches the fragment past the occluders
 #endif
     for (int i = 0; i < lookup_begin; i++) {  // lights before the lookup range: no lookup
-        vec3 l;
-        color.xyz += spot_light(i, n, roughness, metallic, f0, c_diff, base_color.rgb, l);
-#ifdef SHADOW_FRACTION
-        float irradiance = dot(spot_irradiance(i, n), LUMINANCE);  // no lookup: none of it is blocked
-        irradiance_all += irradiance;
-        irradiance_lit += irradiance;
-#endif
+#include "light_without_lookup.glsl"
     }
     for (int i = lookup_begin; i < lookup_end; i++) {  // lights with a shadow lookup
         vec3 l;
