@@ -64,3 +64,13 @@ def test_flow_of_a_known_homography():
     assert torch.equal(visible[0, 0], expected)
     masks[0, 1, 0, 5, 5] = 1  # view 1 hides pixel (u=5, v=5), which view-0 pixel (2, 7) lands on
     assert not module.flow_and_visibility(H, masks, 0, 1)[1][0, 0, 7, 2]
+
+
+def test_shadow_removal_quick(capsys):
+    results = load("shadow_removal").main(["--quick"])
+    assert set(results) == {"trained network", "do nothing (the view itself)"}
+    baseline = results["do nothing (the view itself)"]
+    # Shadowed pixels differ from their shadow-free targets; elsewhere the view is (nearly) its own target.
+    assert baseline["shadowed painting pixels"] > 5 * baseline["all pixels"] > 0
+    assert all(math.isfinite(v) for row in results.values() for v in row.values())
+    assert "| trained network |" in capsys.readouterr().out
