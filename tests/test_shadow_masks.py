@@ -104,3 +104,49 @@ def test_the_shadow_free_view_is_the_scene_rendered_without_shadows_pixel_for_pi
         without_shadows = shared_renderer(replace(settings, shadows=False)).render(sequence, painting)
         assert np.array_equal(with_outputs.shadow_free, without_shadows.views)
         assert not np.array_equal(with_outputs.views, without_shadows.views)  # there were shadows to remove
+
+
+ELLIPSE_SIZE = (192, 256)
+LIGHT_AT, BALL_AT, BALL_RADIUS = np.array([-0.6, 0.3, 2.0]), np.array([0.05, -0.05, 0.35]), 0.12
+
+
+def one_ball_shadow(alpha):
+    """The reference camera's shadow mask ``(H, W)`` in [0, 1] and masks of a grey ball of opacity
+    ``alpha`` lit by one spot light, and each pixel's distance, in pixels along the painting, from
+    the ball's analytic shadow (the cone of directions from the light that meet the sphere):
+    negative inside."""
+    camera = Camera(*geometry.reference_camera(ELLIPSE_SIZE, 0.9))
+    light = Light("spot", LIGHT_AT[None], np.ones(3), float(LIGHT_AT @ LIGHT_AT), 0.7, 0.8)
+    caster = Occluder("sphere", BALL_AT, np.eye(3), np.full(3, BALL_RADIUS),
+                      Material(np.array([0.5, 0.5, 0.5, alpha]), 0.0, 1.0, specular=0.0))
+    view = ViewScene(camera, (light,), (caster,), LAMBERTIAN, 0.0)
+    settings = RenderSettings(ELLIPSE_SIZE, shadow_masks=True, shadow_map_size=2048)
+    out = shared_renderer(settings).render(SceneSequence(ELLIPSE_SIZE, (view,)), np.full((*ELLIPSE_SIZE, 3), 200, np.uint8))
+    h, w = ELLIPSE_SIZE
+    to_plane = np.linalg.inv(camera.K @ np.column_stack([camera.R[:, 0], camera.R[:, 1], camera.t]))
+    u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+    p = np.einsum("ij,jyx->yxi", to_plane, np.stack([u, v, np.ones_like(u)]))
+    rays = np.concatenate([p[..., :2] / p[..., 2:], np.zeros((h, w, 1))], axis=-1) - LIGHT_AT
+    axis = BALL_AT - LIGHT_AT
+    angle = np.arccos(np.clip(rays @ axis / (np.linalg.norm(rays, axis=-1) * np.linalg.norm(axis)), -1, 1))
+    pixel = np.linalg.norm(geometry.project(camera.K, camera.R, camera.t, np.array([[0, 0, 0.0], [1e-3, 0, 0]]))[1]
+                           - geometry.project(camera.K, camera.R, camera.t, np.zeros((1, 3)))[0]) / 1e-3  # px per unit
+    distance = (angle - np.arcsin(BALL_RADIUS / np.linalg.norm(axis))) * np.linalg.norm(rays, axis=-1) * pixel
+    return out.shadow_masks[0] / 255.0, out.masks[0], distance
+
+
+def test_an_opaque_ball_shadow_matches_its_analytic_ellipse_within_a_pixel():
+    mask, hidden, distance = one_ball_shadow(1.0)
+    inside, outside = ~hidden & (distance < -1), ~hidden & (distance > 1)
+    assert inside.sum() > 300 and (mask[inside] >= 0.5).all() and (mask[outside] < 0.5).all()
+
+
+def test_a_transparent_ball_shadow_follows_its_opacity():
+    medians = []
+    for alpha in (0.25, 0.5, 0.75):
+        mask, hidden, distance = one_ball_shadow(alpha)
+        core = ~hidden & (distance < -3)
+        assert 0 < mask[core].min() and mask[core].max() < 1
+        medians.append(float(np.median(mask[core])))
+    # The opacity, raised a little by the Fresnel reflectance the transmittance map also counts.
+    assert all(alpha <= m <= alpha + 0.05 for alpha, m in zip((0.25, 0.5, 0.75), medians)), medians
