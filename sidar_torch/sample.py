@@ -69,8 +69,9 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey("shadow_masks", "(V, 1, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the fraction of the direct light falling on the visible painting that occluders block: each "
               "light weighted by its irradiance there (luminance; a transparent occluder's coloured shadow "
-              "counts by its luminance), 0 where no occluder blocks any light, off the painting and where the "
-              "painting is hidden (masks); ambient light counts for nothing",
+              "counts by its luminance); 0 exactly where no occluder blocks any light (any blocked light gives at "
+              "least 1/255), off the painting and where the painting is hidden (masks); ambient light counts for "
+              "nothing",
               switch="shadow_mask_output", entry="{v}-s.png"),
     SampleKey("shadow_free", "(V, 3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "

@@ -44,8 +44,9 @@ def cluster():
 
 @pytest.fixture(scope="module")
 def dataset():
-    """Tiny sequences (24 x 32, 3 views, opacities on: every column of a row is exercised)."""
-    return SidarDataset(config=small_config(image_size=(24, 32), shadow_map_size=256, opacity_output=True), seed=5)
+    """Tiny sequences (24 x 32, 3 views, every optional output on: every column of a row is exercised)."""
+    return SidarDataset(config=small_config(image_size=(24, 32), shadow_map_size=256, opacity_output=True,
+                                            shadow_mask_output=True, shadow_free_output=True), seed=5)
 
 
 # --------------------------------------------------------------------------- without Ray
@@ -178,7 +179,8 @@ def test_rows_and_torch_batches_are_the_samples_rendered_here(cluster, dataset):
     assert sorted(by_index) == [4, 5, 6]
     for index, got in by_index.items():
         want = dataset.sample_arrays(index)
-        for name in ("images", "masks", "opacities", "label", "homographies", "K", "R", "t"):
+        for name in ("images", "masks", "opacities", "shadow_masks", "shadow_free", "label", "homographies", "K", "R",
+                     "t"):
             a, b = getattr(got, name), getattr(want, name)
             assert a.dtype == b.dtype and np.array_equal(a, b), (index, name)
         assert got.homography_error == want.homography_error
