@@ -34,12 +34,7 @@ PaintingHit painting_hit(vec3 origin, vec3 dir)
     hit.scale = 2.0 * s / sqrt(-down) * size.y / (2.0 * painting_half_size.y);
     vec3 irradiance = vec3(0.0);
     for (int i = 0; i < n_spot_lights; i++) {
-        vec3 to_light = spot_lights[i].position - p;
-        float dist = length(to_light);
-        vec3 l = to_light / dist;
-        float cd = clamp(dot(spot_lights[i].direction, -l), 0.0, 1.0);
-        float spot = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
-        irradiance += max(l.z, 0.0) * spot * spot * spot_lights[i].intensity / (dist * dist) * spot_lights[i].color;
+        irradiance += spot_irradiance(i, p, vec3(0.0, 0.0, 1.0));  // the painting faces +z
     }
     hit.light = ambient_light + painting_diffuse / PI * irradiance;
     return hit;

@@ -3,7 +3,7 @@
 #ifdef TRANSMITTANCE_SHADOWS
         passed *= spot_transmittance(spot_lights[i].light_matrix, i);
 #endif
-        vec3 irradiance = spot_irradiance(i, n);
+        vec3 irradiance = spot_irradiance(i, frag_position, n);
         irradiance_all += dot(irradiance, LUMINANCE);
         irradiance_lit += dot(irradiance * passed, LUMINANCE);
 #endif

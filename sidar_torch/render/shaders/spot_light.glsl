@@ -18,19 +18,19 @@ vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_
     return compute_brdf(n, v, l, roughness, metallic, f0, c_diff, albedo, radiance);
 }
 
-#ifdef SHADOW_FRACTION
-const vec3 LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // linear sRGB (Rec. 709) primaries
-
-vec3 spot_irradiance(int i, vec3 n)
+vec3 spot_irradiance(int i, vec3 p, vec3 n)
 {
-    // Spot light i's direct irradiance here, per channel (cone and distance falloff as in
-    // spot_light, times n . l): what the shadow fraction weighs its shadow with.
-    vec3 to_light = spot_lights[i].position - frag_position;
+    // Spot light i's direct irradiance at point p of normal n, per channel: cone and distance
+    // falloff as in spot_light, times n . l (the painting's light in a mirror, the weight of a
+    // light's shadow in the shadow fraction).
+    vec3 to_light = spot_lights[i].position - p;
     float dist = length(to_light);
     vec3 l = to_light / dist;
     float cd = clamp(dot(spot_lights[i].direction, -l), 0.0, 1.0);
-    float attenuation = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
-    attenuation = attenuation * attenuation * spot_lights[i].intensity / (dist * dist);
-    return attenuation * spot_lights[i].color * clamp(dot(n, l), 0.0, 1.0);
+    float spot = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
+    return max(dot(n, l), 0.0) * spot * spot * spot_lights[i].intensity / (dist * dist) * spot_lights[i].color;
 }
+
+#ifdef SHADOW_FRACTION
+const vec3 LUMINANCE = vec3(0.2126, 0.7152, 0.0722);  // linear sRGB (Rec. 709) primaries
 #endif
