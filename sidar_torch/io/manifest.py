@@ -10,7 +10,7 @@ from typing import Any, Callable
 
 import yaml
 
-from ..sample import GEOMETRY_DTYPES
+from ..sample import GEOMETRY_DTYPES, KEYS
 from ..sources import PaintingSource
 from ..version import __version__
 from .files import LOCK, is_own_temporary, read_inside, replace_file
@@ -26,13 +26,16 @@ MANIFEST_LIMIT = 16 * 2**20
 """Most bytes an ``export.json`` is read to (a real one holds a config: a few kB)."""
 
 
-OPTIONAL_OUTPUTS = {
-    "opacity_output": ("opacities", "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"),
-    "shadow_mask_output": ("shadow_masks", "<i>-s.png: 255 x the fraction of the direct light on the visible painting "
-                                           "that occluders block (0 off the painting and where it is hidden)"),
-    "shadow_free_output": ("shadow_free", "<i>-f.png: the view with no light blocked (the target of shadow removal)"),
+OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)
+"""The sample keys a config switch turns on (:data:`~sidar_torch.sample.KEYS`, column ``switch``)."""
+
+FILE_DESCRIPTIONS = {
+    "opacities": "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)",
+    "shadow_masks": "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
+                    "(0 off the painting and where it is hidden)",
+    "shadow_free": "<i>-f.png: the view with no light blocked (the target of shadow removal)",
 }
-"""Config switch of an optional pixel output -> (its key, the manifest's description of its files)."""
+"""What the manifest says of the files of each of :data:`OPTIONAL_KEYS` an export holds."""
 
 
 def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
@@ -58,7 +61,7 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
                         "pixel at (0, 0)); det = 1; float64",
         "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
     }
-    manifest.update({key: text for switch, (key, text) in OPTIONAL_OUTPUTS.items() if config.get(switch)})
+    manifest.update({key.name: FILE_DESCRIPTIONS[key.name] for key in OPTIONAL_KEYS if config.get(key.switch)})
     if (out / MANIFEST).exists():
         old = read_manifest(out)
         differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS
@@ -111,7 +114,7 @@ def check_manifest(manifest: Any, where: Path) -> None:
     """Check the fields of a decoded ``export.json`` (``where`` names it in errors): the format and
     version, ``layout`` a key of :data:`.layouts.LAYOUTS` with a ``shard_size`` its row accepts
     (:meth:`.layout.Layout.from_record`), an integer ``seed``, a ``source`` and a ``config`` dict
-    whose fields the reader uses (``image_size``, ``n_views``, the switches of :data:`OPTIONAL_OUTPUTS`,
+    whose fields the reader uses (``image_size``, ``n_views``, the switches of :data:`OPTIONAL_KEYS`,
     ``geometry_dtype``) hold what they should.
 
     Raises:
@@ -139,8 +142,8 @@ def check_manifest(manifest: Any, where: Path) -> None:
     check("config.image_size", config.get("image_size"),
           lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(n, 1) for n in v), "[H, W], integers >= 1")
     check("config.n_views", config.get("n_views"), lambda v: _is_int(v, 1), "an integer >= 1")
-    for switch in OPTIONAL_OUTPUTS:
-        check(f"config.{switch}", config.get(switch, False), lambda v: isinstance(v, bool), "true or false")
+    for key in OPTIONAL_KEYS:
+        check(f"config.{key.switch}", config.get(key.switch, False), lambda v: isinstance(v, bool), "true or false")
     check("config.geometry_dtype", config.get("geometry_dtype", "float32"), lambda v: v in GEOMETRY_DTYPES,
           f"one of {list(GEOMETRY_DTYPES)}")
 
