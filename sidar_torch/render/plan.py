@@ -34,7 +34,7 @@ pixels, by the second rule above. Each view keeps its own shadowed emitters and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -132,7 +132,7 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
         plans.append(ViewPlan(order, len(cast), frozenset(drawn), frozenset(casters)))
     if shared and settings.cull_occluders:
         casters = frozenset().union(*(p.casters for p in plans))
-        plans = [ViewPlan(p.order, p.n_shadowed, p.drawn, casters) for p in plans]
+        plans = [replace(p, casters=casters) for p in plans]
     if settings.split_shadow_lookups:
         plans = [_with_painting_parts(view, p, sequence.image_size, settings.shadow_map_size)
                  for view, p in zip(sequence.views, plans)]
@@ -149,7 +149,7 @@ def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int],
     begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size)
     if (begin == 0).all() and (end == plan.n_shadowed).all():
         return plan
-    return ViewPlan(plan.order, plan.n_shadowed, plan.drawn, plan.casters, tuple(painting_parts(begin, end, size)))
+    return replace(plan, painting_parts=tuple(painting_parts(begin, end, size)))
 
 
 class _ViewFacts:

@@ -89,7 +89,7 @@ class RenderedSequence:
         shadow_masks: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
             direct light on the visible painting that occluders block (:meth:`SceneRenderer._render_shadow_mask`).
         shadow_free: ``(V, H, W, 3)`` uint8 sRGB or None (not asked for): the views with no light
-            blocked (:meth:`SceneRenderer._render_shadow_free`).
+            blocked, drawn by :meth:`SceneRenderer._render_view` right after each view.
     """
 
     views: np.ndarray
