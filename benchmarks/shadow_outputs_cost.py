@@ -4,8 +4,8 @@ with and without one of them on the same scenes, same run. ``python -m benchmark
 
 Renders each sequence with the output's ``RenderSettings`` field off and on (``benchmarks.paired``)
 and prints, per view, the medians and the median paired difference in wall-clock and this process's
-CPU time, then the median time of the output's own draw (its step; views without a shadowed light
-skip it).
+CPU time, then the median paired difference of the steps the output adds to (the shadow mask's own
+draw; the shadow-free view's second output of the colour draw and its readback).
 
     python -m benchmarks.shadow_outputs_cost --output shadow_masks --config misaligned --size 384x512 --samples 40
     python -m benchmarks.shadow_outputs_cost --output shadow_free --config misaligned --size 384x512 --samples 40
@@ -19,8 +19,8 @@ import statistics
 from .common import size_label
 from .paired import paired_config, paired_parser, paired_view_times, print_paired
 
-OUTPUTS = {"shadow_masks": "shadow_mask", "shadow_free": "shadow_free"}
-"""``RenderSettings`` field of each output -> the step its draw is timed under."""
+OUTPUTS = {"shadow_masks": ("shadow_mask",), "shadow_free": ("colour", "readback")}
+"""``RenderSettings`` field of each output -> the steps its work is timed under (``SceneRenderer.render``)."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -34,12 +34,13 @@ def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     config = paired_config("shadow_outputs_cost", args)
     ms_per_view, steps = paired_view_times(config, args.output, args.samples)
-    draw_ms = [1e3 * on.get(OUTPUTS[args.output], 0.0) / config.n_views for _, on in steps]
+    names = OUTPUTS[args.output]
+    step_ms = [1e3 * sum(on.get(n, 0.0) - off.get(n, 0.0) for n in names) / config.n_views for off, on in steps]
     print(f"{args.output}: {args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} "
           f"sequences x {config.n_views} views")
     print_paired(ms_per_view)
-    print(f"{args.output} draw (wall): median {statistics.median(draw_ms):.2f} ms / view "
-          f"(views without a shadowed light skip it)")
+    print(f"{' + '.join(names)} (wall): median paired difference {statistics.median(step_ms):+.2f} ms / view "
+          f"(views without a shadowed light add nothing)")
 
 
 if __name__ == "__main__":

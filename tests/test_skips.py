@@ -41,7 +41,7 @@ def skipped(settings, key):
 
 
 def assert_same_pixels(a, b):
-    for name in ("views", "masks", "label"):
+    for name in ("views", "masks", "label", "shadow_free"):
         x, y = getattr(a, name), getattr(b, name)
         assert np.array_equal(x, y), f"{name}: {int((x != y).sum())} values differ"
 
@@ -76,8 +76,10 @@ def test_lights_are_summed_in_rank_order_so_the_shadowed_ones_come_first():
 def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(preset):
     """The painting's lit draw split into screen rectangles with only the lookups each needs
     (``render.footprints``) gives the same bytes as one draw with every lookup, with tent and
-    bilinear filters, transparent casters (transmittance lookups) and antialiasing (paper preset)."""
-    cfg = small_config(preset, image_size=(160, 224), n_views=3, n_occluders=(2, 4))
+    bilinear filters, transparent casters (transmittance lookups) and antialiasing (paper preset).
+    So does the shadow-free view, drawn in the same pass (each part with its lookups, all of its
+    light unshadowed)."""
+    cfg = small_config(preset, image_size=(160, 224), n_views=3, n_occluders=(2, 4), shadow_free_output=True)
     painting = textured_painting((160, 224))
     left_out = 0
     for seed, shadow_filter in zip(range(4), ["tent", "bilinear"] * 2):

@@ -168,8 +168,8 @@ class SidarConfig:
     shadow_free_output: bool = _field(False, meaning=(
         "also hand out ``shadow_free``, each view rendered from the same scene (lights, occluders, cameras, view "
         "effects and noise) with no light blocked: the target of shadow removal in the view's own lighting. "
-        "Occluders stay in the picture and the masks do not change. Costs a colour draw without shadow lookups "
-        "per view with a shadowed light; see docs/rendering.md, \"Shadow masks\"."))
+        "Occluders stay in the picture and the masks do not change. Costs a second output of the colour draw "
+        "(and its readback) per view with a shadowed light; see docs/rendering.md, \"Shadow masks\"."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

@@ -10,6 +10,9 @@ up:
   painting's texture and mipmaps, the label): :data:`FRAME_PIXEL_BYTES`;
 * per pixel and sample of a multisampled pass (``antialias`` > 1), 8 bytes (RGBA8 colour and
   24-bit depth, measured 31 bytes per pixel at 4 samples): :data:`MULTISAMPLE_PIXEL_BYTES`;
+* the shadow outputs, counted rather than measured: per view and pixel, a uint8 array and a float32
+  tensor of each (``shadow_free`` 3 channels, ``shadow_masks`` 1), and ``shadow_free``'s second RGBA8
+  colour buffer per pixel and sample: :data:`SHADOW_OUTPUT_PIXEL_BYTES`;
 * per ordered pair of views, 28.9 KB measured (the homography fit and its 17 x 17 lattice check,
   64 to 256 views): :data:`VIEW_PAIR_BYTES`;
 * per shadow-map texel and shadowed emitter, a float32 depth texel and a quarter of an RGBA16F
@@ -27,6 +30,8 @@ FRAME_PIXEL_BYTES = 96
 MULTISAMPLE_PIXEL_BYTES = 8
 VIEW_PAIR_BYTES = 32 * 1024
 SHADOW_TEXEL_BYTES = 6
+SHADOW_OUTPUT_PIXEL_BYTES = {"shadow_free_output": 15, "shadow_mask_output": 5}
+"""Config switch -> bytes per view and pixel of its output (uint8 array and float32 tensor)."""
 
 
 def shadowed_emitters(config: Any) -> int:
@@ -41,12 +46,16 @@ def estimated_sample_bytes(config: Any) -> int:
 
     ``H * W * (V * 32 + 96 + 8 * antialias) + V**2 * 32768 + maps * shadow_map_size**2 * 6`` for
     ``V`` views of ``(H, W)`` pixels (the ``8 * antialias`` term only when ``antialias`` > 1) and
-    ``maps`` shadow maps (at least the one the renderer always holds); the module docstring says
-    how each figure was measured.
+    ``maps`` shadow maps (at least the one the renderer always holds), plus ``H * W * V * 15`` and
+    ``H * W * 4 * (1 + antialias)`` (``H * W * 4`` without antialiasing) with ``shadow_free_output``, ``H * W * V * 5`` with
+    ``shadow_mask_output``; the module docstring says how each figure was obtained.
     """
     h, w = config.image_size
     views = config.n_views
     multisample = MULTISAMPLE_PIXEL_BYTES * config.antialias if config.antialias > 1 else 0
     maps = max(1, shadowed_emitters(config) if config.shadows else 0)
-    return (h * w * (views * VIEW_PIXEL_BYTES + FRAME_PIXEL_BYTES + multisample) + views * views * VIEW_PAIR_BYTES
-            + maps * config.shadow_map_size**2 * SHADOW_TEXEL_BYTES)
+    per_view = VIEW_PIXEL_BYTES + sum(b for field, b in SHADOW_OUTPUT_PIXEL_BYTES.items() if getattr(config, field))
+    samples = 1 + (config.antialias if config.antialias > 1 else 0)  # the single- and multisampled buffers
+    second_output = 4 * samples if config.shadow_free_output else 0
+    return (h * w * (views * per_view + FRAME_PIXEL_BYTES + multisample + second_output)
+            + views * views * VIEW_PAIR_BYTES + maps * config.shadow_map_size**2 * SHADOW_TEXEL_BYTES)

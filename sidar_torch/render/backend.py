@@ -205,7 +205,9 @@ class ProgramCache(ShaderProgramCache):
     :attr:`mirror` names a define of ``mirror.MIRROR_DEFINES``, lit programs are that variant
     (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``). While
     :attr:`shadow_fraction` is true, lit programs with spot-light shadows output the fraction of the
-    direct light the occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9).
+    direct light the occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9). While
+    :attr:`shadow_free` is true, lit programs with spot-light shadows also output the colour with no
+    light blocked (define ``SHADOW_FREE``, quirk 10).
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
@@ -217,6 +219,7 @@ class ProgramCache(ShaderProgramCache):
         self.transmittance = False
         self.mirror: str | None = None
         self.shadow_fraction = False
+        self.shadow_free = False
 
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
         defines = {**(defines or {}), **self._extra_defines}
@@ -226,6 +229,8 @@ class ProgramCache(ShaderProgramCache):
             defines[self.mirror] = 1
         if self.shadow_fraction and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
             defines["SHADOW_FRACTION"] = 1
+        if self.shadow_free and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+            defines["SHADOW_FREE"] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:
@@ -261,10 +266,12 @@ class GLRenderer(pyrender.Renderer):
       their context, which :class:`~.renderer.SceneRenderer` destroys.
     """
 
-    def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1):
+    def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1,
+                 outputs: int = 1):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
-        self._target = Framebuffer(width, height, samples)
+        self._target = Framebuffer(width, height, samples, outputs)
+        self._outputs = 1  # colour outputs of the current draw (see draw's shadow_free)
         self.shadow_map_size = shadow_map_size
         self.shadow_maps = ShadowMapArray(shadow_map_size)
         """The :class:`ShadowedSpotLight` s' shadow maps, one layer each."""
@@ -434,7 +441,7 @@ class GLRenderer(pyrender.Renderer):
         """pyrender's forward-pass state (it binds framebuffer 0 for drawing), then our framebuffer;
         the pass's lighting is not computed yet."""
         super()._configure_forward_pass_viewport(flags)
-        self._target.begin_drawing()
+        self._target.begin_drawing(self._outputs)
         self._pass_lighting = None  # computed at the pass's first lit draw (_bind_lighting)
         self._lit_programs = set()  # programs holding the pass's lighting uniforms
 
@@ -516,8 +523,9 @@ class GLRenderer(pyrender.Renderer):
              transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None,
              painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None,
-             shadow_fraction: bool = False, lookups: bool = True) -> np.ndarray:
-        """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8.
+             shadow_fraction: bool = False, shadow_free: bool = False) -> np.ndarray:
+        """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8
+        (with ``shadow_free``, ``(2, H, W, 4)``: the colour, then the colour with no light blocked).
 
         Args:
             flags: pyrender render flags; with ``SHADOWS_SPOT`` every light gets a shadow map.
@@ -542,9 +550,9 @@ class GLRenderer(pyrender.Renderer):
                 light the occluders block (the shadow-mask draw; ``SHADOW_FRACTION``, quirk 9). It
                 reads the shadow and transmittance maps the colour pass of the same scene just drew:
                 none is drawn again (``stale`` is ignored).
-            lookups: false: no draw looks a shadow up (every light reaches every fragment), with the
-                programs of the colour pass, so pixels no shadow falls on come out the same (the
-                shadow-free draw); no map is drawn and ``painting_parts`` is not used.
+            shadow_free: with ``SHADOWS_SPOT``, lit draws also output the colour with every
+                light unblocked (``SHADOW_FREE``, quirk 10); the renderer's framebuffer must
+                have been made with two outputs.
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -556,8 +564,7 @@ class GLRenderer(pyrender.Renderer):
             self._update_context(scene, flags)
         filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
-        maps_ready = shadow_fraction or not lookups  # drawn by this scene's colour pass just before
-        if flags & RenderFlags.SHADOWS_SPOT and not maps_ready:
+        if flags & RenderFlags.SHADOWS_SPOT and not shadow_fraction:  # else the colour pass drew them
             with timed(timings, "shadow", GL.glFinish):
                 opaque = False
                 for node in scene.mesh_nodes:
@@ -575,11 +582,12 @@ class GLRenderer(pyrender.Renderer):
                     self.transmittance.reserve(tiles[-1][0] + 1)
                     for k, light_node in tiles:
                         self._transmittance_pass(scene, light_node, k, filters, flags)
-        self._n_shadowed = len(shadowed) if lookups else 0
+        self._n_shadowed = len(shadowed)
         self._program_cache.transmittance = self._filtered
         self._program_cache.shadow_fraction = shadow_fraction
-        split = (painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
-                 and lookups)
+        self._program_cache.shadow_free = shadow_free
+        self._outputs = 2 if shadow_free else 1
+        split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
         self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1]) if split else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
@@ -588,6 +596,8 @@ class GLRenderer(pyrender.Renderer):
                 self._forward_pass(scene, flags, seg_node_map=seg_node_map)
             finally:
                 self._split = None
-                self._program_cache.shadow_fraction = False
+                self._program_cache.shadow_fraction = self._program_cache.shadow_free = False
+                self._outputs = 1
         with timed(timings, "readback"):
-            return self._target.end_drawing()
+            images = self._target.end_drawing()
+        return images if shadow_free else images[0]

@@ -19,6 +19,10 @@ into that pair, and :meth:`Framebuffer.end_drawing` resolves it into the single-
 buffer (``glBlitFramebuffer``, the average of each pixel's samples) before reading back. Every other
 pass (masks, opacity, label) draws single-sampled, exactly as without antialiasing.
 
+With ``outputs = 2`` (``shadow_free``) each buffer has a second colour attachment: a pass begun with
+two outputs writes its fragment shader's ``location = 1`` output there (the shadow-free colour,
+``shader_patches`` quirk 10), and :meth:`Framebuffer.end_drawing` resolves and reads both.
+
 Like every other GL object of a renderer, it is freed with its context (framebuffers and
 renderbuffers belong to that context alone); it issues no GL call when collected.
 """
@@ -53,13 +57,17 @@ def sample_counts() -> tuple[int, ...]:
     return tuple(int(c) for c in np.ravel(GL.glGetInternalformativ(GL.GL_RENDERBUFFER, GL.GL_RGBA8, GL.GL_SAMPLES, n)))
 
 
-def _new_framebuffer(width: int, height: int, samples: int) -> int:
-    """A framebuffer with an RGBA8 colour and a 24-bit depth renderbuffer, ``samples`` per pixel
-    (1: single-sampled). Raises RuntimeError if the driver reports it incomplete."""
+_COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
+"""The colour attachments of an output count's framebuffers, in output (``location``) order."""
+
+
+def _new_framebuffer(width: int, height: int, samples: int, outputs: int) -> int:
+    """A framebuffer with ``outputs`` RGBA8 colour renderbuffers and a 24-bit depth renderbuffer,
+    ``samples`` per pixel (1: single-sampled). Raises RuntimeError if the driver reports it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
-    for attachment, storage in ((GL.GL_COLOR_ATTACHMENT0, GL.GL_RGBA8),
-                                (GL.GL_DEPTH_ATTACHMENT, GL.GL_DEPTH_COMPONENT24)):
+    for attachment, storage in ((*((c, GL.GL_RGBA8) for c in _COLOURS[:outputs]),
+                                 (GL.GL_DEPTH_ATTACHMENT, GL.GL_DEPTH_COMPONENT24))):
         renderbuffer = GL.glGenRenderbuffers(1)
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
         if samples > 1:
@@ -77,25 +85,28 @@ def _new_framebuffer(width: int, height: int, samples: int) -> int:
 
 
 class Framebuffer:
-    """An RGBA8 colour renderbuffer and a 24-bit depth renderbuffer of ``width`` x ``height``
-    pixels, single-sampled, in the current context; with ``samples > 1`` also a multisampled
-    pair for the passes drawn inside :meth:`multisampled`.
+    """An RGBA8 colour renderbuffer (two with ``outputs = 2``) and a 24-bit depth renderbuffer of
+    ``width`` x ``height`` pixels, single-sampled, in the current context; with ``samples > 1``
+    also a multisampled set for the passes drawn inside :meth:`multisampled`.
 
     Raises:
         ValueError: ``samples`` is neither 1 nor a count of :func:`sample_counts` (naming the
-            config field ``antialias``).
+            config field ``antialias``); ``outputs`` is not 1 or 2.
         RuntimeError: the driver reports a framebuffer incomplete.
     """
 
-    def __init__(self, width: int, height: int, samples: int = 1):
-        self.width, self.height, self.samples = width, height, samples
+    def __init__(self, width: int, height: int, samples: int = 1, outputs: int = 1):
+        if outputs not in (1, 2):
+            raise ValueError(f"outputs: expected 1 or 2 colour outputs, got {outputs!r}")
+        self.width, self.height, self.samples, self.outputs = width, height, samples, outputs
         if samples != 1 and samples not in sample_counts():
             raise ValueError(f"antialias: {samples} samples per pixel is not offered by this OpenGL context "
                              f"(GL_MAX_SAMPLES = {int(GL.glGetIntegerv(GL.GL_MAX_SAMPLES))}): expected 1 or one of "
                              f"{sample_counts()}")
-        self.id = _new_framebuffer(width, height, 1)
-        self._multisampled_id = _new_framebuffer(width, height, samples) if samples > 1 else None
+        self.id = _new_framebuffer(width, height, 1, outputs)
+        self._multisampled_id = _new_framebuffer(width, height, samples, outputs) if samples > 1 else None
         self._multisample = False
+        self._drawing = 1  # colour outputs of the pass being drawn
 
     @contextlib.contextmanager
     def multisampled(self) -> Iterator[None]:
@@ -107,24 +118,34 @@ class Framebuffer:
         finally:
             self._multisample = False
 
-    def begin_drawing(self) -> None:
-        """Make it the draw framebuffer, with clockwise front faces: the winding a projection
+    def begin_drawing(self, outputs: int = 1) -> None:
+        """Make it the draw framebuffer, drawing the fragment shader's first ``outputs`` colour
+        outputs (at most :attr:`outputs`), with clockwise front faces: the winding a projection
         flipped by :data:`FLIP_Y` gives counter-clockwise triangles."""
+        if not 1 <= outputs <= self.outputs:
+            raise ValueError(f"outputs: this framebuffer has {self.outputs} colour output(s), a pass asked for {outputs}")
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._multisampled_id if self._multisample else self.id)
+        GL.glDrawBuffers(outputs, _COLOURS[:outputs])
         GL.glFrontFace(GL.GL_CW)
+        self._drawing = outputs
 
     def end_drawing(self) -> np.ndarray:
         """Restore counter-clockwise front faces (shadow passes cull with them), resolve a
-        multisampled pass into the single-sampled colour buffer, and return that buffer as
-        ``(height, width, 4)`` uint8, top row first."""
+        multisampled pass into the single-sampled colour buffers, and return the pass's outputs as
+        ``(outputs, height, width, 4)`` uint8, top row first (``outputs`` of :meth:`begin_drawing`)."""
         GL.glFrontFace(GL.GL_CCW)
-        if self._multisample:
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._multisampled_id)
-            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
-            GL.glBlitFramebuffer(0, 0, self.width, self.height, 0, 0, self.width, self.height,
-                                 GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
-        GL.glReadBuffer(GL.GL_COLOR_ATTACHMENT0)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
-        return np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width, 4).copy()
+        images = np.empty((self._drawing, self.height, self.width, 4), np.uint8)
+        for k, attachment in enumerate(_COLOURS[:self._drawing]):
+            if self._multisample:
+                GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._multisampled_id)
+                GL.glReadBuffer(attachment)
+                GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
+                GL.glDrawBuffers(1, [attachment])
+                GL.glBlitFramebuffer(0, 0, self.width, self.height, 0, 0, self.width, self.height,
+                                     GL.GL_COLOR_BUFFER_BIT, GL.GL_NEAREST)
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
+            GL.glReadBuffer(attachment)
+            pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
+            images[k] = np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width, 4)
+        return images

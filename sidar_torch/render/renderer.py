@@ -133,7 +133,8 @@ class SceneRenderer:
         self.gl_limits = size_limits()
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
-        self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias)
+        self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
+                              outputs=2 if settings.shadow_free else 1)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
@@ -249,17 +250,17 @@ class SceneRenderer:
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the unshadowed draw gives the same pixels without the shadow passes.
         flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
+        # The shadow-free view comes from the same draw (a second output, quirk 10); without a
+        # shadowed light the view is its own shadow-free view.
+        both = self.settings.shadow_free and bool(shadowed)
         with self._gl._target.multisampled():  # settings.antialias samples; the other passes single-sampled
             image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
                                   shadowed=shadowed, timings=timings, step="colour", stale=stale,
-                                  painting_parts=(plane, plan.painting_parts))
-            unshadowed = None
-            if self.settings.shadow_free:
-                # With no lookup every light reaches every fragment; the programs, and so the pixels
-                # no shadow falls on, are the colour pass's. Without a shadowed light it is the view.
-                unshadowed = image[..., :3] if not shadowed else self._gl.draw(
-                    scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting, shadowed=shadowed,
-                    timings=timings, step="shadow_free", lookups=False)[..., :3]
+                                  painting_parts=(plane, plan.painting_parts), shadow_free=both)
+        if both:
+            image, unshadowed = image[0], image[1, ..., :3]
+        else:
+            unshadowed = image[..., :3] if self.settings.shadow_free else None
         self._shadows.drawn(map_keys)
         masked = {nodes[i] for i in plan.drawn
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}

@@ -113,6 +113,14 @@ pyrender override.
    times the transmittance, per channel), and outputs ``1 - lit / all`` of their luminances
    instead of a colour (``shaders/shadow_fraction_*.glsl``). The colour it would compute is dead
    code the compiler removes; lights outside the lookup range pass whole, as in the colour pass.
+10. **pyrender draws one colour per fragment.** The program variant ``SHADOW_FREE`` (the colour
+    pass of a renderer with ``shadow_free``) also sums, in the same three light loops and in the same
+    order, every light's contribution before its lookup darkens it, adds the ambient light and the
+    painting seen in a mirror or through glass as the colour does, and writes that to a second
+    colour output (``layout(location = 1)``, the framebuffer's second attachment) with the same
+    opacity: the view with no light blocked, from the same draw. The additions are the ones a
+    draw without lookups makes, in its order, so it equals the scene drawn with ``shadows: false``
+    bit for bit (tested).
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
@@ -150,7 +158,8 @@ def _after(anchor: str, text: str) -> tuple[str, str]:
     return anchor, anchor + text
 
 
-PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION", "SHADOW_FRACTION")
+PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION", "SHADOW_FRACTION",
+                 "SHADOW_FREE")
 """Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``)."""
 
 SHADER_SOURCES = ("transmittance.frag",)
@@ -191,6 +200,10 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         # Quirk 8: the painting reflected and refracted by occluders, in their program variants only.
         _before(_MAIN, "painting_mirror.glsl"),
         _before("\n    frag_color = clamp(vec4(", "painting_mirror_main.glsl", "shadow_fraction_main.glsl"),
+        # Quirk 10: the shadow-free colour as a second output.
+        ("\nout vec4 frag_color;\n", "\n" + glsl("shadow_free_declaration.glsl")),
+        _after("frag_color = clamp(vec4(linear_to_srgb(color.xyz), surface_alpha(base_color.a, n)), 0.0, 1.0);\n",
+               glsl("shadow_free_output.glsl")),
     ],
     # The unlit draws (label, opacity) output the Fresnel opacity of the lit draw, highlights aside.
     "flat.frag": [

@@ -4,3 +4,6 @@
 #include "light_without_lookup.glsl"
     }
     color.xyz += base_color.xyz * ambient_light;
+#ifdef SHADOW_FREE
+    shadow_free += base_color.xyz * ambient_light;
+#endif
