@@ -20,8 +20,13 @@ import kornia
 import torch
 
 from .config import as_int
+from .sample import KEYS
 
 __all__ = ["homography_pairs"]
+
+PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, "))
+"""The optional per-view keys of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``):
+when a batch holds one, the pair carries the same boxes of it."""
 
 
 def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int], *,
@@ -72,6 +77,9 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
           erode ``valid`` if a loss must ignore them.
         - ``views`` ``(B, 2)`` int64: ``(a, b)``.
         - ``origin`` ``(B, 2)`` int64: ``(u0, v0)``, column and row of the patch's top-left pixel.
+        - ``<key>_a``, ``<key>_b`` ``(B, C, ph, pw)``: for each optional per-view key the batch holds
+          (``opacities``, ``shadow_masks``, ``shadow_free``, see :data:`PAIRED_VIEW_KEYS`), the
+          same pixel boxes of it, e.g. ``shadow_free_a`` and ``shadow_free_b``.
 
     Raises:
         KeyError: a required key is missing.
@@ -141,6 +149,11 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         "views": torch.stack([a, b], 1),
         "origin": origin,
     }
+    for name in PAIRED_VIEW_KEYS:
+        if name in batch:
+            values = _per_view_tensor(batch, name, images, single)
+            out[f"{name}_a"] = _crop(values[rows, a], u0, v0, (ph, pw))
+            out[f"{name}_b"] = _crop(values[rows, b], u0, v0, (ph, pw))
     return {key: value[0] for key, value in out.items()} if single else out
 
 
@@ -219,6 +232,19 @@ def _check_batch(batch: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, 
         raise ValueError("batch: images, masks and homographies must be on one device, got "
                          f"{images.device}, {masks.device}, {homographies.device}")
     return images, masks, homographies, single
+
+
+def _per_view_tensor(batch: Mapping[str, Any], key: str, images: torch.Tensor, single: bool) -> torch.Tensor:
+    """``batch[key]`` as ``(B, V, C, H, W)``, checked against ``images`` ``(B, V, 3, H, W)``."""
+    values = _float_tensor(batch, key)
+    values = values[None] if single else values
+    B, V, _, H, W = images.shape
+    if values.ndim != 5 or values.shape[:2] != (B, V) or values.shape[3:] != (H, W):
+        raise ValueError(f"batch[{key!r}]: expected {('B', V, 'C', H, W)[1 if single else 0:]} to match images, "
+                         f"got {tuple(batch[key].shape)}")
+    if values.device != images.device:
+        raise ValueError(f"batch[{key!r}]: expected the images' device {images.device}, got {values.device}")
+    return values
 
 
 def _float_tensor(batch: Mapping[str, Any], key: str) -> torch.Tensor:

@@ -299,6 +299,24 @@ def test_corner_offsets_are_the_four_point_parametrisation_of_h_ab():
     assert torch.allclose(moved - box, p["corner_offsets"].double(), atol=1e-3)
 
 
+def test_pairs_carry_the_same_boxes_of_the_optional_per_view_outputs():
+    batch = tiny_augment("shadows_only", n_views=3, n_occluders=(2, 3), opacity_output=True, shadow_mask_output=True,
+                         shadow_free_output=True)(paintings(2, TINY))
+    p = homography_pairs(batch, (20, 30), generator=torch.Generator().manual_seed(2))
+    for item, ((a, b), (u0, v0)) in enumerate(zip(p["views"].tolist(), p["origin"].tolist())):
+        assert torch.equal(p["patch_a"][item], batch["images"][item, a, :, v0:v0 + 20, u0:u0 + 30])
+        for name in ("opacities", "shadow_masks", "shadow_free"):
+            for view, side in ((a, "a"), (b, "b")):
+                assert torch.equal(p[f"{name}_{side}"][item], batch[name][item, view, :, v0:v0 + 20, u0:u0 + 30])
+    assert (p["shadow_masks_a"] > 0).any()  # shadows fell in the boxes
+    plain = homography_pairs({k: batch[k] for k in ("images", "masks", "homographies")}, (20, 30),
+                             generator=torch.Generator().manual_seed(2))
+    assert not any(key.startswith("shadow") for key in plain)
+    assert all(torch.equal(plain[key], p[key]) for key in plain)  # the same draws either way
+    with pytest.raises(ValueError, match=r"batch\['shadow_free'\]: expected"):
+        homography_pairs({**batch, "shadow_free": batch["shadow_free"][:, :, :, :-1]}, 8)
+
+
 def test_valid_marks_patch_pixels_seen_in_view_a_and_landing_on_painting_in_view_b():
     # Occluders and strong tilts: masks in both views, pixels leaving view b.
     aug = tiny_augment(seed=2, n_occluders=(2, 3), image_size=(64, 80))
