@@ -107,6 +107,31 @@ def test_culling_hidden_occluders_changes_no_pixel(preset):
     assert skipped(settings, "occluders_culled") - before >= 10  # counted once per view, in the "on" renders
 
 
+@pytest.mark.parametrize("preset", ["misaligned", "paper_misaligned"])
+def test_clearing_only_the_texels_a_map_had_written_changes_no_pixel(preset):
+    """Shadow and transmittance maps cleared only where their previous draw may have written
+    (``render.shadow_array``) give the same bytes as maps cleared whole, sequence after sequence
+    (each renderer's maps keep what earlier sequences drew), with transparent casters and shared
+    scenes; and far fewer texels are cleared."""
+    cfg = small_config(preset, n_views=3, n_occluders=(1, 4))
+    settings = RenderSettings.from_config(cfg)
+    painting = textured_painting(SMALL)
+    gl = {flag: shared_renderer(replace(settings, clear_written_texels=flag))._gl for flag in (True, False)}
+
+    def counts(flag):  # so far: transmittance tiles drawn, depth and transmittance texels cleared
+        return np.array([gl[flag].transmittance.passes, gl[flag].shadow_maps.cleared_texels,
+                         gl[flag].transmittance.cleared_texels])
+
+    render_both(settings, sample_sequence(cfg, np.random.default_rng(100)), painting, "clear_written_texels")  # maps made
+    before = {flag: counts(flag) for flag in gl}
+    for seed in range(5):
+        seq = sample_sequence(cfg.replace(scene_per_view=seed % 2 == 0), np.random.default_rng(seed))
+        assert_same_pixels(*render_both(settings, seq, painting, "clear_written_texels"))
+    (tiles, depth, tints), (tiles_off, depth_off, tints_off) = (counts(flag) - before[flag] for flag in gl)
+    assert tiles == tiles_off > 0  # transparent casters were drawn
+    assert depth < depth_off / 2 and tints < tints_off / 2  # new layers and tiles count whole
+
+
 def overhead_spot(x=0.0):
     position = np.array([x, 0.0, 2.0])
     return Light("spot", position[None], np.ones(3), 8.0, 0.9, 1.0)

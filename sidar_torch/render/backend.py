@@ -32,8 +32,9 @@ from .footprints import PaintingPart
 from .framebuffer import FLIP_Y, Framebuffer
 from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
-from .shadow_array import ShadowMapArray
+from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps, vertex_defines
+from .visibility import bounds_corners, map_texel_box
 
 __all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection", "ranked"]
 
@@ -267,7 +268,7 @@ class GLRenderer(pyrender.Renderer):
     """
 
     def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1,
-                 outputs: int = 1):
+                 outputs: int = 1, clear_written_texels: bool = True):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
         self._target = Framebuffer(width, height, samples, outputs)
@@ -278,6 +279,10 @@ class GLRenderer(pyrender.Renderer):
         self._shadow_frusta: dict[pyrender.Node, np.ndarray] = {}
         self._light_matrices: dict[pyrender.Node, tuple[np.ndarray, np.ndarray]] = {}
         self.transmittance = TransmittanceMaps(shadow_map_size // 2)
+        self.clear_written_texels = clear_written_texels
+        """Clear only the texels of a shadow or transmittance map that its last draw may have
+        written (``shadow_array``); false: every map whole."""
+        self._shadow_writes: TexelBox = (0, 0, shadow_map_size, shadow_map_size)  # of the next shadow pass
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._split: tuple[Any, Sequence[PaintingPart]] | None = None  # (painting primitive, parts) of a lit draw
@@ -488,20 +493,30 @@ class GLRenderer(pyrender.Renderer):
         return V, frustum_projection(np.array([*frustum[:4], min(near, frustum[4]), frustum[5]]))
 
     def _configure_shadow_mapping_viewport(self, light: ShadowedSpotLight, flags: int) -> None:
-        """pyrender's shadow-pass state, drawing into the light's layer of :attr:`shadow_maps` (cleared)."""
+        """pyrender's shadow-pass state, drawing into the light's layer of :attr:`shadow_maps`,
+        cleared, for a pass that writes only the texels of :attr:`_shadow_writes`."""
         self._configure_shadow_framebuffer()
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._shadow_fb)
-        self.shadow_maps.attach(light.shadow_layer)
         GL.glDrawBuffer(GL.GL_NONE)
         GL.glReadBuffer(GL.GL_NONE)
-        GL.glClear(GL.GL_DEPTH_BUFFER_BIT)
+        GL.glDepthMask(GL.GL_TRUE)  # before the clear: the mask applies to it
+        self.shadow_maps.attach(light.shadow_layer, self._shadow_writes)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
         GL.glEnable(GL.GL_DEPTH_TEST)
-        GL.glDepthMask(GL.GL_TRUE)
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDepthRange(0.0, 1.0)
         GL.glDisable(GL.GL_CULL_FACE)
         GL.glDisable(GL.GL_BLEND)
+
+    def _caster_texels(self, scene: pyrender.Scene, light_node: pyrender.Node, flags: int,
+                       casters: Sequence[tuple[pyrender.Primitive, np.ndarray]], size: int) -> TexelBox:
+        """The texels of a ``size``-texel map from ``light_node`` that drawing ``casters``
+        (``(primitive, pose)`` pairs) may write: the whole map unless ``clear_written_texels``."""
+        if not self.clear_written_texels or any(p.poses is not None for p, _ in casters):  # instanced: not bounded here
+            return 0, 0, size, size
+        V, P = self._get_light_cam_matrices(scene, light_node, flags)
+        corners = [bounds_corners(primitive.bounds, pose) for primitive, pose in casters]
+        return map_texel_box(np.concatenate(corners) if corners else np.zeros((0, 3)), P @ V, size)
 
     def _transmittance_pass(self, scene: pyrender.Scene, light_node: pyrender.Node, k: int,
                             filters: list[pyrender.Node], flags: int) -> None:
@@ -509,8 +524,9 @@ class GLRenderer(pyrender.Renderer):
         ``light_node`` with the light matrix of its depth map."""
         V, P = self._get_light_cam_matrices(scene, light_node, flags)
         casters = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
+        writes = self._caster_texels(scene, light_node, flags, casters, self.transmittance.tile)
         self.transmittance.draw_tile(k, V, P, scene.get_pose(light_node)[:3, 3], casters,
-                                     self._transmittance_program)
+                                     self._transmittance_program, writes)
 
     def _transmittance_program(self, primitive: pyrender.Primitive):
         program = self._program_cache.get_program("mesh.vert", "transmittance.frag",
@@ -566,11 +582,12 @@ class GLRenderer(pyrender.Renderer):
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
         if flags & RenderFlags.SHADOWS_SPOT and not shadow_fraction:  # else the colour pass drew them
             with timed(timings, "shadow", GL.glFinish):
-                opaque = False
+                opaque = [(p, scene.get_pose(node)) for node in scene.mesh_nodes
+                          if node in casters and node not in filters for p in node.mesh.primitives]
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters and node not in filters
-                    opaque |= node.mesh.is_visible
                 for light_node in scene.light_nodes & (shadowed if stale is None else stale):
+                    self._shadow_writes = self._caster_texels(scene, light_node, flags, opaque, self.shadow_map_size)
                     if opaque:
                         self._shadow_mapping_pass(scene, light_node, flags)
                     else:  # only clear the map (pyrender's pass fails with nothing to draw)

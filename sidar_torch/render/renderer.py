@@ -134,7 +134,8 @@ class SceneRenderer:
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
         self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
-                              outputs=2 if settings.shadow_free else 1)
+                              outputs=2 if settings.shadow_free else 1,
+                              clear_written_texels=settings.clear_written_texels)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)

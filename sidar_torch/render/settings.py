@@ -52,9 +52,9 @@ class RenderSettings:
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
         skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps,
-            split_shadow_lookups: the skips of work that cannot change a pixel (``render.plan``,
-            ``render.footprints`` and ``SceneRenderer``), all on; tests turn each off to compare.
-            No config field sets them.
+            split_shadow_lookups, clear_written_texels: the skips of work that cannot change a
+            pixel (``render.plan``, ``render.footprints``, ``render.shadow_array`` and
+            ``SceneRenderer``), all on; tests turn each off to compare. No config field sets them.
 
     Raises:
         ValueError: a field out of its range, naming the field.
@@ -79,6 +79,7 @@ class RenderSettings:
     masks_from_outline: bool = True
     reuse_shadow_maps: bool = True
     split_shadow_lookups: bool = True
+    clear_written_texels: bool = True
 
     def __post_init__(self) -> None:
         try:

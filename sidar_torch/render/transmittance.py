@@ -26,7 +26,8 @@ little more than the depth map's) and laid out in one ``GL_TEXTURE_2D``: tile ``
 ``k // rows``, row ``k % rows``. One texture unit serves every light. A ``GL_TEXTURE_2D_ARRAY``
 would be the natural layout, but with one bound next to the depth-compare samplers, llvmpipe
 (Mesa 22.3.6, LLVM 15) crashes in LLVM while compiling the lit shader. Tiles are allocated for
-the most shadowed lights a view with a transparent caster has had, and reused.
+the most shadowed lights a view with a transparent caster has had, and reused. Like the depth maps
+(``shadow_array``), a tile is cleared only where its last draw may have written.
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ import numpy as np
 import pyrender
 from OpenGL import GL
 from pyrender.constants import BufFlags
+
+from .shadow_array import TexelBox, clear_box
 
 __all__ = ["TransmittanceMaps", "vertex_defines"]
 
@@ -71,7 +74,9 @@ class TransmittanceMaps:
         self.tile = tile
         self.rows = max(1, int(GL.glGetIntegerv(GL.GL_MAX_TEXTURE_SIZE)) // tile)
         self.tiles = 0
+        self._written: list[TexelBox] = []  # per tile: what its last draw may have written
         self.passes = 0  # tiles drawn so far (for tests and benchmarks)
+        self.cleared_texels = 0  # so far (for tests and benchmarks)
         self._texture = int(GL.glGenTextures(1))
         self._framebuffer = int(GL.glGenFramebuffers(1))
         self.reserve(1)  # a complete texture, so every lit draw can bind it
@@ -97,10 +102,11 @@ class TransmittanceMaps:
                             self.tile * min(tiles, self.rows), 0, GL.GL_RGBA, GL.GL_FLOAT, None)
             GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
             self.tiles = tiles
+            self._written = [(0, 0, self.tile, self.tile)] * tiles  # new storage: undefined texels
 
     def draw_tile(self, k: int, V: np.ndarray, P: np.ndarray, light_position: np.ndarray,
                   casters: list[tuple[pyrender.Primitive, np.ndarray]],
-                  program_for: Callable[[pyrender.Primitive], object]) -> None:
+                  program_for: Callable[[pyrender.Primitive], object], writes: TexelBox) -> None:
         """Clear tile ``k`` and draw ``casters`` into it from a light.
 
         Args:
@@ -111,15 +117,18 @@ class TransmittanceMaps:
                 the primitive's material gives the colour and alpha. Drawn in this order (the
                 float16 product rounds in that order).
             program_for: the uploaded transmittance program for a primitive (its vertex layout).
+            writes: the tile's texels (tile coordinates) the casters may cover: the next draw
+                into the tile clears only these (the whole tile: ``(0, 0, tile, tile)``).
         """
         x, y = self.tile * (k // self.rows), self.tile * (k % self.rows)
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._framebuffer)
         GL.glFramebufferTexture2D(GL.GL_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_TEXTURE_2D, self._texture, 0)
         GL.glViewport(x, y, self.tile, self.tile)
+        GL.glClearColor(1.0, 1.0, 1.0, FAR)
+        self.cleared_texels += clear_box(self._written[k], (x, y), GL.GL_COLOR_BUFFER_BIT)
+        self._written[k] = writes
         GL.glScissor(x, y, self.tile, self.tile)
         GL.glEnable(GL.GL_SCISSOR_TEST)
-        GL.glClearColor(1.0, 1.0, 1.0, FAR)
-        GL.glClear(GL.GL_COLOR_BUFFER_BIT)
         GL.glDisable(GL.GL_DEPTH_TEST)  # products and minima do not depend on the order
         GL.glEnable(GL.GL_BLEND)
         GL.glBlendEquationSeparate(GL.GL_FUNC_ADD, GL.GL_MIN)

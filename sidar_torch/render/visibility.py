@@ -8,7 +8,8 @@ are bounded by balls ``|X - centre| <= radius`` (an occluder's ``position`` and 
   (``render.plan`` decides with them what each view draws);
 * mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radius` (how large an occluder
   and its shadow show, in pixels);
-* shadow maps: :func:`light_frustum`, :func:`cube_corners`;
+* shadow maps: :func:`light_frustum`, :func:`cube_corners`; which texels a draw into a map may
+  write: :func:`map_texel_box` of :func:`bounds_corners`;
 * masks without a draw: :func:`painting_mask`.
 
 Every test is conservative where it culls: ``False`` ("cannot be seen") only when certain.
@@ -27,8 +28,10 @@ __all__ = [
     "ball_pixel_radius",
     "ball_shadow_corners",
     "ball_shadow_pixel_radius",
+    "bounds_corners",
     "cube_corners",
     "light_frustum",
+    "map_texel_box",
     "painting_mask",
     "shadow_may_fall_on_ball",
     "shadow_may_reach",
@@ -170,6 +173,43 @@ def cube_corners(centre: np.ndarray, radius: float) -> np.ndarray:
     """``(8, 3)`` corners of the axis-aligned cube of half-side ``radius`` around ``centre``: the
     cube holds the ball ``|X - centre| <= radius``, so their convex hull bounds the ball."""
     return np.asarray(centre, dtype=np.float64) + radius * _CUBE
+
+
+def bounds_corners(bounds: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """``(8, 3)`` world corners of an object-space axis-aligned box ``bounds`` ``[[x, y, z]_min,
+    [x, y, z]_max]`` placed by ``pose`` ``(4, 4)`` (object to world): their convex hull holds the
+    posed object."""
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    corners = np.where(_CUBE > 0, hi, lo)
+    return corners @ pose[:3, :3].T + pose[:3, 3]
+
+
+def map_texel_box(points: np.ndarray, clip_from_world: np.ndarray, size: int) -> tuple[int, int, int, int]:
+    """The texels of a ``size`` x ``size`` map that a draw of geometry inside the convex hull of
+    ``points`` may write, through a viewport covering the whole map.
+
+    A texel is written only if its centre lies in a drawn triangle, so only if it lies in the
+    bounding box of the points' projections; one more texel on each side covers rounding.
+    Conservative: the whole map when a point is not in front of the projection (clip ``w <= 0``).
+
+    Args:
+        points: ``(N, 3)`` world points.
+        clip_from_world: ``(4, 4)`` projection times view matrix (OpenGL clip space).
+        size: the map's side, texels.
+
+    Returns:
+        ``(x0, y0, x1, y1)``: texel columns ``x0 .. x1 - 1`` and rows ``y0 .. y1 - 1`` (window
+        coordinates, row 0 first in memory), clipped to the map; empty (``x0 == x1``) for no points.
+    """
+    if not len(points):
+        return 0, 0, 0, 0
+    clip = np.column_stack([points, np.ones(len(points))]) @ np.asarray(clip_from_world, np.float64).T
+    if (clip[:, 3] <= 0).any():
+        return 0, 0, size, size
+    texels = (clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * size
+    x0, y0 = np.clip(np.floor(texels.min(axis=0)) - 1, 0, size)
+    x1, y1 = np.clip(np.ceil(texels.max(axis=0)) + 1, 0, size)
+    return int(x0), int(y0), int(max(x0, x1)), int(max(y0, y1))
 
 
 def ball_shadow_corners(emitter: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:

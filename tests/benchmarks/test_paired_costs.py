@@ -1,9 +1,9 @@
-"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``footprint_cost``, ``shadow_outputs_cost``, over ``benchmarks.paired``) on tiny
+"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``skip_cost``, ``shadow_outputs_cost``, over ``benchmarks.paired``) on tiny
 settings: what they print and that a wrong override is named, never speed."""
 
 import pytest
 
-from benchmarks import footprint_cost, mirror_cost, opacity_cost, shadow_outputs_cost
+from benchmarks import mirror_cost, opacity_cost, shadow_outputs_cost, skip_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -27,12 +27,20 @@ def test_mirror_cost_names_a_wrong_override():
         mirror_cost.main(["--set", "occluder_materials=[chrome]", "--samples", "1"])
 
 
-def test_footprint_cost_prints_the_lookups_kept_and_both_clocks(capsys):
-    footprint_cost.main(["--size", "96x128", "--samples", "2", "--set", "n_views=2", "--set", "n_occluders=[2,2]"])
+def test_skip_cost_prints_the_lookups_kept_and_both_clocks(capsys):
+    skip_cost.main(["--size", "96x128", "--samples", "2", "--set", "n_views=2", "--set", "n_occluders=[2,2]"])
     out = capsys.readouterr().out.splitlines()
     share = int(out[0].split("keeps ")[1].split(" %")[0])
     assert 0 < share < 100  # a split happened and kept some lookups
     assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
+
+
+def test_skip_cost_prints_the_texels_cleared(capsys):
+    skip_cost.main(["--skip", "clear_written_texels", "--size", "48x64", "--samples", "3", "--set", "n_views=2",
+                    "--set", "n_occluders=[2,3]"])
+    out = capsys.readouterr().out.splitlines()
+    depth = int(out[0].split("; ")[1].split(" %")[0])
+    assert 0 < depth < 100 and out[0].startswith("clear_written_texels: ")
 
 
 @pytest.mark.parametrize("output", ["shadow_masks", "shadow_free"])
@@ -40,4 +48,4 @@ def test_shadow_outputs_cost_prints_both_clocks_and_the_draw(capsys, output):
     shadow_outputs_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
-        "wall", "cpu", f"{output} draw (wall)"]
+        "wall", "cpu", f"{' + '.join(shadow_outputs_cost.OUTPUTS[output])} (wall)"]
