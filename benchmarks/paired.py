@@ -1,5 +1,5 @@
-"""Time per view of the same scenes rendered two ways (a boolean ``RenderSettings`` field off and on),
-in one process: what ``opacity_cost`` and ``mirror_cost`` share.
+"""Time per view of the same scenes rendered two ways (a boolean ``RenderSettings`` field off and on,
+or two settings), in one process: what the ``*_cost`` benchmarks share.
 
 Both renderers are this process's shared ones (one per setting); each sequence is rendered both
 ways, alternating which goes first, after warm-up sequences (shader variants compile at first use).
@@ -19,7 +19,7 @@ from sidar_torch import SidarConfig, SidarDataset, load_config
 
 from .common import DEFAULT_PRESET, parse_set, parse_size
 
-__all__ = ["CLOCKS", "paired_config", "paired_parser", "paired_view_times", "print_paired"]
+__all__ = ["CLOCKS", "paired_config", "paired_parser", "paired_settings_times", "paired_view_times", "print_paired"]
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
@@ -49,17 +49,26 @@ def paired_config(name: str, args: argparse.Namespace) -> SidarConfig:
 
 
 def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
-    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True.
+    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True
+    (:func:`paired_settings_times`)."""
+    from sidar_torch.render import RenderSettings  # imports pyrender: here, so parsing loads no GL
+
+    settings = RenderSettings.from_config(config)
+    return paired_settings_times(config, replace(settings, **{field: False}), replace(settings, **{field: True}),
+                                 samples)
+
+
+def paired_settings_times(config: Any, off: Any, on: Any, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
+    """Render ``samples`` sequences of ``config`` with the ``RenderSettings`` ``off`` and ``on``.
 
     Returns:
-        ms per view keyed ``(clock, on)`` (lists in sample order), and each measured sequence's
-        ``(timings off, timings on)`` step dicts (seconds, see ``SceneRenderer.render``).
+        ms per view keyed ``(clock, on)`` (``on`` False for ``off``; lists in sample order), and each
+        measured sequence's ``(timings off, timings on)`` step dicts (seconds, see ``SceneRenderer.render``).
     """
-    from sidar_torch.render import RenderSettings, shared_renderer  # imports pyrender: here, so parsing loads no GL
+    from sidar_torch.render import shared_renderer  # imports pyrender: here, so parsing loads no GL
 
     dataset = SidarDataset(config=config, seed=0)
-    settings = RenderSettings.from_config(config)
-    renderers = {on: shared_renderer(replace(settings, **{field: on})) for on in (False, True)}
+    renderers = {False: shared_renderer(off), True: shared_renderer(on)}
     ms_per_view: dict[tuple[str, bool], list[float]] = {(clock, on): [] for clock in CLOCKS for on in (False, True)}
     steps: list[tuple[dict, dict]] = []
     warmup = [10_000 + k for k in range(WARMUP)]
@@ -80,11 +89,11 @@ def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list
     return ms_per_view, steps
 
 
-def print_paired(ms_per_view: dict) -> None:
-    """One line per clock: medians without and with, and the median paired difference (same
-    sequence, with minus without; steadier on a loaded machine)."""
+def print_paired(ms_per_view: dict, labels: tuple[str, str] = ("without", "with")) -> None:
+    """One line per clock: the medians of the two ways (``labels``: off, on), and the median paired
+    difference (same sequence, on minus off; steadier on a loaded machine)."""
     for clock in CLOCKS:
         without, with_ = (statistics.median(ms_per_view[clock, on]) for on in (False, True))
         paired = statistics.median(b - a for a, b in zip(ms_per_view[clock, False], ms_per_view[clock, True]))
-        print(f"{clock:>4}: median ms / view without {without:.1f}, with {with_:.1f}; "
+        print(f"{clock:>4}: median ms / view {labels[0]} {without:.1f}, {labels[1]} {with_:.1f}; "
               f"median paired difference {paired:+.2f} ms ({100 * paired / without:+.1f} %)")

@@ -7,7 +7,9 @@ names live here, under both: this module imports nothing, loads no GL, and ``con
 them for users.
 """
 
-__all__ = ["ANTIALIAS_SAMPLES", "MAX_SHADOWED_LIGHTS", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS"]
+__all__ = ["ANTIALIAS_SAMPLES", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
+           "SHADOW_FILTERS",
+           "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
@@ -20,6 +22,31 @@ SHADOW_FRUSTA = ("cone", "fitted")
 
 TEXTURE_FILTERS = ("trilinear", "bilinear")
 """How the painting's texture is filtered (``SidarConfig.texture_filter``)."""
+
+AUTO_MAP_SIZE = "auto"
+"""``SidarConfig.shadow_map_size`` value that ties the map's side to the output (:func:`shadow_map_side`)."""
+
+MIN_AUTO_MAP_SIZE, MAX_AUTO_MAP_SIZE = 512, 2048
+"""The sides ``"auto"`` keeps to: below 512 the sweep's error grows fast (``docs/speed.md``); above 2048 a
+view's maps (up to 24, 6 bytes per texel) would take gigabytes."""
+
+
+def shadow_map_side(size: int | str, image_size: tuple[int, int]) -> int:
+    """The side, in texels, of each shadow map for a ``shadow_map_size`` setting.
+
+    ``"auto"`` gives about one map texel per pixel across a fitted frustum (which spans about what
+    the camera sees): the smallest power of two at least the image's longer side, within
+    :data:`MIN_AUTO_MAP_SIZE` and :data:`MAX_AUTO_MAP_SIZE` (512 at 192 x 256 and 384 x 512, 1024 at
+    768 x 1024).
+
+    Args:
+        size: a power of two (returned as is) or ``"auto"``.
+        image_size: ``(H, W)``, pixels.
+    """
+    if size != AUTO_MAP_SIZE:
+        return size
+    return min(MAX_AUTO_MAP_SIZE, max(MIN_AUTO_MAP_SIZE, 1 << (max(image_size) - 1).bit_length()))
+
 
 ANTIALIAS_SAMPLES = (1, 2, 4, 8)
 """Samples per pixel of a view's colour pass (``SidarConfig.antialias``); the GL context must offer

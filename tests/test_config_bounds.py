@@ -81,11 +81,11 @@ def test_negative_zero_is_zero():
 
 
 def test_the_memory_estimate_keeps_the_defaults_and_the_largest_counts_within_the_budget():
-    assert estimated_sample_bytes(load_config()) < MAX_SAMPLE_BYTES / 16  # about 0.15 GiB
+    assert estimated_sample_bytes(load_config()) < MAX_SAMPLE_BYTES / 32  # about 0.08 GiB
     assert load_config(n_views=MAX_VIEWS, image_size=(64, 64)).n_views == MAX_VIEWS
     assert load_config(image_size=(MAX_GL_SIZE, 16), n_views=2).image_size == (MAX_GL_SIZE, 16)
     with pytest.raises(ValueError, match="'image_size', 'n_views' and 'shadow_map_size': a sample of 6 views of "
-                                         "4096 x 4096 .* needs about 4.59 GiB"):
+                                         "4096 x 4096 .* needs about 4.88 GiB"):
         load_config(image_size=(4096, 4096))
 
 

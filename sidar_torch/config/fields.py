@@ -24,6 +24,8 @@ __all__ = ["SidarConfig", "field_meaning"]
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
+MapSize = "int | str"
+"""A shadow map's side: a power of two, or ``"auto"`` (``render_choices.shadow_map_side``)."""
 
 
 def _field(default: Any, *, meaning: str, bounds: tuple[float, float] | None = None,
@@ -78,7 +80,7 @@ class SidarConfig:
         "renderbuffer and texture side of Mesa's llvmpipe, ``GL_MAX_RENDERBUFFER_SIZE``), and with ``n_views`` "
         f"and the shadow maps within the {MAX_SAMPLE_BYTES / 2**30:g} GiB a sample may need, estimated as "
         "``H W (32 V + 96 + 8 antialias) + 32768 V^2 + 6 maps shadow_map_size^2`` bytes (measured; "
-        "``sidar_torch.config.memory``): e.g. up to about 3300 x 4400 at 6 views."))
+        "``sidar_torch.config.memory``): e.g. up to about 3180 x 4240 at 6 views."))
     n_views: int = _field(6, bounds=(1, MAX_VIEWS), meaning=(
         "number of views ``V`` per sample; view 0 is the fronto-parallel reference. At most "
         f"{MAX_VIEWS} (the homographies and their check need about 32 KiB per ordered pair of views), and "
@@ -189,10 +191,12 @@ class SidarConfig:
     scene_per_view: bool = _field(True, meaning="draw new lights, occluders and painting material for every view.")
 
     # Rendering
-    shadow_map_size: int = _field(1024, bounds=(16, MAX_GL_SIZE), meaning=(
+    shadow_map_size: MapSize = _field("auto", bounds=(16, MAX_GL_SIZE), meaning=(
         f"side of each shadow map in texels (a power of two from 16 to {MAX_GL_SIZE}, the largest texture "
-        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``); a view holds one map per shadowed emitter, 6 bytes "
-        "per texel, counted in a sample's memory (see ``image_size``)."))
+        "side of Mesa's llvmpipe, ``GL_MAX_TEXTURE_SIZE``), or ``auto``: the smallest power of two at least the "
+        "image's longer side, from 512 to 2048 (about one texel per pixel across a fitted frustum; 512 at "
+        "384 x 512, 1024 at 768 x 1024). A view holds one map per shadowed emitter, 6 bytes per texel, counted "
+        "in a sample's memory (see ``image_size``)."))
     shadow_filter: str = _field("bilinear", choices=SHADOW_FILTERS, meaning=(
         'how a shadow-map lookup is filtered: ``"bilinear"``, a 2 x 2 percentage-closer filter from one '
         'depth-compare tap (the default: closer to a 4096-map reference than the tent at every map size, for a '

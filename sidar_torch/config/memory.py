@@ -23,6 +23,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from ..render_choices import shadow_map_side
+
 __all__ = ["estimated_sample_bytes", "shadowed_emitters"]
 
 VIEW_PIXEL_BYTES = 32
@@ -46,7 +48,8 @@ def estimated_sample_bytes(config: Any) -> int:
 
     ``H * W * (V * 32 + 96 + 8 * antialias) + V**2 * 32768 + maps * shadow_map_size**2 * 6`` for
     ``V`` views of ``(H, W)`` pixels (the ``8 * antialias`` term only when ``antialias`` > 1) and
-    ``maps`` shadow maps (at least the one the renderer always holds), plus ``H * W * V * 15`` and
+    ``maps`` shadow maps of side ``shadow_map_size`` (``auto`` resolved: ``render_choices.shadow_map_side``;
+    at least the one map the renderer always holds), plus ``H * W * V * 15`` and
     ``H * W * 4 * (1 + antialias)`` (``H * W * 4`` without antialiasing) with ``shadow_free_output``, ``H * W * V * 5`` with
     ``shadow_mask_output``; the module docstring says how each figure was obtained.
     """
@@ -58,4 +61,5 @@ def estimated_sample_bytes(config: Any) -> int:
     samples = 1 + (config.antialias if config.antialias > 1 else 0)  # the single- and multisampled buffers
     second_output = 4 * samples if config.shadow_free_output else 0
     return (h * w * (views * per_view + FRAME_PIXEL_BYTES + multisample + second_output)
-            + views * views * VIEW_PAIR_BYTES + maps * config.shadow_map_size**2 * SHADOW_TEXEL_BYTES)
+            + views * views * VIEW_PAIR_BYTES
+            + maps * shadow_map_side(config.shadow_map_size, config.image_size)**2 * SHADOW_TEXEL_BYTES)

@@ -14,6 +14,7 @@ import difflib
 import math
 from typing import Any, Mapping
 
+from ..render_choices import AUTO_MAP_SIZE, shadow_map_side
 from .allowed import MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
@@ -69,6 +70,10 @@ def coerce(f: dataclasses.Field, value: Any) -> Any:
             value = tuple(as_int(name, v) for v in value)
         elif not all(isinstance(v, str) for v in value):
             raise ValueError(f"{name}: expected a list of words from {f.metadata['choices']}, got {shown(value)}")
+    elif kind == "MapSize":
+        if isinstance(value, str) and value != AUTO_MAP_SIZE:
+            raise ValueError(f"{name}: expected a power of two or {AUTO_MAP_SIZE!r}, got {shown(value)}")
+        value = value if isinstance(value, str) else as_int(name, value)
     elif kind == "float":
         value = as_float(name, value)
     elif kind == "int":
@@ -88,6 +93,7 @@ _BOUNDED = {
     "tuple[int, int]": ("(H, W) with {lo} <= H, W <= {hi}", lambda v, lo, hi: all(lo <= s <= hi for s in v)),
     "int": _NUMBER_BOUNDS,
     "float": _NUMBER_BOUNDS,
+    "MapSize": (f"{AUTO_MAP_SIZE}, or {{lo}} <= value <= {{hi}}", lambda v, lo, hi: v == AUTO_MAP_SIZE or lo <= v <= hi),
 }
 """Per field type, what its ``bounds`` metadata ``(lo, hi)`` mean: the text and the check."""
 
@@ -132,7 +138,8 @@ def validate(config: Any) -> None:
          f"at heights from camera_height[0]={c.camera_height[0]:.4g}); raise camera_xy or lower camera_height "
          f"for grazing views, or set 90 for no limit")
     size = c.shadow_map_size
-    need(size & (size - 1) == 0, "shadow_map_size", f"a power of two from 16 to {MAX_GL_SIZE}")
+    need(size == AUTO_MAP_SIZE or size & (size - 1) == 0, "shadow_map_size",
+         f"a power of two from 16 to {MAX_GL_SIZE}, or {AUTO_MAP_SIZE!r}")
     need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
          f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
          f"config field 'n_lights' is {c.n_lights})")
@@ -146,7 +153,8 @@ def _check_memory(config: Any) -> None:
         (h, w), maps = config.image_size, max(1, shadowed_emitters(config) if config.shadows else 0)
         raise ValueError(
             f"config fields 'image_size', 'n_views' and 'shadow_map_size': a sample of {config.n_views} views of "
-            f"{h} x {w} (H x W) pixels with {maps} shadow maps of {config.shadow_map_size}^2 texels (antialias "
+            f"{h} x {w} (H x W) pixels with {maps} shadow maps of "
+            f"{shadow_map_side(config.shadow_map_size, config.image_size)}^2 texels (antialias "
             f"{config.antialias}) needs about {need / 2**30:.3g} GiB (sidar_torch.config.memory's estimate), more "
             f"than the {MAX_SAMPLE_BYTES / 2**30:g} GiB a sample may use; lower image_size, n_views or shadow_map_size")
 

@@ -13,7 +13,7 @@ import operator
 from dataclasses import dataclass
 from typing import Any
 
-from ..render_choices import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
+from ..render_choices import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, shadow_map_side
 
 __all__ = ["RenderSettings"]
 
@@ -107,7 +107,7 @@ class RenderSettings:
     def from_config(cls, config: Any) -> RenderSettings:
         """The settings a ``SidarConfig`` (or any object with its field names) gives the renderer."""
         return cls(
-            image_size=config.image_size, shadow_map_size=config.shadow_map_size,
+            image_size=config.image_size, shadow_map_size=shadow_map_side(config.shadow_map_size, config.image_size),
             shadow_filter=config.shadow_filter, shadow_frustum=config.shadow_frustum,
             mesh_error_px=config.mesh_error_px if config.mesh_detail == "auto" else None,
             texture_filter=config.texture_filter, shadows=config.shadows,

@@ -3,7 +3,7 @@ settings: what they print and that a wrong override is named, never speed."""
 
 import pytest
 
-from benchmarks import mirror_cost, opacity_cost, shadow_outputs_cost, skip_cost
+from benchmarks import mirror_cost, opacity_cost, setting_cost, shadow_outputs_cost, skip_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -33,6 +33,16 @@ def test_skip_cost_prints_the_lookups_kept_and_both_clocks(capsys):
     share = int(out[0].split("keeps ")[1].split(" %")[0])
     assert 0 < share < 100  # a split happened and kept some lookups
     assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
+
+
+def test_setting_cost_prints_what_each_value_gives_the_renderer(capsys):
+    setting_cost.main(["--field", "shadow_map_size", "--values", "1024", "auto", "--size", "48x64", "--samples", "2",
+                       "--set", "n_views=2"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("renderer: 1024: shadow_map_size=1024; auto: shadow_map_size=512")
+    assert out[1].startswith("wall: median ms / view 1024 ") and ", auto " in out[1]
+    with pytest.raises(SystemExit, match="same settings"):
+        setting_cost.main(["--field", "n_lights", "--values", "[1,2]", "[2,3]", "--samples", "1"])
 
 
 def test_skip_cost_prints_the_texels_cleared(capsys):

@@ -1,0 +1,53 @@
+"""What a rendering setting costs: median time per view of the same scenes rendered with two values
+of one config field that changes how they are drawn, not what they hold (e.g. ``shadow_map_size``),
+same run. ``python -m benchmarks.setting_cost --field NAME --values A B [--config P] [--set K=V]``
+from the repository root.
+
+Renders each sequence with the renderer settings of ``A`` and of ``B`` (``benchmarks.paired``) and
+prints what each value gives the renderer, then per view the medians and the median paired
+difference (``B`` minus ``A``) in wall-clock and this process's CPU time.
+
+    python -m benchmarks.setting_cost --field shadow_map_size --values 1024 auto --size 384x512 --samples 40
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from .common import parse_set, size_label
+from .paired import paired_config, paired_parser, paired_settings_times, print_paired
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.setting_cost``; parsing it runs nothing."""
+    parser = paired_parser("setting_cost", __doc__.splitlines()[0], samples=40, set_example="n_occluders=[1,3]")
+    parser.add_argument("--field", required=True, help="the config field compared, e.g. shadow_map_size")
+    parser.add_argument("--values", nargs=2, required=True, metavar=("A", "B"),
+                        help="its two values (read as YAML), e.g. 1024 auto")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sidar_torch.render import RenderSettings  # imports pyrender: here, so parsing loads no GL
+
+    args = build_parser().parse_args(argv)
+    config = paired_config("setting_cost", args)
+    try:
+        configs = [config.replace(**parse_set([f"{args.field}={value}"])) for value in args.values]
+    except ValueError as error:
+        raise SystemExit(f"setting_cost: {error}") from error
+    settings = [RenderSettings.from_config(c) for c in configs]
+    changed = {name for name in settings[0].__dataclass_fields__ if getattr(settings[0], name) != getattr(settings[1], name)}
+    if not changed:
+        raise SystemExit(f"setting_cost: {args.field} = {args.values[0]} and {args.values[1]} give the renderer the "
+                         "same settings (a field of the scenes, not of how they are drawn?)")
+    ms_per_view, _ = paired_settings_times(config, *settings, args.samples)
+    given = "; ".join(f"{value}: " + ", ".join(f"{n}={getattr(s, n)}" for n in sorted(changed))
+                      for value, s in zip(args.values, settings))
+    print(f"{args.field}: {args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} sequences "
+          f"x {config.n_views} views; renderer: {given}")
+    print_paired(ms_per_view, tuple(args.values))
+
+
+if __name__ == "__main__":
+    main()
