@@ -152,7 +152,8 @@ class OSMesaOwnBuffer:
     def multisampled(self):  # one sample per pixel, as the test's settings ask
         return contextlib.nullcontext()
 
-    def begin_drawing(self):
+    def begin_drawing(self, outputs=1):
+        assert outputs == 1  # OSMesa's buffer has one colour output
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, 0)
 
     def end_drawing(self):
@@ -160,7 +161,7 @@ class OSMesaOwnBuffer:
         GL.glReadBuffer(GL.GL_FRONT)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
         pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
-        return np.frombuffer(pixels, np.uint8).reshape(self.height, self.width, 4)[::-1].copy()
+        return np.frombuffer(pixels, np.uint8).reshape(1, self.height, self.width, 4)[:, ::-1].copy()
 
 
 @pytest.mark.skipif(GL_PLATFORM != "osmesa", reason="framebuffer 0 exists on OSMesa only")
