@@ -62,7 +62,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from sidar_torch.artifacts import linear_to_srgb, srgb_to_linear
+from sidar_torch.effects import linear_to_srgb, srgb_to_linear
 from sidar_torch.config import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from sidar_torch.dataset import SidarDataset
 from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals

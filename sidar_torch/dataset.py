@@ -1,7 +1,7 @@
 """``SidarDataset``: paintings x random scenes x renderer -> samples of tensors, on the fly.
 
 A sample is a pure function of ``(seed, index)``: its scene, then its view effects (if any are
-switched on, see ``sidar_torch.artifacts``), are drawn with ``numpy.random.default_rng([seed,
+switched on, see ``sidar_torch.effects``), are drawn with ``numpy.random.default_rng([seed,
 index])`` and its painting is ``source[index % len(source)]``,
 so the same sample comes out whatever the number of workers, ranks or the order of iteration.
 """

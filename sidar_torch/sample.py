@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from . import geometry
-from .artifacts import apply_effects, draw_effects
+from .effects import apply_effects, draw_effects
 from .config import SidarConfig
 from .render import RenderSettings, shared_renderer
 from .scene import SceneSequence
@@ -236,7 +236,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
         config: gives the renderer's settings (image size, shadow-map size and filter,
-            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``) and the view effects (:mod:`sidar_torch.artifacts`: background,
+            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``) and the view effects (:mod:`sidar_torch.effects`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see

@@ -285,7 +285,7 @@ def test_sizes_beyond_the_gl_limits_name_the_field_and_the_limit():
 def test_a_ranked_node_keeps_its_pose_and_derives_pyrenders_decomposition_on_demand():
     import pyrender
 
-    from sidar_torch.render.backend import RankedNode
+    from sidar_torch.render.pyrender_overrides import RankedNode
 
     R, t = geometry.look_at(np.array([0.3, -0.2, 1.5]))
     pose = np.eye(4)

@@ -13,7 +13,7 @@ import pytest
 
 from sidar_torch import geometry
 from sidar_torch.render import RenderSettings, shared_renderer, visibility
-from sidar_torch.render.backend import RankedNode, ranked
+from sidar_torch.render.pyrender_overrides import RankedNode, ranked
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 

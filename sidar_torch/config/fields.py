@@ -205,7 +205,7 @@ class SidarConfig:
 
     # View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
     # only, drawn after the scene so switching one on changes no scene, mask, label or homography;
-    # see ``sidar_torch.artifacts``)
+    # see ``sidar_torch.effects``)
     background: str = _field("black", choices=BACKGROUNDS, meaning=(
         'what the views show where nothing was drawn: ``"black"`` (the paper\'s), ``"view"`` (a random colour '
         'per view) or ``"sequence"`` (one random colour per sample).'))

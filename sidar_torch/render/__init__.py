@@ -1,4 +1,4 @@
-"""Rendering backend: pyrender on an offscreen OpenGL context (OSMesa unless told otherwise).
+"""Rendering: pyrender on an offscreen OpenGL context (OSMesa unless told otherwise).
 
 Importing this package fixes two environment variables before anything imports OpenGL:
 

@@ -1,4 +1,4 @@
-"""The backend: a :class:`~sidar_torch.scene.SceneSequence` and a painting in, pixels out.
+"""The scene renderer: a :class:`~sidar_torch.scene.SceneSequence` and a painting in, pixels out.
 
 :class:`SceneRenderer` owns one offscreen GL context and everything uploaded to it (shader
 programs, meshes, shadow maps, the current painting's texture) and reuses them for every
@@ -26,7 +26,7 @@ occluders (the texture as the reference camera samples it).
 
 ``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
 (``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``opacity``, ``label``, ``readback``; see
-:meth:`.backend.GLRenderer.draw` for how GL time is attributed).
+:meth:`.pyrender_overrides.GLRenderer.draw` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
@@ -38,7 +38,7 @@ work that cannot change a pixel is skipped there and here, each skip with its re
 
 The pieces: ``settings`` (what to draw), ``plan`` and ``visibility`` (what each view needs),
 ``scene_graph`` (pyrender scenes), ``meshes``, ``shadow_maps``, ``unlit`` (label and opacity),
-``transmittance``, and ``backend`` (every pyrender override; shaders in ``shader_patches`` and
+``transmittance``, and ``pyrender_overrides`` (every pyrender override; shaders in ``shader_patches`` and
 ``shaders/``), ``context`` and ``framebuffer`` (the GL context and what it draws into).
 """
 
@@ -56,7 +56,7 @@ from pyrender.constants import RenderFlags
 
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
-from .backend import GLRenderer, add_node
+from .pyrender_overrides import GLRenderer, add_node
 from .context import open_context
 from .framebuffer import size_limits
 from .meshes import MeshPool, mesh_level, plane_mesh

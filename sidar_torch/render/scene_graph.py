@@ -12,7 +12,7 @@ from OpenGL import GL
 
 from ..geometry import plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Material
-from .backend import add_node
+from .pyrender_overrides import add_node
 from .mirror import SurfaceMaterial, mirror_define
 from .shader_patches import surface_factors
 

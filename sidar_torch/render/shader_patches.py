@@ -1,13 +1,13 @@
 """pyrender's shaders, patched: the patch table, our GLSL in ``shaders/``, and the quirks they fix.
 
-The program classes that load them (quirks 1 and 2) are in ``render.backend``, with every other
+The program classes that load them (quirks 1 and 2) are in ``render.pyrender_overrides``, with every other
 pyrender override.
 
 1. **The program cache never hits on OSMesa.** pyrender keys its cache on
    ``OpenGL.contextdata.getContext()``, which returns a new pointer object at every call on
    OSMesa, so every render compiles, links and leaks fresh programs (thousands of programs and
    gigabytes after a few thousand renders). A cache belongs to one renderer, which owns one
-   context, so ``backend.ProgramCache`` keys on the shaders and defines alone.
+   context, so ``pyrender_overrides.ProgramCache`` keys on the shaders and defines alone.
 2. **Validation fails with shadows.** PyOpenGL validates a program right after linking,
    against whatever texture units happen to be bound; with shadow maps Mesa reports "active
    samplers with a different type refer to the same texture image unit" for a program that
@@ -61,7 +61,7 @@ pyrender override.
    lit shader multiplies each shadowed light's contribution by the map's colour where the
    fragment lies beyond the nearest transparent caster (4 texels, a distance test per texel,
    bilinear weights; the maps are tiles of one 2-D texture on one texture unit). The lookup is a
-   program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by ``backend.ProgramCache``) drawn
+   program variant (define ``TRANSMITTANCE_SHADOWS``, chosen by ``pyrender_overrides.ProgramCache``) drawn
    only in views with a transparent caster; other views run the shader without it, as before
    (a uniform switch cost +50 % CPU time per view without any transparent caster: quirk 6).
 
@@ -102,7 +102,7 @@ pyrender override.
 
    Cost, per fragment of such an occluder only: one plane intersection, one loop over the spot
    lights (no texture reads) and two ``textureLod`` reads per traced ray; glass traces two rays.
-   They are program variants chosen per primitive by ``backend.ProgramCache`` (quirk 6: a uniform
+   They are program variants chosen per primitive by ``pyrender_overrides.ProgramCache`` (quirk 6: a uniform
    switch would be paid by every fragment), so the painting and other materials run the programs
    they did before, pixel for pixel.
 

@@ -14,7 +14,7 @@ from pyrender.constants import RenderFlags
 
 from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
 from ..scene import Camera, Light, SceneSequence, ViewScene
-from .backend import GLRenderer, ShadowedSpotLight, add_node
+from .pyrender_overrides import GLRenderer, ShadowedSpotLight, add_node
 from .scene_graph import gl_pose
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, cube_corners, light_frustum
@@ -30,7 +30,7 @@ class ShadowMaps:
     """The pooled spot lights of one renderer, each with its own shadow map, and what each map holds.
 
     Args:
-        gl: the renderer's backend (allocates the maps, computes the light matrices).
+        gl: the GL renderer (``pyrender_overrides.GLRenderer``; allocates the maps, computes the light matrices).
         settings: ``shadow_frustum``, ``occluders_visible``, ``image_size`` and ``reuse_shadow_maps`` count here.
 
     Attributes:

@@ -11,7 +11,7 @@ from pyrender.constants import RenderFlags
 
 from ..scene import Camera, Material
 from ..timing import timed
-from .backend import GLRenderer
+from .pyrender_overrides import GLRenderer
 from .scene_graph import gl_material, new_scene
 
 __all__ = ["render_label", "render_opacity"]

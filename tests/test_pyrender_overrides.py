@@ -1,4 +1,4 @@
-"""``render.backend`` overrides private methods of pyrender: each must still exist in the installed
+"""``render.pyrender_overrides`` overrides private methods of pyrender: each must still exist in the installed
 pyrender with the parameters ours are called with, or a pyrender release would silently bypass
 an override (``pyproject.toml`` bounds ``pyrender2`` below its next minor release for the same reason)."""
 
@@ -8,7 +8,7 @@ import pyrender
 import pytest
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
-from sidar_torch.render.backend import GLRenderer, ProgramCache, RankedNode, _PatchedProgram
+from sidar_torch.render.pyrender_overrides import GLRenderer, ProgramCache, RankedNode, _PatchedProgram
 
 OVERRIDES = {
     (GLRenderer, pyrender.Renderer): (
