@@ -21,7 +21,7 @@ from .config import available_presets, load_config
 from .config.loader import parse_yaml
 from .dataset import SidarDataset
 from .io import ExportInterrupted, ExportSummary, export_dataset
-from .io.layout import pixel_entries_text
+from .io import pixel_entries_text
 from .preview import contact_sheet
 
 __all__ = ["main", "parse_overrides"]

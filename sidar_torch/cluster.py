@@ -42,8 +42,7 @@ import torch
 
 from .config import as_int
 from .dataset import SidarDataset
-from .io.export import ExportPlan, ExportSummary, Progress, either_shard_size, planned_export
-from .io.layout import Layout, WriteUnit
+from .io import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
 from .sample import KEYS, SampleArrays, stack_samples
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
@@ -246,7 +245,7 @@ def _write(dataset: SidarDataset, out: Path, layout: Layout, units: list[WriteUn
     the units add and the seconds it took.
 
     Safe to run again after an attempt died part-way (Ray retries a task whose worker died): the
-    layout keeps what ``out`` holds and writes only what is missing (see :meth:`.io.layout.Layout.write`),
+    layout keeps what ``out`` holds and writes only what is missing (see :meth:`.io.Layout.write`),
     as a local rerun does; the driver holds the export's lock, so no one else writes there."""
     _exit_with_driver(driver)
     begin = time.perf_counter()
@@ -257,7 +256,7 @@ def _write(dataset: SidarDataset, out: Path, layout: Layout, units: list[WriteUn
 
 def _tasks(units: list[WriteUnit], units_per_task: int, cpus: int) -> list[list[WriteUnit]]:
     """``units`` cut into runs of consecutive units, at least 4 per CPU when there are enough units
-    and at most ``units_per_task`` units each (the layout's :attr:`~.io.layout.Layout.units_per_task`)."""
+    and at most ``units_per_task`` units each (the layout's :attr:`~.io.Layout.units_per_task`)."""
     size = max(1, min(units_per_task, math.ceil(len(units) / (4 * max(cpus, 1)))))
     return [units[k:k + size] for k in range(0, len(units), size)]
 

@@ -35,7 +35,7 @@ GEOMETRY_FILES = (".mat", ".npy", "cameras.json")
 def file_record(name: str, data: bytes) -> dict:
     """``{"fields": {field: geometry_record}}`` for a file of geometry (a JSON file's text fields
     as ``{"text": ...}``), else ``{"sha256": ...}``."""
-    from sidar_torch.io.layout import decode
+    from sidar_torch.io.codecs import decode
 
     if not name.endswith(GEOMETRY_FILES):
         return {"sha256": digest(data)}

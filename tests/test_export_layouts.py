@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from conftest import small_config
-from sidar_torch.io.layout import Layout, WriteUnit, decode, sample_from_entries
+from sidar_torch.io import Layout, WriteUnit
+from sidar_torch.io.codecs import decode
+from sidar_torch.io.entries import sample_from_entries
 from sidar_torch.io.layouts import LAYOUTS, layout_for, recorded_layout
 from sidar_torch.io.manifest import read_manifest, write_manifest
 from sidar_torch.sample import SampleArrays

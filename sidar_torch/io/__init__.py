@@ -8,8 +8,12 @@ renders, so 8-bit PNGs hold them exactly). Each layout is one class answering th
 (:class:`.layout.Layout`: which sequences are here, how missing ones group into write units, write
 a unit, list the sequences, read an entry), one row of the table :data:`.layouts.LAYOUTS` keyed by
 the manifest's ``layout`` name; export, the reader and Ray look it up there and ask it. What the
-layouts share: that interface, names and codecs (:mod:`.layout`), atomic writes, the lock and
-bounded reads (:mod:`.files`), the manifest (:mod:`.manifest`).
+layouts share: that interface and the top-level names (:mod:`.layout`), a sequence as entries
+(:mod:`.entries`) and their bytes (:mod:`.codecs`), atomic writes, the lock and bounded reads
+(:mod:`.files`), the manifest (:mod:`.manifest`). What Ray's export (``sidar_torch.cluster``) and
+the command line use is public here: :class:`ExportPlan` and :func:`planned_export` (what an export
+into a prepared folder writes), :class:`Progress`, :class:`~.layout.Layout` and its
+:class:`~.layout.WriteUnit`, :data:`LAYOUTS`.
 
 Folder layout (``shard_size=None``)::
 
@@ -46,7 +50,13 @@ The reader reads only regular files inside the export folder, of bounded size, a
 field of ``export.json`` it uses: a damaged or tampered export is a ``ValueError`` naming the file.
 """
 
-from .export import ExportInterrupted, ExportSummary, export_dataset
+from .entries import pixel_entries_text
+from .export import (ExportInterrupted, ExportPlan, ExportSummary, Progress, either_shard_size, export_dataset,
+                     planned_export)
+from .layout import Layout, WriteUnit
+from .layouts import LAYOUTS
 from .reader import ExportedDataset
 
-__all__ = ["ExportInterrupted", "ExportSummary", "ExportedDataset", "export_dataset"]
+__all__ = ["LAYOUTS", "ExportInterrupted", "ExportPlan", "ExportSummary", "ExportedDataset", "Layout", "Progress",
+           "WriteUnit", "either_shard_size", "export_dataset", "pixel_entries_text", "planned_export"]
+

@@ -27,7 +27,9 @@ import numpy as np
 
 from ..sample import SampleArrays
 from .files import read_inside, remove_stale_temporary, replace_folder
-from .layout import SEQUENCE_NAME, WriteUnit, encode, sample_entries, sequence_name
+from .codecs import encode
+from .entries import sample_entries
+from .layout import SEQUENCE_NAME, WriteUnit, sequence_name
 
 
 def homography_entry(i: int, j: int) -> str:

@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 from torch.utils.data import Dataset
 
-from .layout import decode, png_size, sample_from_entries
+from .codecs import decode, png_size
+from .entries import sample_from_entries
 from .layouts import recorded_layout
 from .manifest import read_manifest
 

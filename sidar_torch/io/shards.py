@@ -23,7 +23,9 @@ import numpy as np
 
 from ..sample import SampleArrays
 from .files import open_inside, temporary_path
-from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, encode, sample_entries, sequence_name
+from .codecs import encode
+from .entries import sample_entries
+from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, sequence_name
 
 HOMOGRAPHIES = "homographies.npy"
 END_MARKER = 2 * tarfile.BLOCKSIZE
