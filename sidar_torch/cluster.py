@@ -27,11 +27,9 @@ libraries installed, and an image-folder source must be readable at the same pat
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import sys
-import threading
 import time
 from pathlib import Path
 from types import ModuleType
@@ -43,6 +41,7 @@ import torch
 from .config import as_int
 from .dataset import SidarDataset
 from .io import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
+from .orphans import ProcessStamp, exit_with_process
 from .sample import KEYS, SampleArrays, stack_samples
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
@@ -186,68 +185,15 @@ def torch_batches(rows: Any, batch_size: int, geometry_dtype: str = "float32",
 # --------------------------------------------------------------------------- export
 
 
-@dataclasses.dataclass(frozen=True)
-class _Driver:
-    """The process that runs :func:`ray_export`: its pid and its start time (``None`` without
-    ``/proc``), which tell it from a later process given the same pid."""
-
-    pid: int
-    started: str | None
-
-    @classmethod
-    def this_process(cls) -> _Driver:
-        return cls(os.getpid(), _start_time(os.getpid()))
-
-    def alive(self) -> bool:
-        return _start_time(self.pid) == self.started
-
-
-def _start_time(pid: int) -> str | None:
-    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
-    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_bytes()
-    except OSError:
-        return None
-    fields = stat.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
-    return None if fields[0] in (b"Z", b"X") else fields[19].decode()
-
-
-DRIVER_POLL_SECONDS = 0.1
-_watched: set[_Driver] = set()
-"""The drivers this (worker) process watches."""
-
-
-def _exit_with_driver(driver: _Driver) -> None:
-    """In a Ray worker: end this process within :data:`DRIVER_POLL_SECONDS` of the driver's death.
-
-    Ray ends the tasks of a dead driver only 2-5 s later; until then they kept rendering and
-    writing into the export folder, whose lock died with the driver, so a rerun could already be
-    writing there. A daemon thread (one per driver and worker) polls the driver's ``/proc`` entry
-    and leaves at once (a task's folder or shard is written atomically: nothing is lost). The
-    watch starts only where the driver is seen alive, i.e. on the driver's machine (the same pid
-    and start time); on other nodes Ray's own clean-up ends the tasks."""
-    if driver in _watched or driver.started is None or not driver.alive():
-        return
-    _watched.add(driver)
-
-    def watch() -> None:
-        while driver.alive():
-            time.sleep(DRIVER_POLL_SECONDS)
-        os._exit(1)
-
-    threading.Thread(target=watch, name="exit-with-driver", daemon=True).start()
-
-
 def _write(dataset: SidarDataset, out: Path, layout: Layout, units: list[WriteUnit],
-           driver: _Driver) -> tuple[int, float]:
+           driver: ProcessStamp) -> tuple[int, float]:
     """Ray task: render and write ``units`` of ``layout`` into ``out``; returns how many sequences
     the units add and the seconds it took.
 
     Safe to run again after an attempt died part-way (Ray retries a task whose worker died): the
     layout keeps what ``out`` holds and writes only what is missing (see :meth:`.io.Layout.write`),
     as a local rerun does; the driver holds the export's lock, so no one else writes there."""
-    _exit_with_driver(driver)
+    exit_with_process(driver)  # Ray ends a dead driver's tasks only 2-5 s later
     begin = time.perf_counter()
     for unit in units:
         layout.write(out, unit, dataset.sample_arrays, lambda: None)
@@ -311,7 +257,7 @@ def _run_tasks(ray: ModuleType, dataset: SidarDataset, plan: ExportPlan, progres
     cpus = int(ray.cluster_resources().get("CPU", 1))
     jobs = _tasks(plan.units(), plan.layout.units_per_task, cpus)
     task = ray.remote(_write).options(num_cpus=1, max_retries=3)
-    dataset_ref, out, driver = ray.put(dataset), plan.out.absolute(), _Driver.this_process()
+    dataset_ref, out, driver = ray.put(dataset), plan.out.absolute(), ProcessStamp.this_process()
     pending = [task.remote(dataset_ref, out, plan.layout, job, driver) for job in jobs]
     with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
         try:

@@ -1,4 +1,4 @@
-"""Child processes that render end with their parent: the one "exit when the parent dies" helper.
+"""Processes that render end with the process they work for: the one "exit when it dies" helper.
 
 Every fan-out of rendering into forked children calls :func:`exit_with_parent` first thing in the
 child: the ``SidarAugment`` render pool (:mod:`sidar_torch.augment_pool`) does, and a DataLoader
@@ -23,6 +23,12 @@ Three mechanisms, because each alone has a gap:
 
 The parent may die between the fork and these calls; :func:`exit_with_parent` checks ``getppid``
 after arming the signal, so that window is closed too.
+
+Ray's workers are not children of the process that drives an export (``sidar_torch.cluster``): Ray
+ends a dead driver's tasks only 2-5 s later, and until then they kept rendering and writing into an
+export folder whose lock died with the driver. :func:`exit_with_process` watches such a process by
+its :class:`ProcessStamp` (pid and start time, which tell it from a later process given the same
+pid) with the same polling thread.
 """
 
 from __future__ import annotations
@@ -34,9 +40,12 @@ import stat
 import sys
 import threading
 import time
-from typing import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable
 
-__all__ = ["POLL_S", "exit_with_parent", "open_descriptors", "release_inherited_descriptors"]
+__all__ = ["POLL_S", "ProcessStamp", "exit_with_parent", "exit_with_process", "open_descriptors",
+           "release_inherited_descriptors"]
 
 POLL_S = 0.25
 """How often, in seconds, the watching thread checks that the parent is alive."""
@@ -70,13 +79,65 @@ def exit_with_parent(parent_pid: int, *, death_signal: bool = True) -> None:
         _arm_death_signal()
     if os.getppid() != parent_pid:
         os._exit(1)
+    _exit_when(lambda: os.getppid() == parent_pid, "sidar-exit-with-parent")
+
+
+def _exit_when(alive: Callable[[], bool], name: str) -> None:
+    """Start a daemon thread that checks ``alive()`` every :data:`POLL_S` seconds and ends this
+    process (``os._exit(1)``) once it is false."""
 
     def watch() -> None:
-        while os.getppid() == parent_pid:
+        while alive():
             time.sleep(POLL_S)
         os._exit(1)
 
-    threading.Thread(target=watch, name="sidar-exit-with-parent", daemon=True).start()
+    threading.Thread(target=watch, name=name, daemon=True).start()
+
+
+@dataclass(frozen=True)
+class ProcessStamp:
+    """A process on this machine: its pid and its start time (``None`` without ``/proc``), which
+    tell it from a later process given the same pid. Picklable (sent to Ray tasks)."""
+
+    pid: int
+    started: str | None
+
+    @classmethod
+    def this_process(cls) -> ProcessStamp:
+        return cls(os.getpid(), _start_time(os.getpid()))
+
+    def alive(self) -> bool:
+        """Whether the process still runs (a zombie does not); false on a machine without ``/proc``."""
+        return _start_time(self.pid) == self.started
+
+
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
+    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
+    try:
+        stat_line = Path(f"/proc/{pid}/stat").read_bytes()
+    except OSError:
+        return None
+    fields = stat_line.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
+    return None if fields[0] in (b"Z", b"X") else fields[19].decode()
+
+
+_watched: set[ProcessStamp] = set()
+"""The processes this process watches (:func:`exit_with_process`)."""
+
+
+def exit_with_process(process: ProcessStamp) -> None:
+    """End this process within :data:`POLL_S` seconds of ``process``'s death (once per process
+    watched, however often called).
+
+    The watch starts only where ``process`` is seen alive, i.e. on its machine (the same pid and
+    start time): elsewhere (another node of a Ray cluster) the caller's own clean-up must end this
+    process. A Ray task's folder or shard is written atomically, so leaving at once loses nothing.
+    """
+    if process in _watched or process.started is None or not process.alive():
+        return
+    _watched.add(process)
+    _exit_when(process.alive, "sidar-exit-with-process")
 
 
 def open_descriptors() -> set[int]:

@@ -282,7 +282,7 @@ DRIVER = textwrap.dedent("""
 def test_tasks_stop_writing_when_the_driver_dies(tmp_path):
     """Issue 25 item 6: Ray's workers kept writing into the export 1-5 s after a ``kill -9`` of a
     driver that had started its own cluster (the export's lock died with the driver, so a rerun
-    could already be writing there); now they stop within a tenth of a second."""
+    could already be writing there); now they stop within ``orphans.POLL_S`` (a quarter of a second)."""
     pytest.importorskip("ray")
     out = tmp_path / "out"
     driver = subprocess.Popen([sys.executable, "-c", DRIVER, str(out)], start_new_session=True,
@@ -295,7 +295,7 @@ def test_tasks_stop_writing_when_the_driver_dies(tmp_path):
             time.sleep(0.02)
         os.kill(driver.pid, signal.SIGKILL)
         driver.wait()
-        time.sleep(1.0)  # the watch polls every 0.1 s; the rest is room for a loaded machine
+        time.sleep(1.0)  # the watch polls every 0.25 s; the rest is room for a loaded machine
         written = sorted(p.name for p in out.iterdir())
         time.sleep(4)  # Ray itself ends a dead driver's tasks 2-5 s after its death
         assert sorted(p.name for p in out.iterdir()) == written, "tasks kept writing after the driver died"
