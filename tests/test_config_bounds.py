@@ -53,7 +53,7 @@ def test_every_number_field_has_finite_bounds_or_choices():
 
 
 @pytest.mark.parametrize("field, value", [
-    ("area_light_size", 1e300),  # spun forever in scene._covering_emitters
+    ("area_light_size", 1e300),  # spun forever in scene.kinds._covering_emitters
     ("light_xy", 1e307), ("light_height", (1e307, 1e307)),  # the same
     ("camera_height", (1e20, 1e20)),  # NaN homographies
     ("n_views", 10**127),  # accepted, then a hang

@@ -15,7 +15,7 @@ from sidar_torch.config import OCCLUDER_SHAPES
 from benchmarks.exposure import view_exposure
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.render.meshes import unit_primitive
-from sidar_torch.scene import SHAPE_VARIANTS, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
+from sidar_torch.scene import SHAPES, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, small_config
 from test_render import overhead_spot
@@ -44,7 +44,7 @@ def sphere(material, radius=0.15, height=0.3, shape="sphere", variant=0):
 
 @pytest.mark.parametrize("shape", OCCLUDER_SHAPES)
 def test_every_shape_fits_its_unit_box_renders_and_is_masked(shape):
-    for variant in range(SHAPE_VARIANTS.get(shape, 1)):
+    for variant in range(SHAPES[shape].variants):
         mesh = unit_primitive(shape, variant)
         assert np.abs(mesh.bounds).max() <= 1 + 1e-9 and mesh.is_watertight
     red = Material(np.array([0.8, 0.1, 0.1, 1.0]), 0.0, 1.0)
@@ -53,20 +53,20 @@ def test_every_shape_fits_its_unit_box_renders_and_is_masked(shape):
     assert (image[mask, 0] > 2 * image[mask, 1] + 10).mean() > 0.9  # the occluder's red, not the grey painting
 
 
-@pytest.mark.parametrize("shape", sorted(SHAPE_VARIANTS))
+@pytest.mark.parametrize("shape", sorted(s for s, facts in SHAPES.items() if facts.variants > 1))
 def test_shape_variants_are_drawn_deterministically_and_all_occur(shape):
     cfg = small_config(n_views=6, n_occluders=(3, 3), occluder_shapes=(shape,))
     seq = sample_sequence(cfg, np.random.default_rng(5))
     assert seq == sample_sequence(cfg, np.random.default_rng(5))
     variants = {o.variant for s in range(10) for v in sample_sequence(cfg, np.random.default_rng(s)).views
                 for o in v.occluders}
-    assert variants == set(range(SHAPE_VARIANTS[shape]))
+    assert variants == set(range(SHAPES[shape].variants))
     assert not np.array_equal(unit_primitive(shape, 0).vertices[:8], unit_primitive(shape, 1).vertices[:8])
     assert np.array_equal(unit_primitive(shape, 3).vertices, unit_primitive(shape, 3).vertices)
 
 
 def test_prism_is_an_extruded_star_shaped_polygon():
-    for variant in range(SHAPE_VARIANTS["prism"]):
+    for variant in range(SHAPES["prism"].variants):
         prism = unit_primitive("prism", variant)
         assert np.allclose(sorted(set(prism.vertices[:, 2].round(9))), [-1.0, 1.0])  # two caps only
         outline = prism.vertices[prism.vertices[:, 2] > 0, :2]

@@ -97,3 +97,25 @@ def test_no_occluder_encloses_a_camera():
                 side = np.einsum("fa,cfa->cf", mesh.face_normals, centres[:, None] - mesh.triangles[None, :, 0])
                 assert not (side < 0).all(axis=1).any()
     assert placed > 20 * 6 * 6 // 2  # most occluders still find a place
+
+
+def test_the_kind_tables_of_config_scene_and_renderer_name_the_same_kinds():
+    """A kind is a row in each layer's table: config's names (``config.allowed``), the scene's
+    sampling rows (``scene.kinds``) and the renderer's meshes (``render.meshes``)."""
+    from sidar_torch.config import LIGHT_TYPES, OCCLUDER_MATERIALS, OCCLUDER_SHAPES
+    from sidar_torch.render.meshes import MESHES
+    from sidar_torch.scene import LIGHT_KINDS, MATERIAL_KINDS, SHAPES
+
+    assert set(LIGHT_KINDS) == set(LIGHT_TYPES)
+    assert set(MATERIAL_KINDS) == set(OCCLUDER_MATERIALS)
+    assert set(SHAPES) == set(MESHES) == set(OCCLUDER_SHAPES)
+    assert all(spec.levels or spec.polyhedron for spec in MESHES.values())  # each shape can be built
+
+
+@pytest.mark.parametrize("kind", ["spot", "point", "area"])
+def test_every_light_kind_is_drawn_with_its_emitters(kind):
+    config = small_config(light_types=(kind,), n_lights=(2, 2), area_light_samples=4)
+    lights = sample_sequence(config, np.random.default_rng(0)).views[0].lights
+    assert [light.kind for light in lights] == [kind, kind]
+    assert all(len(light.emitters) == (4 if kind == "area" else 1) for light in lights)
+    assert all(0 <= light.inner_cone <= light.outer_cone for light in lights)

@@ -1,6 +1,8 @@
 """Cylinder and cone sides are shaded smoothly (no band per facet, no seam), proved by rendering, and
 their outlines are the flat-shaded mesh's."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import trimesh
@@ -55,7 +57,7 @@ def test_the_side_shades_smoothly_and_the_old_flat_mesh_did_not(renderer, shape,
     step, spread = largest_step(image, mask, row)
     assert spread > 60  # the light sweeps across the side
     assert step <= MAX_STEP, step
-    monkeypatch.setattr(meshes, "_SIDE_SLOPE", {})  # the flat-shaded mesh, as before
+    monkeypatch.setitem(meshes.MESHES, shape, replace(meshes.MESHES[shape], side_slope=None))  # flat-shaded, as before
     flat, flat_mask = render(renderer, shape)
     assert largest_step(flat, flat_mask, row)[0] >= MAX_STEP + 5  # the test tells the two apart
     assert np.array_equal(flat_mask, mask)  # same outline
@@ -64,7 +66,7 @@ def test_the_side_shades_smoothly_and_the_old_flat_mesh_did_not(renderer, shape,
 @pytest.mark.parametrize("shape", ["cylinder", "cone"])
 def test_the_shaded_surface_is_the_mesh_with_unit_outward_normals_and_flat_caps(shape):
     mesh = meshes.unit_primitive(shape)
-    positions, normals = meshes._revolution_normals(mesh, meshes._SIDE_SLOPE[shape])
+    positions, normals = meshes._revolution_normals(mesh, meshes.MESHES[shape].side_slope)
     shaded = trimesh.Trimesh(positions, np.arange(len(positions)).reshape(-1, 3), process=False)
     # The same surface (the cone's facets cut into strips along their own edges), wound outward.
     assert np.isclose(shaded.area, mesh.area, rtol=1e-6) and np.isclose(shaded.volume, mesh.volume, rtol=1e-6)

@@ -4,9 +4,9 @@ Each unit primitive is centred at the origin and lies within the box ``|x_k| <= 
 scene sampler's bounding sphere relies on it): half-extent 1 along x and y for the sphere,
 cube, cylinder, cone and torus (the torus 0.3 along z); the capsule is 0.5 wide and 2 long
 along z; the icosahedron's vertices lie on the unit sphere; a ``hull`` is the convex hull of
-random points on the unit sphere, one of :data:`sidar_torch.scene.HULL_VARIANTS` fixed variants
+random points on the unit sphere, one of ``sidar_torch.scene.SHAPES["hull"].variants`` fixed variants
 (variant ``k`` drawn with ``default_rng(k)``); a ``prism`` is a random star-shaped polygon within
-the unit disc extruded from z = -1 to 1, one of :data:`sidar_torch.scene.PRISM_VARIANTS` fixed
+the unit disc extruded from z = -1 to 1, one of ``SHAPES["prism"].variants`` fixed
 variants (likewise drawn). A scene's occluder scales, rotates and places it. Meshes are pooled:
 a renderer uploads each pooled mesh once and reuses it with a new pose and material in every view.
 """
@@ -28,7 +28,8 @@ from ..scene import Occluder, ViewScene
 from .settings import RenderSettings
 from .visibility import ball_pixel_radius, ball_shadow_pixel_radius
 
-__all__ = ["FIXED_LEVEL", "MeshPool", "detail_level", "level_gap", "mesh_level", "plane_mesh", "unit_primitive"]
+__all__ = ["FIXED_LEVEL", "MESHES", "MeshPool", "ShapeMesh", "detail_level", "level_gap", "mesh_level", "plane_mesh",
+           "unit_primitive"]
 
 
 def _hull(variant: int) -> trimesh.Trimesh:
@@ -84,9 +85,28 @@ class _Level:
     gap: Callable[[], float]
 
 
-def _curved_levels() -> dict[str, tuple[_Level, ...]]:
-    """The levels of each curved primitive, coarsest first; :data:`FIXED_LEVEL` is the one used
-    before levels existed (icosphere 3, 48 sections, capsule 32 x 16)."""
+@dataclass(frozen=True)
+class ShapeMesh:
+    """How one occluder shape is meshed and shaded: a curved primitive by its ``levels`` of detail
+    (coarsest first), an exact polyhedron by ``polyhedron`` (variant -> mesh, one level, no gap).
+
+    Attributes:
+        levels: the levels of a curved primitive (empty for a polyhedron).
+        polyhedron: ``variant -> trimesh`` for a polyhedron, else None.
+        smooth: shaded with smooth vertex normals (else flat face normals, or ``side_slope``'s).
+        side_slope: a solid of revolution about z (radius 1, height 2): the z component of its
+            side's outward normal before normalising, radius / height (:func:`_revolution_normals`).
+    """
+
+    levels: tuple[_Level, ...] = ()
+    polyhedron: Callable[[int], trimesh.Trimesh] | None = None
+    smooth: bool = False
+    side_slope: float | None = None
+
+
+def _shape_meshes() -> dict[str, ShapeMesh]:
+    """Every shape's :class:`ShapeMesh`; the levels of curved primitives at :data:`FIXED_LEVEL` are
+    the meshes used before levels existed (icosphere 3, 48 sections, capsule 32 x 16)."""
     def sphere(k):
         return _Level(lambda: _icosphere(k).copy(), lambda: _icosphere_gap(k))
 
@@ -108,33 +128,24 @@ def _curved_levels() -> dict[str, tuple[_Level, ...]]:
                       lambda: _sagitta(0.5, 2 * latitude) + _sagitta(0.5, around))
 
     return {
-        "sphere": tuple(sphere(k) for k in (1, 2, 3, 4)),
-        "cylinder": tuple(cylinder(n) for n in (12, 24, 48, 96)),
-        "cone": tuple(cone(n) for n in (12, 24, 48, 96)),
-        "torus": tuple(torus(*mn) for mn in ((12, 6), (24, 12), (48, 24), (96, 48))),
-        "capsule": tuple(capsule(*la) for la in ((8, 6), (16, 10), (32, 16), (64, 32))),
+        "sphere": ShapeMesh(tuple(sphere(k) for k in (1, 2, 3, 4)), smooth=True),
+        "cube": ShapeMesh(polyhedron=lambda _: trimesh.creation.box(extents=(2.0, 2.0, 2.0))),
+        "cylinder": ShapeMesh(tuple(cylinder(n) for n in (12, 24, 48, 96)), side_slope=0.0),  # a vertical side
+        "cone": ShapeMesh(tuple(cone(n) for n in (12, 24, 48, 96)), side_slope=0.5),
+        "torus": ShapeMesh(tuple(torus(*mn) for mn in ((12, 6), (24, 12), (48, 24), (96, 48))), smooth=True),
+        "capsule": ShapeMesh(tuple(capsule(*la) for la in ((8, 6), (16, 10), (32, 16), (64, 32))), smooth=True),
+        "icosahedron": ShapeMesh(polyhedron=lambda _: trimesh.creation.icosahedron()),
+        "hull": ShapeMesh(polyhedron=_hull),
+        "prism": ShapeMesh(polyhedron=_prism),
     }
 
 
-_LEVELS = _curved_levels()
+MESHES = _shape_meshes()
+"""``SidarConfig.occluder_shapes`` name -> how it is meshed (the scene's facts of a shape are
+``sidar_torch.scene.SHAPES``; ``tests/test_scene.py`` checks both tables name the config's shapes)."""
+
 FIXED_LEVEL = 2
 """The level every curved primitive had before levels of detail (``SidarConfig.mesh_detail`` "fixed")."""
-
-_FLAT: dict[str, Callable[[int], trimesh.Trimesh]] = {
-    "cube": lambda _: trimesh.creation.box(extents=(2.0, 2.0, 2.0)),
-    "icosahedron": lambda _: trimesh.creation.icosahedron(),
-    "hull": _hull,
-    "prism": _prism,
-}
-"""Primitives that are exactly polyhedra: one level, no gap."""
-
-_SMOOTH = {"sphere", "torus", "capsule"}
-"""Shapes shaded with smooth vertex normals; the cylinder and cone get :func:`_revolution_normals`,
-the others keep sharp edges (flat face normals)."""
-
-_SIDE_SLOPE = {"cylinder": 0.0, "cone": 0.5}
-"""Solids of revolution about z (radius 1, height 2): the z component of their side's outward
-normal before normalising, radius / height (the cylinder's side is vertical)."""
 
 
 _APEX_RINGS = 6
@@ -144,7 +155,7 @@ _APEX_RINGS`` (see :func:`_revolution_normals`)."""
 
 def _revolution_normals(mesh: trimesh.Trimesh, slope: float) -> tuple[np.ndarray, np.ndarray]:
     """Per-corner positions and normals, each ``(3 F', 3)`` float32, of a cylinder or cone mesh
-    (``slope``: :data:`_SIDE_SLOPE`): the side shaded with the true surface normal at each corner,
+    (``slope``: :attr:`ShapeMesh.side_slope`): the side shaded with the true surface normal at each corner,
     the caps flat.
 
     A corner of a side face gets ``(cos a, sin a, slope)`` normalised, ``a`` its angle about z, so
@@ -190,35 +201,37 @@ def _revolution_normals(mesh: trimesh.Trimesh, slope: float) -> tuple[np.ndarray
 
 def _gl_mesh(shape: str, variant: int, level: int) -> pyrender.Mesh:
     """The pyrender mesh of a unit primitive, with the normals its shape is shaded with."""
-    mesh = unit_primitive(shape, variant, level)
-    if shape in _SIDE_SLOPE:
-        positions, normals = _revolution_normals(mesh, _SIDE_SLOPE[shape])
+    mesh, spec = unit_primitive(shape, variant, level), MESHES[shape]
+    if spec.side_slope is not None:
+        positions, normals = _revolution_normals(mesh, spec.side_slope)
         return pyrender.Mesh([pyrender.Primitive(positions=positions, normals=normals)])
-    return pyrender.Mesh.from_trimesh(mesh, smooth=shape in _SMOOTH)
+    return pyrender.Mesh.from_trimesh(mesh, smooth=spec.smooth)
 
 
 def unit_primitive(shape: str, variant: int = 0, level: int = FIXED_LEVEL) -> trimesh.Trimesh:
     """The unit primitive of ``shape`` as a trimesh (see module docstring for its size);
-    ``variant`` picks a hull or prism (``0 <= variant < scene.HULL_VARIANTS`` or ``PRISM_VARIANTS``)
+    ``variant`` picks a hull or prism (``0 <= variant < scene.SHAPES[shape].variants``)
     and is ignored by other shapes;
     ``level`` picks a curved primitive's level of detail (0 the coarsest, see :func:`detail_level`)
     and is ignored by polyhedra."""
-    if shape in _FLAT:
-        return _FLAT[shape](variant)
-    return _LEVELS[shape][level].build()
+    spec = MESHES[shape]
+    if spec.polyhedron is not None:
+        return spec.polyhedron(variant)
+    return spec.levels[level].build()
 
 
 def level_gap(shape: str, level: int) -> float:
     """Largest distance between the mesh of ``shape`` at ``level`` and the true surface, in
     unit-primitive units (0 for polyhedra)."""
-    return _LEVELS[shape][level].gap() if shape in _LEVELS else 0.0
+    levels = MESHES[shape].levels
+    return levels[level].gap() if levels else 0.0
 
 
 def detail_level(shape: str, pixels_per_unit: float, max_error_px: float) -> int:
     """The coarsest level of ``shape`` whose silhouette stays within ``max_error_px`` of the true
     surface when one unit-primitive unit spans ``pixels_per_unit`` pixels on screen (the finest
     level when none does; 0 for polyhedra)."""
-    levels = _LEVELS.get(shape, ())
+    levels = MESHES[shape].levels
     for level in range(len(levels)):
         if level_gap(shape, level) * pixels_per_unit <= max_error_px:
             return level

@@ -1,0 +1,244 @@
+"""The kinds a scene is made of, as tables: :data:`LIGHT_KINDS`, :data:`MATERIAL_KINDS`,
+:data:`SHAPES`, keyed by the names ``SidarConfig`` accepts (``light_types``, ``occluder_materials``,
+``occluder_shapes``; ``tests/test_scene.py`` checks that config, these tables and the
+renderer's meshes name the same kinds).
+
+Each row draws from a numpy ``Generator`` in a fixed order (the draws of a kind never depend on
+another kind's row), so a sequence stays a pure function of ``(config, rng)``. Adding a kind is a
+row here, its name in ``config.allowed`` and, for a shape, its mesh in ``render.meshes``.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .. import geometry
+from ..config import SidarConfig
+from .description import Material
+
+__all__ = ["CONE_MARGIN", "LIGHT_KINDS", "MATERIAL_KINDS", "MAX_EMITTER_CONE", "PAPER_TORUS_SCALE", "ROUGHNESS_RANGES",
+           "SHAPES",
+           "Beam", "LightKind", "Shape", "SimpleMaterial", "spread_beam"]
+
+MAX_EMITTER_CONE = 1.0
+"""Largest outer half-angle (rad) of an emitter's cone: wider shadow frusta give shadow acne."""
+
+CONE_MARGIN = math.radians(1.0)
+"""Angle by which a painting-covering cone exceeds the painting's farthest corner."""
+
+
+# --------------------------------------------------------------------------- lights
+
+
+@dataclass(frozen=True)
+class Beam:
+    """What a light kind makes of a light's drawn position and irradiance at the painting's centre.
+
+    Attributes:
+        position: ``(3,)`` the light's centre (moved back from the drawn one if its emitters'
+            cones could not cover the painting, see :func:`_covering_emitters`).
+        emitters: ``(S, 3)`` emitter positions.
+        inner_cone, outer_cone: half-angles (rad).
+        irradiance: each emitter's irradiance at the painting's centre.
+    """
+
+    position: np.ndarray
+    emitters: np.ndarray
+    inner_cone: float
+    outer_cone: float
+    irradiance: float
+
+
+@dataclass(frozen=True)
+class LightKind:
+    """One kind of light.
+
+    Attributes:
+        irradiance: the ``SidarConfig`` range field its irradiance is drawn from.
+        beam: ``(config, rng, position (3,), irradiance, image_size) -> Beam``: its emitters and cones.
+    """
+
+    irradiance: str
+    beam: Callable[[SidarConfig, np.random.Generator, np.ndarray, float, tuple[int, int]], Beam]
+
+
+def _spot_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarray, irradiance: float,
+               size: tuple[int, int]) -> Beam:
+    """One emitter with a drawn cone (``spot_cone_deg``) and a drawn inner share of it."""
+    outer = min(math.radians(rng.uniform(*config.spot_cone_deg)) / 2, MAX_EMITTER_CONE)
+    inner = outer * (1.0 - rng.uniform())
+    return Beam(position, position[None], inner, outer, irradiance)
+
+
+def _point_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarray, irradiance: float,
+                size: tuple[int, int]) -> Beam:
+    """One emitter whose inner cone covers the whole painting: a point light, on the painting."""
+    return _covering_beam(position, np.zeros((1, 2)), irradiance, size)
+
+
+def _area_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarray, irradiance: float,
+               size: tuple[int, int]) -> Beam:
+    """``area_light_samples`` emitters drawn on a square of side ``area_light_size`` facing the
+    painting, sharing the irradiance; narrowed by ``area_spread_deg`` (:func:`spread_beam`) unless
+    it is 180 degrees."""
+    n = config.area_light_samples
+    offsets = rng.uniform(-0.5, 0.5, size=(n, 2)) * config.area_light_size
+    beam = _covering_beam(position, offsets, irradiance, size)
+    if config.area_spread_deg != (180.0, 180.0):
+        inner, outer, centre = spread_beam(rng.uniform(*config.area_spread_deg), irradiance)
+        beam = Beam(beam.position, beam.emitters, inner, outer, centre / n)
+    return beam
+
+
+def _covering_beam(position: np.ndarray, offsets: np.ndarray, irradiance: float, size: tuple[int, int]) -> Beam:
+    """Emitters at ``offsets (S, 2)`` around ``position`` whose inner cones cover the painting,
+    sharing ``irradiance`` so that their sum is the drawn one."""
+    position, emitters = _covering_emitters(position, offsets, size)
+    inner = max(_cover_angle(e, size) for e in emitters)
+    return Beam(position, emitters, inner, inner + CONE_MARGIN, irradiance / len(offsets))
+
+
+LIGHT_KINDS: dict[str, LightKind] = {
+    "spot": LightKind("spot_irradiance", _spot_beam),
+    "point": LightKind("light_irradiance", _point_beam),
+    "area": LightKind("area_irradiance", _area_beam),
+}
+"""``SidarConfig.light_types`` name -> how that kind of light is drawn."""
+
+
+def spread_beam(spread_deg: float, irradiance: float) -> tuple[float, float, float]:
+    """Inner and outer cone (rad) and centre irradiance of an area light narrowed by Blender's
+    ``spread`` (full angle, degrees) whose unnarrowed centre irradiance is ``irradiance``.
+
+    Cycles keeps a spread light's power and concentrates it within ``a = spread / 2`` of its axis,
+    with a profile falling linearly in ``tan`` to 0 at ``a`` (peak ``tan a / (tan a - a)`` times the
+    unnarrowed light). Here the beam is a spot with no inner cone (the renderer's quadratic falloff
+    ``((cos t - cos a) / (1 - cos a))**2``), the same power: the centre irradiance times
+    ``3 / (2 (1 - cos a))`` (within 10 % of Cycles' peak for spreads of 10-90 degrees). ``a`` is capped
+    at :data:`MAX_EMITTER_CONE`.
+    """
+    outer = min(math.radians(spread_deg) / 2, MAX_EMITTER_CONE)
+    return 0.0, outer, irradiance * 3.0 / (2.0 * (1.0 - math.cos(outer)))
+
+
+def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:
+    """Largest angle (rad) between the emitter's axis (towards the centre) and a painting corner,
+    plus :data:`CONE_MARGIN`."""
+    axis = -emitter / np.linalg.norm(emitter)
+    rays = geometry.plane_corners(size) - emitter
+    cos = rays @ axis / np.linalg.norm(rays, axis=1)
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)).max()) + CONE_MARGIN
+
+
+def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[int, int]):
+    """Emitters at ``offsets (S, 2)`` on a square centred at ``position`` and facing the origin,
+    moved away from the centre along its ray until every emitter's painting-covering cone fits
+    within :data:`MAX_EMITTER_CONE` (no move if they already do).
+
+    Returns:
+        the (possibly moved) centre ``(3,)`` and the emitters ``(S, 3)``.
+    """
+    while True:
+        u, v, _ = geometry.look_at(position)[0]  # the square's axes: a camera's x and y there
+        emitters = position + offsets[:, :1] * u + offsets[:, 1:] * v
+        if max(_cover_angle(e, size) for e in emitters) <= MAX_EMITTER_CONE - CONE_MARGIN:
+            return position, emitters
+        position = position * 1.25
+
+
+# --------------------------------------------------------------------------- occluder materials
+
+
+ROUGHNESS_RANGES = {"glossy": (0.05, 0.3), "metallic": (0.05, 0.4), "transparent": (0.05, 0.5)}
+"""The roughness ranges of the simple kinds that draw one. Every simple kind draws all three, in this
+order, and keeps its own (if any): the draws of every sample recorded since the first release
+(``tests/stored_digests.py``) depend on it."""
+
+
+@dataclass(frozen=True)
+class SimpleMaterial:
+    """A material kind with one colour draw and named ranges, drawn in this order: colour (hue,
+    saturation, value in [0.2, 1]), ``alpha`` if a range, then every range of :data:`ROUGHNESS_RANGES`.
+
+    Attributes:
+        alpha: opacity, or a range it is drawn from (transparent).
+        metallic, specular: fixed factors.
+        roughness: fixed, or the name of its range in :data:`ROUGHNESS_RANGES`.
+    """
+
+    alpha: float | tuple[float, float]
+    metallic: float
+    roughness: float | str
+    specular: float
+
+    def __call__(self, rng: np.random.Generator, config: SidarConfig) -> Material:
+        rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+        alpha = rng.uniform(*self.alpha) if isinstance(self.alpha, tuple) else self.alpha
+        drawn = {name: rng.uniform(*bounds) for name, bounds in ROUGHNESS_RANGES.items()}
+        roughness = drawn[self.roughness] if isinstance(self.roughness, str) else self.roughness
+        return Material(np.array([*rgb, alpha]), self.metallic, roughness, self.specular)
+
+
+def _glass(rng: np.random.Generator, config: SidarConfig) -> Material:
+    """Nearly clear (alpha 0.05-0.25, pale tint) with a sharp clear-coat highlight, an index of
+    refraction in [1, 2] (the paper's glass and refraction materials) and an opaque shadow if
+    ``glass_shadows_opaque``."""
+    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
+    alpha, roughness, coat_roughness = rng.uniform(0.05, 0.25), rng.uniform(0.02, 0.1), rng.uniform(0.02, 0.08)
+    return Material(np.array([*rgb, alpha]), 0.0, roughness, 0.5, 1.0, coat_roughness, ior=rng.uniform(1.0, 2.0),
+                    opaque_shadow=config.glass_shadows_opaque)
+
+
+def _principled(rng: np.random.Generator, config: SidarConfig) -> Material:
+    """Every factor random: colour, metallic, roughness, specular, coat and its roughness (0.03-0.3)."""
+    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+    metallic, roughness, specular, coat = rng.uniform(size=4)
+    return Material(np.array([*rgb, 1.0]), metallic, roughness, specular, coat, rng.uniform(0.03, 0.3))
+
+
+MATERIAL_KINDS: dict[str, Callable[[np.random.Generator, SidarConfig], Material]] = {
+    "diffuse": SimpleMaterial(alpha=1.0, metallic=0.0, roughness=1.0, specular=0.0),  # Lambertian
+    "glossy": SimpleMaterial(alpha=1.0, metallic=0.0, roughness="glossy", specular=1.0),  # a sharp highlight
+    "metallic": SimpleMaterial(alpha=1.0, metallic=1.0, roughness="metallic", specular=0.5),  # tinted metal
+    "transparent": SimpleMaterial(alpha=(0.2, 0.7), metallic=0.0, roughness="transparent", specular=0.5),
+    "glass": _glass,
+    "principled": _principled,
+}
+"""``SidarConfig.occluder_materials`` name -> ``(rng, config) -> Material``. Transparent and glass
+materials also get more opaque towards grazing angles (``render.shader_patches``, quirk 5)."""
+
+
+# --------------------------------------------------------------------------- occluder shapes
+
+
+PAPER_TORUS_SCALE = np.array([1.25, 1.25, 0.25 / 0.3]) / 7
+"""Per-axis scale of the unit torus (outer radius 1, tube 0.3 thick along z) that gives it the size of
+the paper's torus, Blender's default one, never scaled (major radius 1, minor 0.25 Blender units;
+``SidarConfig.paper_torus``): the same outer radius 1.25 / 7 and half-thickness 0.25 / 7 painting
+units. Its tube is wider in the plane (0.3 of the outer radius against the paper's 0.2)."""
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What the scene knows of an occluder shape (its meshes are ``render.meshes``').
+
+    Attributes:
+        variants: how many fixed meshes it comes in (random hulls and prisms: 8; else 1).
+        paper_scale: the fixed scale it takes with ``SidarConfig.paper_torus`` (the torus), else None.
+    """
+
+    variants: int = 1
+    paper_scale: np.ndarray | None = None
+
+
+SHAPES: dict[str, Shape] = {
+    "sphere": Shape(), "cube": Shape(), "cylinder": Shape(), "cone": Shape(),
+    "torus": Shape(paper_scale=PAPER_TORUS_SCALE), "capsule": Shape(), "icosahedron": Shape(),
+    "hull": Shape(variants=8), "prism": Shape(variants=8),
+}
+"""``SidarConfig.occluder_shapes`` name -> its scene facts."""

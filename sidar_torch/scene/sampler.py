@@ -1,0 +1,184 @@
+"""Sampling a SIDAR scene: pure functions of a ``SidarConfig`` and a numpy ``Generator``.
+
+:func:`sample_sequence` draws the cameras first (view 0 the reference, then views 1..V-1), then each
+view's lights, occluders and materials (the kinds' own draws are :mod:`.kinds`' rows), so a
+sequence is a pure function of the generator's state.
+"""
+
+from __future__ import annotations
+
+import colorsys
+import math
+
+import numpy as np
+
+from .. import geometry
+from ..config import SidarConfig
+from .description import Camera, Light, Material, Occluder, SceneSequence, ViewScene
+from .kinds import LIGHT_KINDS, MATERIAL_KINDS, SHAPES
+
+__all__ = ["CAMERA_ATTEMPTS", "CAMERA_CLEARANCE", "OCCLUDER_ATTEMPTS", "sample_sequence"]
+
+
+def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSequence:
+    """Draw one sample's scenes from ``config`` with ``rng`` (a pure function of the rng's state).
+
+    Cameras are drawn first (view 0 the reference, then views 1..V-1), then each view's lights,
+    occluders and materials, or one set reused by every view when ``scene_per_view`` is false.
+    """
+    size = config.image_size
+    cameras = _sample_cameras(config, rng)
+    content = None
+    views = []
+    for camera in cameras:
+        if content is None or config.scene_per_view:
+            content = _sample_content(config, rng, size, cameras)
+        views.append(ViewScene(camera, *content))
+    return SceneSequence(size, tuple(views))
+
+
+CAMERA_ATTEMPTS = 1000
+"""Draws per view before the sampler gives up on ``min_coverage`` / ``min_overlap``."""
+
+
+def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camera]:
+    size = config.image_size
+    reference = Camera(*geometry.reference_camera(size, rng.uniform(*config.camera_height)))
+    if config.aligned:
+        return [reference] * config.n_views
+    cameras = [reference]
+    for _ in range(config.n_views - 1):
+        for _ in range(CAMERA_ATTEMPTS):
+            position = _camera_position(config, rng)
+            K = geometry.intrinsics_from_fov(rng.uniform(*config.fov_deg), size)
+            camera = Camera(K, *geometry.look_at(position))
+            if _meets_guarantees(camera, cameras, config):
+                break
+        else:
+            raise ValueError(
+                f"config fields 'min_coverage' ({config.min_coverage}) and 'min_overlap' "
+                f"({config.min_overlap}): no camera met them in {CAMERA_ATTEMPTS} draws from "
+                f"camera_xy={config.camera_xy}, camera_height={config.camera_height}, fov_deg="
+                f"{config.fov_deg}, max_tilt_deg={config.max_tilt_deg}; lower them or narrow the camera ranges")
+        cameras.append(camera)
+    return cameras
+
+
+def _meets_guarantees(camera: Camera, previous: list[Camera], config: SidarConfig) -> bool:
+    """Whether the painting covers at least ``min_coverage`` of the camera's image, and each of the
+    camera and every ``previous`` one sees at least ``min_overlap`` of the other's painting pixels."""
+    if config.min_coverage == 0 and config.min_overlap == 0:
+        return True
+    size = config.image_size
+    seen = geometry.painting_pixel_area(camera.K, camera.R, camera.t, size)
+    if seen < config.min_coverage * size[0] * size[1] or seen == 0:
+        return False
+    if config.min_overlap == 0:
+        return True
+    mine = geometry.visible_halfplanes(camera.K, camera.R, camera.t, size)
+    for other in previous:
+        theirs = geometry.visible_halfplanes(other.K, other.R, other.t, size)
+        both = geometry.painting_pixel_area(camera.K, camera.R, camera.t, size, (theirs,))
+        other_seen = geometry.painting_pixel_area(other.K, other.R, other.t, size)
+        other_both = geometry.painting_pixel_area(other.K, other.R, other.t, size, (mine,))
+        if both < config.min_overlap * seen or other_both < config.min_overlap * other_seen:
+            return False
+    return True
+
+
+def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: int = 64) -> np.ndarray:
+    """A camera centre drawn uniformly from the box ``|x|, |y| <= camera_xy`` (z from
+    ``camera_height``) restricted to tilts of at most ``max_tilt_deg`` (90: no restriction; the config
+    refuses a limit the box cannot reach, so the field always shapes the draw it names).
+
+    Rejection from the square ``|x|, |y| <= min(camera_xy, r)``, ``r`` the tilt disc's radius,
+    accepts with probability at least pi/4; after ``attempts`` failures (probability below
+    1e-40) the camera looks straight down.
+    """
+    z = rng.uniform(*config.camera_height)
+    radius = z * math.tan(math.radians(config.max_tilt_deg))
+    half = min(config.camera_xy, radius)
+    for _ in range(attempts):
+        x, y = rng.uniform(-half, half, size=2)
+        if x * x + y * y <= radius * radius:
+            return np.array([x, y, z])
+    return np.array([0.0, 0.0, z])
+
+
+def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int], cameras: list[Camera]):
+    n_lights = rng.integers(config.n_lights[0], config.n_lights[1] + 1)
+    lights = tuple(_sample_light(config, rng, size) for _ in range(n_lights))
+    n_occluders = rng.integers(config.n_occluders[0], config.n_occluders[1] + 1)
+    centres = np.stack([camera.position for camera in cameras])
+    occluders = tuple(o for o in (_sample_occluder(config, rng, centres) for _ in range(n_occluders)) if o is not None)
+    return lights, occluders, _plane_material(config, rng), rng.uniform(*config.ambient)
+
+
+def _plane_material(config: SidarConfig, rng: np.random.Generator) -> Material:
+    """The painting's material: white base (the texture gives its colour), the rest from the
+    ``plane_*`` ranges, or purely diffuse when ``plane_diffuse`` is set (no draws then).
+    Transmission is drawn only when ``plane_transmission`` is not ``(0, 0)``, so configs without
+    it draw the same numbers as before the field existed."""
+    if config.plane_diffuse:
+        return Material(np.ones(4), 0.0, 1.0, specular=0.0)
+    metallic, roughness, specular, coat, coat_roughness = (rng.uniform(*r) for r in (
+        config.plane_metallic, config.plane_roughness, config.plane_specular, config.plane_coat,
+        config.plane_coat_roughness))
+    transmission = rng.uniform(*config.plane_transmission) if any(config.plane_transmission) else 0.0
+    return Material(np.ones(4), metallic, roughness, specular, coat, coat_roughness, transmission)
+
+
+def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]) -> Light:
+    """A light of a kind drawn from ``light_types``: position, colour and irradiance at the painting's
+    centre drawn here, its emitters and cones by its :data:`~.kinds.LIGHT_KINDS` row."""
+    name = config.light_types[rng.integers(len(config.light_types))]
+    kind = LIGHT_KINDS[name]
+    xy = rng.uniform(-config.light_xy, config.light_xy, size=2)
+    position = np.array([xy[0], xy[1], rng.uniform(*config.light_height)])
+    color = np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, config.light_saturation_max), 1.0))
+    beam = kind.beam(config, rng, position, rng.uniform(*getattr(config, kind.irradiance)), size)
+    distance = np.linalg.norm(beam.position)
+    intensity = beam.irradiance * distance**2 / (beam.position[2] / distance)
+    return Light(name, beam.emitters, color, float(intensity), float(beam.inner_cone), float(beam.outer_cone))
+
+
+OCCLUDER_ATTEMPTS = 100
+"""Placements tried for an occluder before it is left out of the view."""
+
+CAMERA_CLEARANCE = 0.01
+"""Least gap (painting units) between a camera and an occluder's bounding sphere: far more than
+the renderer's near plane (under 1e-3), so no occluder is cut open by it."""
+
+
+def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.ndarray) -> Occluder | None:
+    """An occluder clear of every camera centre ``cameras (V, 3)``, or ``None`` when
+    :data:`OCCLUDER_ATTEMPTS` placements all enclose a camera.
+
+    A camera inside an occluder would not see it (back faces are culled) while its shadow falls
+    on the view, and the mask would miss it.
+    """
+    shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
+    facts = SHAPES[shape]
+    rotation = _random_rotation(rng)
+    fixed = facts.paper_scale is not None and config.paper_torus
+    scale = facts.paper_scale if fixed else rng.uniform(*config.occluder_size, size=3)
+    variant = int(rng.integers(facts.variants)) if facts.variants > 1 else 0
+    kind = config.occluder_materials[rng.integers(len(config.occluder_materials))]
+    material = MATERIAL_KINDS[kind](rng, config)
+    radius = float(np.linalg.norm(scale))  # the unit primitive lies within the box |x_k| <= 1
+    for _ in range(OCCLUDER_ATTEMPTS):
+        xy = rng.uniform(-config.occluder_xy, config.occluder_xy, size=2)
+        position = np.array([xy[0], xy[1], rng.uniform(*config.occluder_height)])
+        if np.linalg.norm(cameras - position, axis=1).min() > radius + CAMERA_CLEARANCE:
+            return Occluder(shape, position, rotation, scale, material, variant)
+    return None
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A rotation matrix ``(3, 3)`` uniform over SO(3) (normalised Gaussian quaternion)."""
+    w, x, y, z = (q := rng.normal(size=4)) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
