@@ -29,7 +29,7 @@ from .augment_pool import RenderPool, RenderTask, render_task
 from .config import SidarConfig, as_float, as_int, load_config
 from .sample import KEYS, stack_samples
 from .scene import SceneSequence, sample_sequence
-from .sources import CROP_MODES, tensor_to_uint8
+from .paintings import CROP_MODES, tensor_to_uint8
 
 __all__ = ["SidarAugment"]
 
@@ -87,7 +87,7 @@ class SidarAugment(nn.Module):
     sources accept (converted by the same function). Float images are
     quantised to 8 bits (``round(x * 255)``, the texture's precision) and, if ``(h, w)`` is not
     ``image_size``, fitted to it exactly as painting sources fit images
-    (:class:`sidar_torch.sources.TensorPaintings`, :func:`sidar_torch.sources.fit_painting`: the
+    (:class:`sidar_torch.paintings.TensorPaintings`, :func:`sidar_torch.paintings.fit_painting`: the
     largest centred crop of the output aspect, Lanczos resampling; ``crop="none"`` stretches).
     Rendering runs on the CPU (OSMesa) whatever the input's device; no gradient flows back to
     ``images``.
@@ -254,7 +254,7 @@ def _to_device(values: torch.Tensor, key: str, device: torch.device) -> torch.Te
 def _check_images(images: Any) -> np.ndarray:
     """Validate ``images`` (see :meth:`SidarAugment.forward`) and return them as ``(B, 3, h, w)``
     uint8 NumPy pixels (float values ``round(x * 255)``, grey copied to three channels), with the
-    conversion painting sources use (:func:`sidar_torch.sources.tensor_to_uint8`)."""
+    conversion painting sources use (:func:`sidar_torch.paintings.tensor_to_uint8`)."""
     if not isinstance(images, torch.Tensor):
         raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w) or (B, 1, h, w), "
                         f"got {type(images).__name__}")

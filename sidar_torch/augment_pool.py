@@ -43,7 +43,7 @@ from .render import preload
 from .render.context import forks_nothing
 from .sample import SampleArrays, render_arrays
 from .scene import sample_sequence
-from .sources import TensorPaintings
+from .paintings import TensorPaintings
 
 __all__ = ["RenderPool", "RenderTask", "render_task"]
 

@@ -20,7 +20,7 @@ from .config import SidarConfig, as_int, load_config
 from .render import preload
 from .sample import SampleArrays, render_arrays
 from .scene import SceneSequence, sample_sequence
-from .sources import PaintingSource, make_source
+from .paintings import PaintingSource, make_source
 
 __all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
@@ -41,10 +41,10 @@ class SidarDataset(IterableDataset):
     Args:
         source: the paintings: ``None`` (built-in procedural paintings), a folder, an image path
             or list of paths, a tensor ``(N, 3, h, w)`` / ``(3, h, w)``, a sequence of tensors or
-            PIL images, or any indexable dataset of images (see ``sidar_torch.sources``). Images that
+            PIL images, or any indexable dataset of images (see ``sidar_torch.paintings``). Images that
             cannot be read, or whose files claim more than ``config.max_image_pixels`` pixels, raise or
             are skipped as ``config.on_bad_image`` says; with ``"skip"``, call ``ds.source.scan()``
-            once before iterating to drop them up front (see ``sidar_torch.sources``, "Bad input").
+            once before iterating to drop them up front (see ``sidar_torch.paintings``, "Bad input").
         config: a :class:`SidarConfig`, a preset name or a YAML path (default ``"misaligned"``).
         seed: the dataset's seed (integer >= 0).
         length: ``None`` for an endless stream, or ``N``: indices ``0..N-1``, each exactly once

@@ -8,7 +8,7 @@ from kornia.geometry.transform import get_perspective_transform, warp_perspectiv
 
 from sidar_torch import SidarAugment, SidarDataset, homography_pairs
 from sidar_torch.sample import sequence_homographies
-from sidar_torch.sources import ProceduralPaintings
+from sidar_torch.paintings import ProceduralPaintings
 
 from conftest import small_config
 

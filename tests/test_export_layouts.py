@@ -15,7 +15,7 @@ from sidar_torch.io.entries import sample_from_entries
 from sidar_torch.io.layouts import LAYOUTS, layout_for, recorded_layout
 from sidar_torch.io.manifest import read_manifest, write_manifest
 from sidar_torch.sample import SampleArrays
-from sidar_torch.sources import ImageFiles, ProceduralPaintings
+from sidar_torch.paintings import ImageFiles, ProceduralPaintings
 
 SHARD_SIZES = {"folders": None, "shards": 2}
 """A ``shard_size`` of each layout of the table (``export_dataset``'s argument that picks it)."""

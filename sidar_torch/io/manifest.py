@@ -11,7 +11,7 @@ from typing import Any, Callable
 import yaml
 
 from ..sample import GEOMETRY_DTYPES, KEYS
-from ..sources import PaintingSource
+from ..paintings import PaintingSource
 from ..version import __version__
 from .files import LOCK, is_own_temporary, read_inside, replace_file
 from .layout import CONFIG, MANIFEST, Layout

@@ -1,4 +1,4 @@
-"""Tests for sidar_torch.sources."""
+"""Tests for sidar_torch.paintings (decode and sources)."""
 
 from __future__ import annotations
 
@@ -19,8 +19,9 @@ from PIL import Image
 from PIL import JpegImagePlugin
 
 from conftest import SMALL, small_config
-from sidar_torch import SidarDataset, sources
-from sidar_torch.sources import (
+from sidar_torch import SidarDataset
+from sidar_torch.paintings import decode
+from sidar_torch.paintings import (
     BadImageWarning,
     DatasetPaintings,
     ImageFiles,
@@ -651,7 +652,7 @@ def test_a_large_jpeg_is_decoded_reduced_never_below_the_output_size(tmp_path, m
         return real_draft(self, mode, size)
 
     monkeypatch.setattr(JpegImagePlugin.JpegImageFile, "draft", spy)
-    monkeypatch.setattr(sources, "JPEG_DRAFT_PIXELS", 1000)  # 720 * 240 is "large"
+    monkeypatch.setattr(decode, "JPEG_DRAFT_PIXELS", 1000)  # 720 * 240 is "large"
     out = make_source(path).painting(0, (30, 30))
     assert drafts == [(30, 30)]
     assert (np.abs(out[:, 3:-3].astype(int) - GREEN) <= 12).all()
@@ -680,7 +681,7 @@ def test_the_dataset_takes_the_pixel_budget_from_its_config(tmp_path):
     big = _solid(tmp_path / "b.png", BLUE, size=(20, 20))
     with pytest.raises(ValueError, match=r"config field 'max_image_pixels': expected 1 <= value <= "):
         small_config(max_image_pixels=0)
-    assert SidarDataset(big, config=small_config()).source.max_pixels == 2**28 == sources.MAX_IMAGE_PIXELS
+    assert SidarDataset(big, config=small_config()).source.max_pixels == 2**28 == decode.MAX_IMAGE_PIXELS
     with pytest.raises(ImageTooLargeError, match="b.png"):
         SidarDataset(big, config=small_config(max_image_pixels=399)).source.painting(0, (4, 4))
 

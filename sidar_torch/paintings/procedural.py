@@ -2,7 +2,7 @@
 
 :func:`paint` draws one painting from a ``numpy.random.Generator``; it is pure (the same
 generator state and size give the same pixels) and uses no global random state.
-:class:`sidar_torch.sources.ProceduralPaintings` wraps it as a painting source with one
+:class:`sidar_torch.paintings.ProceduralPaintings` wraps it as a painting source with one
 generator per painting index.
 
 Each painting is layered: a smooth bicubic colour field, 8-19 filled ellipses, polygons and
