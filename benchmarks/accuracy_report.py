@@ -1,9 +1,9 @@
 """The accuracy report: ``python -m benchmarks.accuracy_report [--quick]`` from the repository root.
 
-Runs the measurements of :mod:`sidar_torch.metrics` on fresh samples and prints one table:
+Runs the measurements of :mod:`benchmarks.metrics` on fresh samples and prints one table:
 
 * geometric residual of the warp ``H[i, j]`` (pixels) and its photometric error, on ambient,
-  occluder-free scenes of :func:`~sidar_torch.metrics.speckle_paintings` at several output sizes;
+  occluder-free scenes of :func:`~benchmarks.metrics.speckle_paintings` at several output sizes;
 * homography error against the analytic plane-induced homographies over many random scenes of
   the default preset, in float64 and in the float32 handed out;
 * label PSNR against the painting.
@@ -24,7 +24,7 @@ import torch
 
 from sidar_torch.config import load_config
 from sidar_torch.dataset import SidarDataset
-from sidar_torch.metrics import homography_errors, psnr, speckle_paintings, warp_residuals
+from .metrics import homography_errors, psnr, speckle_paintings, warp_residuals
 from sidar_torch.scene import sample_sequence
 
 from .common import DEFAULT_PRESET, one_thread, parse_set, size_label

@@ -27,7 +27,7 @@ the error it leaves:
   One PSNR per setting, from the mean squared error over every pixel of every view of every
   scene (occluders and background included);
 * **warp residual** (median / max Lucas-Kanade displacement, pixels; see
-  :func:`sidar_torch.metrics.warp_residuals`) per resolution and supersampling, on ambient,
+  :func:`benchmarks.metrics.warp_residuals`) per resolution and supersampling, on ambient,
   occluder-free speckle scenes (no lights, so the shadow-map size cannot change them);
 * **label PSNR** (:func:`benchmarks.accuracy_report.label_row`) per resolution. The label is an
   unlit, fronto-parallel, occluder-free draw that shows the texture exactly; it does not depend
@@ -65,7 +65,7 @@ import torch.nn.functional as F
 from sidar_torch.effects import linear_to_srgb, srgb_to_linear
 from sidar_torch.config import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
 from sidar_torch.dataset import SidarDataset
-from sidar_torch.metrics import psnr, speckle_paintings, warp_residuals
+from .metrics import psnr, speckle_paintings, warp_residuals
 from sidar_torch import render  # render.SceneRenderer loads the renderer at its first use, not at import
 from sidar_torch.render import RenderSettings
 from sidar_torch.sample import sequence_homographies

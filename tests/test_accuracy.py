@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.metrics import homography_errors, speckle_paintings, warp_residuals
+from benchmarks.metrics import homography_errors, speckle_paintings, warp_residuals
 from sidar_torch.scene import sample_sequence
 
 pytestmark = pytest.mark.gl  # renders

@@ -14,7 +14,7 @@ from benchmarks import sweep
 from benchmarks.sweep import main
 from sidar_torch import load_config
 from sidar_torch.dataset import SidarDataset
-from sidar_torch.metrics import speckle_paintings
+from benchmarks.metrics import speckle_paintings
 from sidar_torch.render import RenderSettings, SceneRenderer
 
 from conftest import SMALL

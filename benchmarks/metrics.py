@@ -12,7 +12,7 @@ analytic ones.
 * :func:`psnr` compares two images (e.g. the label with the source painting).
 * :func:`speckle_paintings` makes paintings on which the warp residual measures geometry.
 
-``python -m benchmarks.accuracy_report`` (from a clone) prints them as a table.
+``python -m benchmarks.accuracy_report`` prints them as a table; ``benchmarks.sweep`` and the accuracy tests use them too (they measure the package, they are not part of it).
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from . import geometry
-from .sample import sequence_homographies
-from .scene import SceneSequence
+from sidar_torch import geometry
+from sidar_torch.sample import sequence_homographies
+from sidar_torch.scene import SceneSequence
 
 __all__ = [
     "HomographyError",
