@@ -8,9 +8,16 @@ import pytest
 import torch
 
 import sidar_torch  # noqa: F401  (selects the OSMesa platform before anything imports OpenGL)
-from sidar_torch import load_config
+from sidar_torch import geometry, load_config
+from sidar_torch.scene import Camera, Material, SceneSequence, ViewScene
 
 SMALL = (96, 128)
+
+WHITE = Material(np.ones(4), 0.0, 1.0)
+"""A white painting material, glTF's default dielectric (4 % specular)."""
+
+LAMBERTIAN = Material(np.ones(4), 0.0, 1.0, specular=0.0)
+"""A white, purely diffuse painting material."""
 
 
 def pytest_addoption(parser):
@@ -52,6 +59,28 @@ def small_config(preset="misaligned", **overrides):
 def textured_painting(size, seed=0):
     """``(H, W, 3)`` uint8 random texture: every pixel differs from its neighbours."""
     return np.random.default_rng(seed).integers(0, 256, (*size, 3), dtype=np.uint8)
+
+
+def render_flat_painting(occluders=(), lights=(), plane=WHITE, ambient=0.0, painting=200, size=SMALL, camera=None,
+                         renderer=None, timings=None, **settings):
+    """One view of a flat painting through the reference camera (height 0.9 unless ``camera`` is
+    given): ``painting`` a grey level, an RGB triple or an ``(H, W, 3)`` uint8 array. Rendered by
+    ``renderer``, else by this process's shared renderer for ``RenderSettings(size, **settings)``
+    (``timings``: see ``SceneRenderer.render``); returns its ``RenderedSequence``."""
+    from sidar_torch.render import RenderSettings, shared_renderer
+
+    camera = camera or Camera(*geometry.reference_camera(size, 0.9))
+    view = ViewScene(camera, tuple(lights), tuple(occluders), plane, ambient)
+    texture = np.broadcast_to(np.asarray(painting, np.uint8), (*size, 3)).copy()
+    renderer = renderer or shared_renderer(RenderSettings(size, **settings))
+    return renderer.render(SceneSequence(size, (view,)), texture, timings)
+
+
+def assert_same_batch(a, b):
+    """Two sample dicts (or batches) of tensors have the same keys and equal tensors (naming the first key that differs)."""
+    assert a.keys() == b.keys()
+    for key in a:
+        assert torch.equal(a[key], b[key]), key
 
 
 def sample_digest(sample):

@@ -4,15 +4,15 @@ intermediate values, nothing moves, masks, opacities and the label are unchanged
 import numpy as np
 import pytest
 
-from sidar_torch import geometry, load_config
-from sidar_torch.render import RenderSettings, SceneRenderer, shared_renderer
-from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
+from sidar_torch import load_config
+from sidar_torch.render import RenderSettings, SceneRenderer
+from sidar_torch.scene import Material, Occluder
 
-from conftest import SMALL
+from conftest import SMALL, render_flat_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-GREY, WHITE = 200, Material(np.ones(4), 0.0, 1.0)
+GREY = 200
 BLACK = Material(np.array([0.0, 0.0, 0.0, 1.0]), 0.0, 1.0, specular=0.0)
 
 
@@ -20,9 +20,7 @@ def render(antialias):
     """One unlit view (ambient 1, no lights) of a flat grey painting behind a black sphere: with
     one sample per pixel each painting pixel is either grey or black."""
     sphere = Occluder("sphere", np.array([0.03, -0.02, 0.3]), np.eye(3), np.full(3, 0.15), BLACK)
-    view = ViewScene(Camera(*geometry.reference_camera(SMALL, 0.9)), (), (sphere,), WHITE, 1.0)
-    settings = RenderSettings(SMALL, opacities=True, antialias=antialias)
-    return shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), GREY, np.uint8))
+    return render_flat_painting([sphere], ambient=1.0, painting=GREY, opacities=True, antialias=antialias)
 
 
 def test_antialiasing_blends_the_silhouette_and_moves_nothing():

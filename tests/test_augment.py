@@ -10,7 +10,7 @@ from sidar_torch import SidarAugment, SidarDataset, homography_pairs
 from sidar_torch.sample import sequence_homographies
 from sidar_torch.paintings import ProceduralPaintings
 
-from conftest import small_config
+from conftest import assert_same_batch, small_config
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -26,12 +26,6 @@ def paintings(n, size, first=0):
     """``(n, 3, h, w)`` float32 procedural paintings (natural-looking detail, not white noise)."""
     source = ProceduralPaintings()
     return torch.stack([torch.from_numpy(source.painting(first + k, size)).permute(2, 0, 1) for k in range(n)]) / 255
-
-
-def assert_same_batch(a, b):
-    assert a.keys() == b.keys()
-    for key in a:
-        assert torch.equal(a[key], b[key]), key
 
 
 # --------------------------------------------------------------------------- SidarAugment

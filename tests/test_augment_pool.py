@@ -12,7 +12,7 @@ import pytest
 import torch
 
 import sidar_torch.augment_pool
-from conftest import alive, child_pids
+from conftest import alive, assert_same_batch, child_pids
 from sidar_torch import SidarAugment
 
 pytestmark = pytest.mark.gl  # renders
@@ -23,12 +23,6 @@ TINY = (48, 64)
 def augment(num_workers, seed=0, **overrides):
     return SidarAugment("misaligned", seed=seed, num_workers=num_workers,
                         **{"image_size": TINY, "n_views": 2, "n_occluders": (1, 2), **overrides})
-
-
-def assert_same_batch(a, b):
-    assert a.keys() == b.keys()
-    for key in a:
-        assert torch.equal(a[key], b[key]), key
 
 
 def wait_gone(pids, seconds=10.0):

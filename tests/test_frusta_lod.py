@@ -15,12 +15,11 @@ from sidar_torch.render import RenderSettings, SceneRenderer, visibility
 from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, mesh_level, unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
-from conftest import SMALL, sample_digest, small_config, textured_painting
+from conftest import SMALL, WHITE, sample_digest, small_config, textured_painting
 
 pytestmark = pytest.mark.gl  # renders
 
 SIZE = (96, 128)
-WHITE = Material(np.ones(4), 0.0, 1.0)
 GREY = np.full((*SIZE, 3), 180, np.uint8)
 
 

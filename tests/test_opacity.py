@@ -8,26 +8,22 @@ import torch
 from PIL import Image
 
 from sidar_torch import ExportedDataset, SidarAugment, SidarDataset, export_dataset, geometry, load_config
-from sidar_torch.render import RenderSettings, shared_renderer
-from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
+from sidar_torch.scene import Camera, Material, Occluder
 
-from conftest import SMALL, sample_digest, small_config
+from conftest import SMALL, sample_digest, small_config, render_flat_painting
 from test_export import TINY, assert_same_sample
 from test_render import cube
 
 pytestmark = pytest.mark.gl  # renders
 
 H, W = SMALL
-WHITE = Material(np.ones(4), 0.0, 1.0)
 OPAQUE_KINDS = ("diffuse", "glossy", "metallic", "principled")
 
 
 def render(occluders, painting=200, mask_min_opacity=0.0, camera=None, visible=True):
     """One unlit (ambient 1, no lights) view of a flat grey painting, with its opacities."""
-    camera = camera or Camera(*geometry.reference_camera(SMALL, 0.9))
-    view = ViewScene(camera, (), tuple(occluders), WHITE, 1.0)
-    settings = RenderSettings(SMALL, occluders_visible=visible, mask_min_opacity=mask_min_opacity, opacities=True)
-    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), painting, np.uint8))
+    out = render_flat_painting(occluders, ambient=1.0, painting=painting, camera=camera, occluders_visible=visible,
+                               mask_min_opacity=mask_min_opacity, opacities=True)
     return out.views[0].astype(int), out.masks[0], out.opacities[0].astype(int)
 
 

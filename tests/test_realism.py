@@ -13,28 +13,24 @@ from sidar_torch import SidarDataset, geometry, load_config
 from sidar_torch.effects import srgb_to_linear
 from sidar_torch.config import OCCLUDER_SHAPES
 from benchmarks.exposure import view_exposure
-from sidar_torch.render import RenderSettings, shared_renderer
+from sidar_torch.render import RenderSettings
 from sidar_torch.render.meshes import unit_primitive
-from sidar_torch.scene import SHAPES, Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
+from sidar_torch.scene import SHAPES, Camera, Light, Material, Occluder, sample_sequence
 
-from conftest import SMALL, small_config
+from conftest import LAMBERTIAN, SMALL, render_flat_painting, small_config
 from test_render import overhead_spot
 
 pytestmark = pytest.mark.gl  # renders
 
 H, W = SMALL
 CENTRE = (slice(H // 2 - 6, H // 2 + 6), slice(W // 2 - 6, W // 2 + 6))
-DIFFUSE = Material(np.ones(4), 0.0, 1.0, specular=0.0)
 
 
-def render(occluders=(), lights=(), plane=DIFFUSE, ambient=0.0, painting=100, mask_min_opacity=0.0, camera=None,
+def render(occluders=(), lights=(), plane=LAMBERTIAN, ambient=0.0, painting=100, mask_min_opacity=0.0, camera=None,
            occluders_visible=True):
     """One reference-camera view of a flat painting of grey level (or RGB) ``painting``."""
-    camera = camera or Camera(*geometry.reference_camera(SMALL, 0.9))
-    view = ViewScene(camera, tuple(lights), tuple(occluders), plane, ambient)
-    settings = RenderSettings(SMALL, occluders_visible=occluders_visible, mask_min_opacity=mask_min_opacity)
-    texture = np.broadcast_to(np.asarray(painting, np.uint8), (*SMALL, 3)).copy()
-    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), texture)
+    out = render_flat_painting(occluders, lights, plane, ambient, painting, camera=camera,
+                               occluders_visible=occluders_visible, mask_min_opacity=mask_min_opacity)
     return out.views[0].astype(int), out.masks[0]
 
 
@@ -98,7 +94,7 @@ def test_plane_coat_adds_a_highlight_that_moves_with_the_camera():
 
 def test_plane_diffuse_switch_and_plane_ranges():
     seq = sample_sequence(small_config(plane_diffuse=True), np.random.default_rng(0))
-    assert all(v.plane_material == DIFFUSE for v in seq.views)
+    assert all(v.plane_material == LAMBERTIAN for v in seq.views)
     cfg = small_config(n_views=6, plane_coat=(0.2, 0.4), plane_specular=(0.6, 0.7))
     materials = [v.plane_material for v in sample_sequence(cfg, np.random.default_rng(0)).views]
     assert all(0.2 <= m.coat <= 0.4 and 0.6 <= m.specular <= 0.7 for m in materials)

@@ -8,23 +8,20 @@ import numpy as np
 import pytest
 
 from sidar_torch import geometry
-from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.render.mirror import mirror_define, painting_diffuse
-from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
+from sidar_torch.scene import Camera, Light, Material, Occluder
 
-from conftest import SMALL
+from conftest import LAMBERTIAN, SMALL, render_flat_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-PLANE = Material(np.ones(4), 0.0, 1.0, specular=0.0)
 CENTRE = np.array([0.0, 0.0, 0.2])
 
 
 def render(material, painting, radius, mirrors=True, lights=(), ambient=1.0):
     camera = Camera(*geometry.reference_camera(SMALL, 0.9))
     ball = Occluder("sphere", CENTRE, np.eye(3), np.full(3, radius), material)
-    view = ViewScene(camera, tuple(lights), (ball,), PLANE, ambient)
-    out = shared_renderer(RenderSettings(SMALL, mirrors=mirrors)).render(SceneSequence(SMALL, (view,)), painting)
+    out = render_flat_painting([ball], lights, LAMBERTIAN, ambient, painting, camera=camera, mirrors=mirrors)
     return out.views[0].astype(float), camera
 
 

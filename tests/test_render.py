@@ -16,11 +16,10 @@ from sidar_torch import SidarDataset, geometry
 from sidar_torch.render import RenderSettings, SceneRenderer, shader_patches, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
-from conftest import SMALL, small_config, textured_painting
+from conftest import SMALL, WHITE, small_config, textured_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-WHITE = Material(np.ones(4), 0.0, 1.0)
 
 
 def one_view(size, occluders=(), lights=(), ambient=1.0, camera=None):

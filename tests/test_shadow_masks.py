@@ -15,11 +15,10 @@ from sidar_torch.effects import srgb_to_linear
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
-from conftest import SMALL, small_config
+from conftest import SMALL, small_config, LAMBERTIAN, render_flat_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-LAMBERTIAN = Material(np.array([1.0, 1.0, 1.0, 1.0]), 0.0, 1.0, specular=0.0)
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 
 
@@ -35,10 +34,9 @@ def ball(at, rgba, radius=0.12, height=0.3):
 
 def render(occluders, lights, shadows=True):
     """A white painting through the reference camera: the rendered sequence (one view)."""
-    view = ViewScene(Camera(*geometry.reference_camera(SMALL, 0.9)), tuple(lights), tuple(occluders), LAMBERTIAN, 0.0)
-    settings = RenderSettings(SMALL, shadows=shadows, shadow_masks=True, shadow_free=True)
     timings = {}
-    out = shared_renderer(settings).render(SceneSequence(SMALL, (view,)), np.full((*SMALL, 3), 255, np.uint8), timings)
+    out = render_flat_painting(occluders, lights, LAMBERTIAN, painting=255, timings=timings, shadows=shadows,
+                               shadow_masks=True, shadow_free=True)
     return out, timings
 
 

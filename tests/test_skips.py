@@ -17,11 +17,10 @@ from sidar_torch.render.pyrender_overrides import RankedNode, ranked
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
-from conftest import SMALL, small_config, textured_painting
+from conftest import SMALL, WHITE, small_config, textured_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-WHITE = Material(np.ones(4), 0.0, 1.0)
 
 NARROW_VIEWS = dict(n_views=4, fov_deg=(20, 30), occluder_xy=1.5, n_occluders=(1, 3))
 """Narrow views of a wide scene: many occluders and their shadows lie outside what a camera sees."""

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from sidar_torch import geometry
 from sidar_torch.render import RenderSettings, SceneRenderer, meshes
-from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
+from sidar_torch.scene import Light, Material, Occluder
+
+from conftest import render_flat_painting
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -35,10 +36,8 @@ def render(renderer, shape):
     occ = Occluder(shape, np.array([0.0, 0.0, 0.35]), LYING, np.array([0.12, 0.12, 0.3]),
                    Material(np.array([0.8, 0.8, 0.8, 1.0]), 0.0, 0.6))
     light = Light("spot", np.array([[1.2, 0.3, 1.2]]), np.ones(3), 3.0, 1.0, 1.1)
-    view = ViewScene(Camera(*geometry.reference_camera(SIZE, 0.9)), (light,), (occ,), Material(np.ones(4), 0.0, 1.0),
-                     0.05)
     renderer._meshes = meshes.MeshPool()  # meshes built as the module says now (the test patches it)
-    out = renderer.render(SceneSequence(SIZE, (view,)), np.full((*SIZE, 3), 60, np.uint8))
+    out = render_flat_painting([occ], [light], ambient=0.05, painting=60, size=SIZE, renderer=renderer)
     return out.views[0][..., 0].astype(int), out.masks[0]
 
 
