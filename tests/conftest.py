@@ -13,6 +13,9 @@ from sidar_torch.scene import Camera, Material, SceneSequence, ViewScene
 
 SMALL = (96, 128)
 
+TINY = {"image_size": (24, 32), "n_views": 2, "shadow_map_size": 256}
+"""Config overrides for samples that export and read back quickly."""
+
 WHITE = Material(np.ones(4), 0.0, 1.0)
 """A white painting material, glTF's default dielectric (4 % specular)."""
 
@@ -81,6 +84,18 @@ def assert_same_batch(a, b):
     assert a.keys() == b.keys()
     for key in a:
         assert torch.equal(a[key], b[key]), key
+
+
+def assert_same_sample(read, rendered):
+    """A sample read back (``ExportedDataset``) is ``rendered``: the same keys, tensors of the same
+    dtype, shape and values, other values of the same type and value (naming the key that differs)."""
+    assert set(read) == set(rendered)
+    for key, value in rendered.items():
+        if isinstance(value, torch.Tensor):
+            assert read[key].dtype == value.dtype and read[key].shape == value.shape, key
+            assert torch.equal(read[key], value), key
+        else:
+            assert type(read[key]) is type(value) and read[key] == value, key
 
 
 def sample_digest(sample):

@@ -2,7 +2,7 @@
 change no byte.
 
 ``python tests/export_digests.py --write`` records them (only in a commit whose purpose is to
-change exported files, saying so); ``tests/test_export.py`` compares. As in ``stored_digests.py``:
+change exported files, saying so); ``tests/io/test_export.py`` compares. As in ``stored_digests.py``:
 PNGs by SHA-256 digest, compared only where the GL renderer string is the recorded one; files of
 geometry (``H_<i>_<j>.mat``, ``homographies.npy``, ``cameras.json``) by their decoded numbers within
 ``recorded.py``'s tolerances; a shard by the names of its entries (each entry is recorded on its

@@ -30,7 +30,7 @@ than inside OpenGL at the first render."""
 MAX_CAMERA_DISTANCE = 1e5
 """Largest ``camera_xy`` and ``camera_height``, painting units. Cameras this far (the box may be far
 wider than the cameras reach when ``max_tilt_deg`` limits them: ``tests/test_hard_cases.py`` draws
-from ``camera_xy=1e5`` at a tilt of 89.99 degrees) still render (``tests/test_config_bounds.py``
+from ``camera_xy=1e5`` at a tilt of 89.99 degrees) still render (``tests/config/test_config_bounds.py``
 renders every bound) and give finite homographies, within 2e-7 px of the analytic ones for views
 from that far up and 1e-3 px for the grazing extreme (height 1e-3, a 1 degree field of view;
 measured with ``sidar_torch.sample.sequence_homographies``); from about 1e10 the fit loses accuracy

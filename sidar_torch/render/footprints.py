@@ -21,7 +21,7 @@ margin (:func:`~.plan.shadow_margin`) and, as the target, a ball holding the par
 tile of :data:`TILE` x :data:`TILE` pixels sees (the tile's corners, at the outer pixel borders,
 cast onto ``z = 0``): every fragment shaded in the tile, at its pixel centre or at a sample point
 inside the pixel (``antialias``), lies in that ball. A tile reaching the camera's horizon needs
-every lookup. ``tests/test_skips.py`` renders with and without the split and compares bit for bit.
+every lookup. ``tests/render/test_skips.py`` renders with and without the split and compares bit for bit.
 """
 
 from __future__ import annotations

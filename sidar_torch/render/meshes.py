@@ -142,7 +142,7 @@ def _shape_meshes() -> dict[str, ShapeMesh]:
 
 MESHES = _shape_meshes()
 """``SidarConfig.occluder_shapes`` name -> how it is meshed (the scene's facts of a shape are
-``sidar_torch.scene.SHAPES``; ``tests/test_scene.py`` checks both tables name the config's shapes)."""
+``sidar_torch.scene.SHAPES``; ``tests/scene/test_scene.py`` checks both tables name the config's shapes)."""
 
 FIXED_LEVEL = 2
 """The level every curved primitive had before levels of detail (``SidarConfig.mesh_detail`` "fixed")."""

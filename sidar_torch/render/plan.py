@@ -7,7 +7,7 @@ Per view, :func:`plan_views` decides
 * which occluders go into the shadow maps (**casters**).
 
 Everything else cannot change a pixel and is left out (each test below is conservative, and
-``tests/test_skips.py`` renders with and without every skip and compares bit for bit):
+``tests/render/test_skips.py`` renders with and without every skip and compares bit for bit):
 
 * An emitter whose shadow lookups would read only unoccluded texels at every fragment of the
   view returns "lit" there, so its shadow pass and lookup are skipped (it still shades).

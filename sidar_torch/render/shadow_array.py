@@ -12,7 +12,7 @@ Clearing a map whole costs more than drawing its casters (about 1 ms per 1024^2 
 while they cover a small part of it: each layer remembers the texel rectangle its last draw may have
 written (``render.visibility.map_texel_box``), and the next draw clears only that; every other texel
 still holds the cleared depth. A texel outside the rectangle was not written, so the map is the
-same, texel for texel, as one cleared whole (``tests/test_skips.py`` compares the renders).
+same, texel for texel, as one cleared whole (``tests/render/test_skips.py`` compares the renders).
 """
 
 from __future__ import annotations

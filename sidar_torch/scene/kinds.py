@@ -1,6 +1,6 @@
 """The kinds a scene is made of, as tables: :data:`LIGHT_KINDS`, :data:`MATERIAL_KINDS`,
 :data:`SHAPES`, keyed by the names ``SidarConfig`` accepts (``light_types``, ``occluder_materials``,
-``occluder_shapes``; ``tests/test_scene.py`` checks that config, these tables and the
+``occluder_shapes``; ``tests/scene/test_scene.py`` checks that config, these tables and the
 renderer's meshes name the same kinds).
 
 Each row draws from a numpy ``Generator`` in a fixed order (the draws of a kind never depend on

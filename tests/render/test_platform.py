@@ -26,7 +26,7 @@ from conftest import SMALL, small_config, textured_painting
 
 pytestmark = pytest.mark.gl  # renders
 
-TESTS = Path(__file__).resolve().parent
+TESTS = Path(__file__).resolve().parents[1]  # tests/: conftest, for the child processes
 
 SEQUENCES = [("misaligned", 0), ("paper_misaligned", 1)]
 """(preset, seed) pairs: lit views with shadows, masks, glossy and transparent occluders; both

@@ -80,7 +80,7 @@ def test_too_many_shadowed_emitters_rejected():
         SidarConfig(n_lights=(1, 8), area_light_samples=4)
 
 
-CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+CONFIGS = Path(__file__).resolve().parents[2] / "configs"
 
 
 @pytest.mark.parametrize("path", sorted(CONFIGS.glob("*.yaml")), ids=lambda p: p.name)

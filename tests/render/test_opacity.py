@@ -10,8 +10,7 @@ from PIL import Image
 from sidar_torch import ExportedDataset, SidarAugment, SidarDataset, export_dataset, geometry, load_config
 from sidar_torch.scene import Camera, Material, Occluder
 
-from conftest import SMALL, sample_digest, small_config, render_flat_painting
-from test_export import TINY, assert_same_sample
+from conftest import SMALL, TINY, assert_same_sample, render_flat_painting, sample_digest, small_config
 from test_render import cube
 
 pytestmark = pytest.mark.gl  # renders

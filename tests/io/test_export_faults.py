@@ -22,7 +22,8 @@ from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_conf
 from sidar_torch.io import files
 from sidar_torch.io.reader import entry_size_limit
 
-from test_export import TINY, tiny_dataset, tree
+from conftest import TINY
+from test_export import tiny_dataset, tree
 
 pytestmark = pytest.mark.gl  # renders
 

@@ -22,27 +22,16 @@ from sidar_torch.io import files, layout
 from sidar_torch.sample import sequence_homographies
 
 import export_digests
-from conftest import alive, child_pids
+from conftest import TINY, alive, assert_same_sample, child_pids
 from recorded import gl_renderer, mismatches
 
 pytestmark = pytest.mark.gl  # renders
 
-TINY = {"image_size": (24, 32), "n_views": 2, "shadow_map_size": 256}
 SEQUENCE_FILES = {"0.png", "1.png", "0-m.png", "1-m.png", "gt.png", "H_0_1.mat", "H_1_0.mat", "cameras.json"}
 
 
 def tiny_dataset(seed=0, **overrides):
     return SidarDataset(config=load_config("misaligned", **{**TINY, **overrides}), seed=seed)
-
-
-def assert_same_sample(read, rendered):
-    assert set(read) == set(rendered)
-    for key, value in rendered.items():
-        if isinstance(value, torch.Tensor):
-            assert read[key].dtype == value.dtype and read[key].shape == value.shape, key
-            assert torch.equal(read[key], value), key
-        else:
-            assert type(read[key]) is type(value) and read[key] == value, key
 
 
 def tree(path):

@@ -745,7 +745,7 @@ def test_a_png_bomb_is_refused_from_its_header_in_a_memory_capped_child(tmp_path
     bomb = _png_bomb(tmp_path / "b.png")
     assert bomb.stat().st_size < 2000
     run = subprocess.run([sys.executable, "-c", BOMB_CHILD, str(bomb), pillow_limit],
-                         capture_output=True, text=True, timeout=300, cwd=Path(__file__).parent.parent)
+                         capture_output=True, text=True, timeout=300, cwd=Path(__file__).resolve().parents[2])
     assert run.returncode == 0, run.stderr[-2000:]
     strict, lenient = (json.loads(line) for line in run.stdout.splitlines())
     for result in (strict, lenient):
