@@ -5,15 +5,20 @@ painting of its own random scene, rendered exactly as :class:`sidar_torch.SidarD
 a sample (both assemble it with :mod:`sidar_torch.sample`), and the samples come back batched
 on the input's device.
 
+>>> import torch
+>>> from sidar_torch import SidarAugment
 >>> aug = SidarAugment("misaligned", n_views=3, image_size=(96, 128), seed=0)
->>> out = aug(torch.rand(4, 3, 120, 160))               # doctest: +SKIP
->>> out["images"].shape, out["homographies"].shape        # doctest: +SKIP
+>>> out = aug(torch.rand(4, 3, 120, 160))
+>>> out["images"].shape, out["homographies"].shape
 (torch.Size([4, 3, 3, 96, 128]), torch.Size([4, 3, 3, 3, 3]))
 
 With ``num_workers=2`` a batch renders in two processes (same outputs, see the class docstring):
 
->>> with SidarAugment("misaligned", seed=0, num_workers=2) as aug:  # doctest: +SKIP
-...     out = aug(images)
+>>> images = torch.rand(4, 3, 120, 160)
+>>> with SidarAugment("misaligned", n_views=3, image_size=(96, 128), seed=1, num_workers=2) as pooled:
+...     alone = SidarAugment("misaligned", n_views=3, image_size=(96, 128), seed=1)
+...     torch.equal(pooled(images)["images"], alone(images)["images"])
+True
 """
 
 from __future__ import annotations
