@@ -159,16 +159,21 @@ def our_view0_blurs(config: Any, sources: list[Path], samples: int, seed: int,
     return np.array(out)
 
 
-def main(argv: list[str] | None = None) -> None:
-    from sidar_torch import load_config
-
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.blur``; parsing it runs nothing."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.blur", description=__doc__.splitlines()[0])
     parser.add_argument("--anchors", type=Path, required=True, help="folder of the paper's sequences")
     parser.add_argument("--config", default="paper_misaligned", help="our preset rendered with the same paintings")
     parser.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="config overrides (values as YAML)")
     parser.add_argument("--post-sigma", type=float, default=0.0, help="blur our views by this first (a check)")
     parser.add_argument("--seed", type=int, default=0)
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    from sidar_torch import load_config
+
+    args = build_parser().parse_args(argv)
     sequences = anchor_sequences(args.anchors)
     theirs = np.array([anchor_view0_blur(s) for s in sequences])
     size = read_rgb(sequences[0] / "source.png").shape[:2]
