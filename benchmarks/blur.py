@@ -23,11 +23,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 from scipy import ndimage
 
 from benchmarks.common import parse_set
 from benchmarks.realism import (anchor_sequences, luminance, painting_region, read_rgb, srgb_to_linear, to_uint8,
                                 warp_label)
+from sidar_torch.effects import linear_to_srgb
 
 SIGMAS = np.round(np.arange(0.0, 2.51, 0.1), 2)
 """Candidate Gaussian sigmas (pixels) of the grid search."""
@@ -130,8 +132,8 @@ def blur_linear(view: np.ndarray, sigma: float) -> np.ndarray:
 
 def encode(linear: np.ndarray) -> np.ndarray:
     """Linear light ``(..., 3)`` float in [0, 1] (clipped) to 8-bit sRGB ``(..., 3)`` uint8 (exact curve)."""
-    c = np.clip(linear, 0, 1)
-    return (255 * np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)).round().astype(np.uint8)
+    srgb = linear_to_srgb(torch.from_numpy(np.clip(np.asarray(linear, np.float64), 0, 1))).numpy()
+    return (255 * srgb).round().astype(np.uint8)
 
 
 def our_view0_blurs(config: Any, sources: list[Path], samples: int, seed: int,
