@@ -1,4 +1,5 @@
-"""View effects beyond the paper: coloured background, exposure and gamma jitter, sensor noise, JPEG.
+"""View effects beyond the paper: coloured background, pixel filter, exposure and gamma jitter, sensor
+noise, JPEG.
 
 Each is a per-pixel 2-D change of a rendered view, switched on in :class:`~sidar_torch.config.SidarConfig`
 (all off by default). None moves a pixel, so every homography stays exact; the label and the
@@ -7,6 +8,8 @@ masks are never touched. They follow a camera's pipeline, in this order, per vie
 1. **background**: pixels where the renderer drew nothing (``RenderedSequence.background``) take
    the view's colour (8-bit sRGB);
 2. the 8-bit sRGB values are decoded to linear light (exact sRGB curve, float32);
+   **pixel filter**: a separable Gaussian of ``pixel_filter_sigma`` pixels (borders reflected), as a
+   camera's optics and a path tracer's pixel filter blur the light itself;
 3. **exposure**: ``x * 2 ** stops``;
 4. **sensor noise**: ``+ sqrt(read ** 2 + shot * x) * n``, ``n`` standard normal per pixel and
    channel: the Gaussian approximation of Poisson shot noise (``x / shot`` photons) plus
@@ -16,7 +19,7 @@ masks are never touched. They follow a camera's pipeline, in this order, per vie
 6. exact sRGB encoding, rounded to 8 bits;
 7. **JPEG** at the view's quality (Pillow, in memory, 4:2:0 chroma subsampling), decoded back.
 
-Steps 2-6 run only when exposure jitter or sensor noise is on, else the 8-bit values pass
+Steps 2-6 run only when the pixel filter, exposure jitter or sensor noise is on, else the 8-bit values pass
 through untouched (without noise they are a function of the 8-bit value: a 256-entry table per
 view). Exposure acts on the already rendered 8-bit view: pixels the renderer blew out (255)
 stay flat when darkened.
@@ -43,8 +46,8 @@ from PIL import Image
 
 from .config import SidarConfig
 
-__all__ = ["ViewEffects", "apply_effects", "draw_effects", "enabled_effects", "jpeg_roundtrip", "linear_to_srgb",
-           "srgb_to_linear"]
+__all__ = ["ViewEffects", "apply_effects", "draw_effects", "enabled_effects", "gaussian_filter", "jpeg_roundtrip",
+           "linear_to_srgb", "srgb_to_linear"]
 
 def srgb_to_linear(srgb: torch.Tensor) -> torch.Tensor:
     """Decode sRGB values in [0, 1] to linear light (the exact piecewise sRGB curve), any shape."""
@@ -79,6 +82,8 @@ class ViewEffects:
         shot_noise: ``(V,)`` float64 shot-noise scale (variance per unit of linear intensity).
         noise: ``(V, H, W, 3)`` float32 standard normal field (with the noise levels).
         jpeg_quality: ``(V,)`` int64 JPEG quality.
+        blur_sigma: the pixel filter's standard deviation, pixels (``pixel_filter_sigma``; drawn
+            from nothing).
     """
 
     background: np.ndarray | None = None
@@ -88,11 +93,13 @@ class ViewEffects:
     shot_noise: np.ndarray | None = None
     noise: np.ndarray | None = None
     jpeg_quality: np.ndarray | None = None
+    blur_sigma: float | None = None
 
 
 def enabled_effects(config: SidarConfig) -> list[str]:
     """Names of the config switches of the view effects that are on."""
-    switches = {"background": config.background != "black", "exposure_jitter": config.exposure_jitter,
+    switches = {"background": config.background != "black", "pixel_filter_sigma": config.pixel_filter_sigma > 0,
+                "exposure_jitter": config.exposure_jitter,
                 "sensor_noise": config.sensor_noise, "jpeg": config.jpeg}
     return [name for name, on in switches.items() if on]
 
@@ -115,6 +122,9 @@ def draw_effects(config: SidarConfig, n_views: int, image_size: tuple[int, int],
     enabled = enabled_effects(config)
     if not enabled:
         return None
+    blur = config.pixel_filter_sigma if config.pixel_filter_sigma > 0 else None
+    if enabled == ["pixel_filter_sigma"]:  # the one effect that draws nothing
+        return ViewEffects(blur_sigma=blur)
     if rng is None:
         raise ValueError(f"rng: config switches on view effects {enabled}, which draw from the sample's "
                          f"numpy Generator; pass the generator that drew the scene (got None)")
@@ -132,7 +142,7 @@ def draw_effects(config: SidarConfig, n_views: int, image_size: tuple[int, int],
         quality = rng.integers(config.jpeg_quality[0], config.jpeg_quality[1] + 1, size=n_views)
     if config.sensor_noise:
         noise = rng.standard_normal((n_views, *image_size, 3), dtype=np.float32)
-    return ViewEffects(background, gain, gamma, read, shot, noise, quality)
+    return ViewEffects(background, gain, gamma, read, shot, noise, quality, blur)
 
 
 def jpeg_roundtrip(view: np.ndarray, quality: int) -> np.ndarray:
@@ -161,7 +171,7 @@ def apply_effects(views: np.ndarray, background: np.ndarray, effects: ViewEffect
     if effects.background is not None:
         for view, where, colour in zip(out, background, effects.background):
             view[where] = colour
-    if effects.noise is not None:
+    if effects.noise is not None or effects.blur_sigma is not None:
         out = _sensor(out, effects)
     elif effects.gain is not None:
         # Without noise a view's change depends on the 8-bit value alone: tabulate it per view.
@@ -172,12 +182,31 @@ def apply_effects(views: np.ndarray, background: np.ndarray, effects: ViewEffect
     return out
 
 
+def gaussian_filter(images: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``images`` ``(V, H, W, C)`` float32 filtered by a normalised separable Gaussian of standard
+    deviation ``sigma`` pixels (taps to 3 sigma), borders reflected; a new tensor of the same shape.
+    One depthwise convolution per axis (13x cheaper on one core than a convolution of one channel
+    per image)."""
+    radius = max(1, int(np.ceil(3 * sigma)))
+    taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=torch.float64) / sigma) ** 2)
+    kernel = (taps / taps.sum()).float()
+    channels = images.shape[3]
+    x = images.permute(0, 3, 1, 2)  # (V, C, H, W)
+    for pad, shape in (((radius, radius, 0, 0), (1, -1)), ((0, 0, radius, radius), (-1, 1))):
+        side = x.shape[3] if pad[0] else x.shape[2]
+        x = torch.nn.functional.pad(x, pad, mode="reflect" if side > radius else "replicate")
+        x = torch.nn.functional.conv2d(x, kernel.view(1, 1, *shape).repeat(channels, 1, 1, 1), groups=channels)
+    return x.permute(0, 2, 3, 1).contiguous()
+
+
 def _sensor(values: np.ndarray, effects: ViewEffects) -> np.ndarray:
     """Steps 2-6 of the module docstring on ``(V, ...)`` uint8 sRGB values (4 dimensions; the noise
     field, if any, of their shape), per view; uint8 of the same shape. Works in place on one
     float32 copy: fresh arrays of a sample's size cost more than the arithmetic."""
     per_view = (-1, 1, 1, 1)
     x = torch.from_numpy(_DECODED[values])
+    if effects.blur_sigma is not None:
+        x = gaussian_filter(x, effects.blur_sigma)
     if effects.gain is not None:
         x *= torch.from_numpy(effects.gain).float().view(per_view)
     if effects.noise is not None:

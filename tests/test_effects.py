@@ -12,7 +12,8 @@ import torch
 from PIL import Image
 
 from sidar_torch import SidarAugment, SidarDataset, geometry
-from sidar_torch.effects import ViewEffects, apply_effects, draw_effects, linear_to_srgb, srgb_to_linear
+from sidar_torch.effects import (ViewEffects, apply_effects, draw_effects, gaussian_filter, linear_to_srgb,
+                                 srgb_to_linear)
 from sidar_torch.sample import render_sample
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
@@ -23,7 +24,7 @@ pytestmark = pytest.mark.gl  # renders
 
 H, W = SMALL
 ALL_ON = dict(background="view", background_level=(0.2, 1.0), exposure_jitter=True, sensor_noise=True,
-              jpeg=True)
+              jpeg=True, pixel_filter_sigma=0.85)
 SCENE_KEYS = ("masks", "label", "homographies", "K", "R", "t", "homography_error")
 
 
@@ -214,7 +215,34 @@ def test_render_sample_without_a_generator_refuses_effects():
     ("background", "white"), ("background", None), ("background_level", (0.5, 1.5)), ("exposure_jitter", "yes"),
     ("exposure_stops", (1.0, -1.0)), ("gamma", (0.0, 1.0)), ("sensor_noise", 1), ("read_noise", (-0.1, 0.1)),
     ("shot_noise", (0.0, 2.0)), ("jpeg", "on"), ("jpeg_quality", (0, 50)), ("jpeg_quality", (50.5, 60)),
+    ("pixel_filter_sigma", -0.5), ("pixel_filter_sigma", 5.0), ("pixel_filter_sigma", float("nan")),
 ])
 def test_bad_effect_values_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         small_config(**{field: value})
+
+
+def test_the_pixel_filter_keeps_flat_light_and_spreads_a_step_by_its_sigma():
+    flat = torch.full((2, 20, 30, 3), 0.37)
+    assert torch.allclose(gaussian_filter(flat, 0.85), flat, atol=1e-6)  # taps sum to one, borders reflected
+    step = torch.zeros(1, 8, 200, 1)
+    step[..., 100:, :] = 1.0
+    profile = gaussian_filter(step, 1.5)[0, 4, :, 0].double()
+    slope = profile.diff()  # the filter's own kernel, sampled: its spread is sigma
+    x = torch.arange(len(slope), dtype=torch.float64)
+    mean = (slope * x).sum() / slope.sum()
+    assert abs(float(((slope * (x - mean) ** 2).sum() / slope.sum()).sqrt()) - 1.5) < 0.02
+    assert float(profile[99] + profile[100]) == pytest.approx(1.0, abs=1e-6)  # symmetric about the edge
+
+
+def test_the_pixel_filter_blurs_views_and_shadow_free_only_and_draws_nothing():
+    scene = {"n_occluders": (2, 3), "shadow_free_output": True, "shadow_mask_output": True, "opacity_output": True}
+    off, on = pair(scene=scene, pixel_filter_sigma=0.85)
+    for key in (*SCENE_KEYS, "opacities", "shadow_masks"):
+        assert sample_digest(off)[key] == sample_digest(on)[key], key
+    for key in ("images", "shadow_free"):
+        detail = [(s[key][:, :, 1:] - s[key][:, :, :-1]).abs().mean() for s in (off, on)]
+        assert detail[1] < 0.8 * detail[0], key  # blurred: less pixel-to-pixel detail
+    config = small_config(pixel_filter_sigma=0.85)
+    effects = draw_effects(config, 3, SMALL, None)  # needs no generator: nothing is drawn
+    assert effects == ViewEffects(blur_sigma=0.85)

@@ -211,6 +211,12 @@ class SidarConfig:
         'per view) or ``"sequence"`` (one random colour per sample).'))
     background_level: Range = _field((0.0, 1.0), bounds=(0.0, 1.0), meaning=(
         "range each 8-bit sRGB channel of a background colour is drawn from, as a fraction of 255."))
+    pixel_filter_sigma: float = _field(0.0, bounds=(0.0, 4.0), meaning=(
+        "standard deviation, in pixels, of a Gaussian pixel filter on the views (and ``shadow_free``) in linear "
+        "light, before exposure and noise; 0: none (each pixel its own area, a box filter). Cycles filters "
+        "every pixel (Blackman-Harris, 1.5 px wide by default) and denoises; the ``paper_*`` presets take the "
+        "sigma that gives their views the paper's measured blur (``python -m benchmarks.blur``, "
+        "docs/realism.md). Masks, opacities, shadow masks and the label are never filtered."))
     exposure_jitter: bool = _field(False, meaning=(
         "scale each view's linear intensity by ``2 ** stops`` and raise it to a power ``gamma`` (drawn per "
         "view)."))
