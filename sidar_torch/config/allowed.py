@@ -11,7 +11,10 @@ __all__ = [
     "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
 ]
 
-LIGHT_TYPES = ("spot", "point", "area")
+LIGHT_EMITTERS = {"spot": None, "point": None, "area": "area_light_samples"}
+"""Light kind -> the config field that sets how many emitters a light of that kind has (None: one);
+the kinds' own table is ``sidar_torch.scene.LIGHT_KINDS``."""
+LIGHT_TYPES = tuple(LIGHT_EMITTERS)
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull", "prism")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
 ON_BAD_IMAGE = ("raise", "skip")

@@ -24,6 +24,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..render_choices import shadow_map_side
+from .allowed import LIGHT_EMITTERS
 
 __all__ = ["estimated_sample_bytes", "shadowed_emitters"]
 
@@ -38,8 +39,10 @@ SHADOW_OUTPUT_PIXEL_BYTES = {"shadow_free_output": 15, "shadow_mask_output": 5}
 
 def shadowed_emitters(config: Any) -> int:
     """The most spot-light emitters one view of ``config`` can have, each with a shadow map when
-    ``shadows`` is on: ``n_lights`` high end times ``area_light_samples`` if area lights are drawn."""
-    per_light = config.area_light_samples if "area" in config.light_types else 1
+    ``shadows`` is on: ``n_lights`` high end times the most emitters a drawn kind of light has
+    (``allowed.LIGHT_EMITTERS``: ``area_light_samples`` for area lights, else one)."""
+    per_light = max((getattr(config, field) if field else 1) for kind, field in LIGHT_EMITTERS.items()
+                    if kind in config.light_types)
     return config.n_lights[1] * per_light
 
 

@@ -103,10 +103,11 @@ def test_the_kind_tables_of_config_scene_and_renderer_name_the_same_kinds():
     """A kind is a row in each layer's table: config's names (``config.allowed``), the scene's
     sampling rows (``scene.kinds``) and the renderer's meshes (``render.meshes``)."""
     from sidar_torch.config import LIGHT_TYPES, OCCLUDER_MATERIALS, OCCLUDER_SHAPES
+    from sidar_torch.config.allowed import LIGHT_EMITTERS
     from sidar_torch.render.meshes import MESHES
     from sidar_torch.scene import LIGHT_KINDS, MATERIAL_KINDS, SHAPES
 
-    assert set(LIGHT_KINDS) == set(LIGHT_TYPES)
+    assert set(LIGHT_KINDS) == set(LIGHT_TYPES) == set(LIGHT_EMITTERS)
     assert set(MATERIAL_KINDS) == set(OCCLUDER_MATERIALS)
     assert set(SHAPES) == set(MESHES) == set(OCCLUDER_SHAPES)
     assert all(spec.levels or spec.polyhedron for spec in MESHES.values())  # each shape can be built
