@@ -97,6 +97,11 @@ class SidarConfig:
         f"{MAX_CAMERA_DISTANCE:g}: views that far still render with finite, accurate homographies)."))
     camera_height: Range = _field((5 / 7, 1.0), bounds=(1e-3, MAX_CAMERA_DISTANCE), meaning=(
         "range of camera z (distance above the painting's plane)."))
+    reference_height: Range = _field((0.0, 0.0), bounds=(0.0, MAX_CAMERA_DISTANCE), meaning=(
+        "range of the reference camera's z (view 0, fronto-parallel, its view exactly the painting); "
+        "``(0, 0)``, the default, draws it from ``camera_height`` like the other views. Otherwise both ends at least 1e-3. The paper's front camera is "
+        "10 Blender units above the painting (``10/7``): from there its occluders, 1-5 units high, lie "
+        "over the painting far more often than from a camera 5-7 units high."))
     fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
         "range of the field of view across the longer image side, for views 1..V-1."))
     max_tilt_deg: float = _field(90.0, bounds=(0.0, 90.0), meaning=(

@@ -15,7 +15,7 @@ import math
 from typing import Any, Mapping
 
 from ..render_choices import AUTO_MAP_SIZE, shadow_map_side
-from .allowed import MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
+from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
 
@@ -137,6 +137,8 @@ def validate(config: Any) -> None:
          f"at most {reach:.4g} deg, the steepest tilt of the camera box (x, y within camera_xy={c.camera_xy:.4g} "
          f"at heights from camera_height[0]={c.camera_height[0]:.4g}); raise camera_xy or lower camera_height "
          f"for grazing views, or set 90 for no limit")
+    need(c.reference_height == (0.0, 0.0) or c.reference_height[0] >= 1e-3, "reference_height",
+         f"(0, 0) (drawn from camera_height) or a range (low, high) with 0.001 <= low <= high <= {MAX_CAMERA_DISTANCE:g}")
     size = c.shadow_map_size
     need(size == AUTO_MAP_SIZE or size & (size - 1) == 0, "shadow_map_size",
          f"a power of two from 16 to {MAX_GL_SIZE}, or {AUTO_MAP_SIZE!r}")

@@ -43,7 +43,8 @@ CAMERA_ATTEMPTS = 1000
 
 def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camera]:
     size = config.image_size
-    reference = Camera(*geometry.reference_camera(size, rng.uniform(*config.camera_height)))
+    heights = config.reference_height if config.reference_height != (0.0, 0.0) else config.camera_height
+    reference = Camera(*geometry.reference_camera(size, rng.uniform(*heights)))
     if config.aligned:
         return [reference] * config.n_views
     cameras = [reference]

@@ -24,6 +24,19 @@ def test_aligned_views_share_the_reference_camera():
     assert not all(v.lights == seq.views[0].lights for v in seq.views)  # but not the lights
 
 
+@pytest.mark.parametrize("preset", ["misaligned", "aligned"])
+def test_reference_height_places_view_0_and_leaves_the_other_cameras_to_camera_height(preset):
+    heights = {"camera_height": (0.6, 0.7), "reference_height": (1.4, 1.5)}
+    for seed in range(10):
+        default = sample_sequence(small_config(preset, n_views=4, camera_height=(0.6, 0.7)), np.random.default_rng(seed))
+        placed = sample_sequence(small_config(preset, n_views=4, **heights), np.random.default_rng(seed))
+        assert 0.6 <= default.views[0].camera.position[2] <= 0.7
+        assert 1.4 <= placed.views[0].camera.position[2] <= 1.5
+        for view in placed.views[1:]:
+            z = view.camera.position[2]
+            assert (1.4 <= z <= 1.5) if preset == "aligned" else (0.6 <= z <= 0.7)
+
+
 def test_cameras_respect_tilt_and_fov_and_see_the_centre():
     cfg = small_config(n_views=6, max_tilt_deg=30, fov_deg=(40, 50))
     for seed in range(30):
