@@ -114,13 +114,14 @@ def ratio_matches(descriptors_i: np.ndarray, descriptors_j: np.ndarray) -> np.nd
 def corner_error(H_estimated: np.ndarray, H_true: np.ndarray, size: tuple[int, int]) -> float:
     """Mean distance (pixels of the target view) between the four corner pixels of an ``size = (H, W)``
     view, ``(0, 0), (W - 1, 0), (W - 1, H - 1), (0, H - 1)``, mapped by two ``(3, 3)`` homographies
-    (``inf`` when either sends some corners across the line at infinity: their ``w`` of mixed signs or 0)."""
+    (``inf`` when either sends a corner to infinity). A corner whose ray misses the painting's plane in
+    front of the camera is mapped all the same (the homographies are projective maps of the image plane)."""
     h, w = size
     corners = np.array([[0, w - 1, w - 1, 0], [0, 0, h - 1, h - 1], [1, 1, 1, 1]], np.float64)
     mapped = []
     for H in (H_estimated, H_true):
         p = np.asarray(H, np.float64) @ corners
-        if not (p[2] > 0).all() and not (p[2] < 0).all():
+        if (p[2] == 0).any():
             return float("inf")
         mapped.append(p[:2] / p[2])
     return float(np.linalg.norm(mapped[0] - mapped[1], axis=0).mean())

@@ -86,8 +86,10 @@ def test_corner_error_is_the_mean_corner_distance():
     h, w = SIZE
     expected = ((w - 1) + (h - 1) + np.hypot(w - 1, h - 1)) / 4
     assert matcher.corner_error(scaled, np.eye(3), SIZE) == pytest.approx(expected)
-    across = np.array([[1.0, 0, 0], [0, 1, 0], [-1 / 100, 0, 1]])  # w < 0 beyond x = 100: splits the corners
-    assert matcher.corner_error(across, np.eye(3), SIZE) == np.inf
+    horizon = np.array([[1.0, 0, 0], [0, 1, 0], [-1 / (w - 1), 0, 1]])  # sends x = W - 1 to infinity
+    assert matcher.corner_error(horizon, np.eye(3), SIZE) == np.inf
+    beyond = np.array([[1.0, 0, 0], [0, 1, 0], [-1 / 100, 0, 1]])  # w < 0 beyond x = 100: still mapped
+    assert matcher.corner_error(beyond, beyond, SIZE) == 0
 
 
 def test_bootstrap_over_sequences_resamples_whole_sequences():
