@@ -125,3 +125,13 @@ def test_occluder_saturation_is_the_median_over_occluder_pixels_in_the_region():
     assert realism.occluder_saturation(view, mask, region) == pytest.approx(0.75)
     region[:, :98] = False  # 40 pixels: too few
     assert np.isnan(realism.occluder_saturation(view, mask, region))
+
+
+def test_anchor_homographies_read_every_pair_and_invert_them(tmp_path):
+    rng = np.random.default_rng(0)
+    for i in range(3):
+        for j in range(i + 1, 3):
+            np.savetxt(tmp_path / f"H_{i}_{j}.mat", np.eye(3) + 0.01 * rng.standard_normal((3, 3)), fmt="%.18e")
+    H = realism.anchor_homographies(tmp_path, 3, SIZE)
+    assert np.allclose(H[1, 2], realism.paper_to_kornia(np.loadtxt(tmp_path / "H_1_2.mat"), SIZE))
+    assert np.allclose(H[2, 0] @ H[0, 2], np.eye(3)) and np.array_equal(H[1, 1], np.eye(3))
