@@ -6,7 +6,8 @@ the ``source.png`` painting), renders ``--samples`` sequences of each ``--config
 paintings as the source (painting ``index % len``, the anchors' image size), and prints one markdown
 table per preset: each statistic per view (median and interquartile range over views) or over the set
 of views, ours beside Blender's, their ratio, and whether ours is within 10 % of Blender's or inside
-the 5-95 % bootstrap interval of Blender's figure (resampling its views).
+the 5-95 % bootstrap interval of Blender's figure (resampling its views; for the rows of whole
+sequences, the blur and matcher rows, resampling its sequences).
 
     python -m benchmarks.realism --anchors DIR --config paper_misaligned misaligned aligned --samples 12
     python -m benchmarks.realism --anchors DIR --config paper_misaligned --set plane_metallic=[0,1]
@@ -40,6 +41,15 @@ Definitions (every threshold is a named constant below):
   :data:`EDGE_REACH` pixels each side, where that whole step is at least :data:`EDGE_CONTRAST` levels;
   the view's figure is the median. 1 is a hard, aliased step; an edge antialiased over two pixels
   gives about 0.5.
+* *occluder saturation*: the median HSV saturation ``(max - min) / max`` of the 8-bit RGB values of
+  the mask's pixels within the painting region (views with at least :data:`MIN_OCCLUDER_PIXELS`).
+* *view 0's blur*: ``benchmarks.blur.view_blur`` of view 0 against the label (Blender's: against
+  ``source.png``, ``benchmarks.blur.anchor_view0_blur``), one figure per sequence.
+* *matcher rows*: ``benchmarks.matcher``: SIFT keypoints on the painting per view, ratio-test
+  matches per pair of views, the fraction of pairs whose RANSAC homography is within
+  ``matcher.SUCCESS_PX`` of the true one (mean corner distance) and the median error of those pairs;
+  their intervals resample whole sequences (a sequence's views share a painting and its pairs share
+  views).
 """
 
 from __future__ import annotations
@@ -56,6 +66,7 @@ from scipy import ndimage
 
 from benchmarks.common import parse_set
 from benchmarks.exposure import LUMA, WHITE, view_exposure
+from benchmarks.matcher import SUCCESS_PX, MatcherStats, matcher_stats
 
 DARK_MEDIAN = 50
 """A view is *dark* when the median luma of its painting pixels is below this."""
@@ -110,6 +121,9 @@ EDGE_CONTRAST = 24
 
 MIN_EDGES = 10
 """Least measured edge pixels for a view to have an edge-sharpness figure."""
+
+MIN_OCCLUDER_PIXELS = 100
+"""Least occluder pixels within the painting region for a view to have an occluder-saturation figure."""
 
 
 # --- statistics (pure numpy) -------------------------------------------------------------------
@@ -288,6 +302,20 @@ def edge_sharpness(view: np.ndarray, mask: np.ndarray, region: np.ndarray) -> fl
     return float(np.median(values)) if values.size >= MIN_EDGES else float("nan")
 
 
+def occluder_saturation(view: np.ndarray, mask: np.ndarray, region: np.ndarray) -> float:
+    """Median HSV saturation ``(max - min) / max`` (0 for black) of the view's pixels where ``mask``
+    covers ``region``; NaN with fewer than :data:`MIN_OCCLUDER_PIXELS` such pixels.
+
+    Args:
+        view: ``(H, W, 3)`` uint8 RGB; mask, region: ``(H, W)`` bool.
+    """
+    pixels = view[mask & region].astype(np.float64)
+    if len(pixels) < MIN_OCCLUDER_PIXELS:
+        return float("nan")
+    top, bottom = pixels.max(axis=1), pixels.min(axis=1)
+    return float(np.median(np.where(top > 0, (top - bottom) / np.maximum(top, 1), 0.0)))
+
+
 @dataclasses.dataclass
 class ViewStats:
     """Per-view statistics of a set of views (each array ``(N,)``; NaN where a view has no figure)."""
@@ -304,6 +332,7 @@ class ViewStats:
     occluders_scene: np.ndarray
     occluders_mask: np.ndarray
     sharpness: np.ndarray
+    saturation: np.ndarray
 
     @staticmethod
     def concat(parts: list["ViewStats"]) -> "ViewStats":
@@ -324,7 +353,7 @@ def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: 
     exposure = view_exposure(views, masks)
     nan = np.full(len(views), np.nan)
     shadows = []  # per view: exact, estimated and twin's estimated fractions, exact and estimated darkness
-    coverage, components, sharpness = [], [], []
+    coverage, components, sharpness, saturation = [], [], [], []
     for j, (view, mask) in enumerate(zip(views, masks)):
         region = painting_region(H0[j], view.shape[:2])
         painting = ~mask
@@ -337,9 +366,19 @@ def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: 
         coverage.append(occluder_coverage(mask, region))
         components.append(occluder_components(mask, region))
         sharpness.append(edge_sharpness(view, mask, region))
+        saturation.append(occluder_saturation(view, mask, region))
     return ViewStats(exposure.median, exposure.white, exposure.black, *np.array(shadows).T,
                      np.array(coverage), nan if occluders_scene is None else np.asarray(occluders_scene, float),
-                     np.array(components, float), np.array(sharpness))
+                     np.array(components, float), np.array(sharpness), np.array(saturation))
+
+
+@dataclasses.dataclass(frozen=True)
+class SequenceStats:
+    """Statistics of one whole sequence: ``blur``, view 0's effective blur in pixels
+    (``benchmarks.blur.view_blur``; NaN when too little of the painting is judged), and ``matcher``."""
+
+    blur: float
+    matcher: MatcherStats
 
 
 # --- the paper's sequences -----------------------------------------------------------------------
@@ -365,15 +404,28 @@ def anchor_sequences(folder: Path) -> list[Path]:
     return found
 
 
-def anchor_stats(sequence: Path) -> ViewStats:
+def anchor_homographies(sequence: Path, count: int, size: tuple[int, int]) -> np.ndarray:
+    """``(V, V, 3, 3)`` homographies between the ``count`` views of one of the paper generator's
+    sequences in Kornia's convention: ``H_i_j.mat`` (``i < j``) converted by :func:`paper_to_kornia`,
+    their inverses for ``i > j``, the identity for ``i = j``."""
+    H = np.tile(np.eye(3), (count, count, 1, 1))
+    for i in range(count):
+        for j in range(i + 1, count):
+            H[i, j] = paper_to_kornia(np.loadtxt(sequence / f"H_{i}_{j}.mat"), size)
+            H[j, i] = np.linalg.inv(H[i, j])
+    return H
+
+
+def anchor_stats(sequence: Path) -> tuple[ViewStats, SequenceStats]:
     """Statistics of one of the paper generator's sequences (views ``0.png``, ``1.png``, ...)."""
+    from benchmarks.blur import anchor_view0_blur  # blur.py imports this module
+
     count = len(list(sequence.glob("[0-9]*-m.png")))
     views = np.stack([read_rgb(sequence / f"{j}.png") for j in range(count)])
     masks = np.stack([read_rgb(sequence / f"{j}-m.png")[..., 0] >= 128 for j in range(count)])
-    size = views.shape[1:3]
-    H0 = np.stack([np.eye(3)] + [paper_to_kornia(np.loadtxt(sequence / f"H_0_{j}.mat"), size)
-                                 for j in range(1, count)])
-    return sequence_stats(views, masks, read_rgb(sequence / "gt.png"), H0)
+    H = anchor_homographies(sequence, count, views.shape[1:3])
+    return (sequence_stats(views, masks, read_rgb(sequence / "gt.png"), H[0]),
+            SequenceStats(anchor_view0_blur(sequence), matcher_stats(views, masks, H)))
 
 
 # --- ours ---------------------------------------------------------------------------------------
@@ -396,15 +448,17 @@ def occluders_over_painting(scene: Any, region: np.ndarray) -> int:
     return count
 
 
-def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tuple[ViewStats, float]:
+def our_stats(config: Any, sources: list[Path], samples: int,
+              seed: int) -> tuple[ViewStats, list[SequenceStats], float]:
     """Statistics of ``samples`` sequences of ``config`` with the anchors' paintings, and seconds spent."""
+    from benchmarks.blur import view_blur  # blur.py imports this module
     from sidar_torch import SidarDataset
     from sidar_torch.sample import render_sample
     from sidar_torch.scene import sample_sequence
 
     dataset = SidarDataset(source=[str(p) for p in sources], config=config, seed=seed)
     free_config = dataset.config.replace(shadows=False)
-    parts, start = [], time.perf_counter()
+    parts, sequences, start = [], [], time.perf_counter()
     for index in range(samples):
         rng = dataset.generator(index)
         scene = sample_sequence(dataset.config, rng)
@@ -421,11 +475,13 @@ def our_stats(config: Any, sources: list[Path], samples: int, seed: int) -> tupl
             raise RuntimeError(f"sample {index}: shadows changed {changed:.2%} of the mask pixels")
         views, free_views = (to_uint8(s["images"]) for s in (lit, free))
         masks = lit["masks"][:, 0].numpy() > 0.5
-        H0 = lit["homographies"][0].double().numpy()
-        regions = [painting_region(H0[j], views.shape[1:3]) for j in range(len(views))]
+        H = lit["homographies"].double().numpy()
+        label = to_uint8(lit["label"][None])[0]
+        regions = [painting_region(H[0, j], views.shape[1:3]) for j in range(len(views))]
         counted = [occluders_over_painting(v, r) for v, r in zip(scene.views, regions)]
-        parts.append(sequence_stats(views, masks, to_uint8(lit["label"][None])[0], H0, free_views, np.array(counted)))
-    return ViewStats.concat(parts), time.perf_counter() - start
+        parts.append(sequence_stats(views, masks, label, H[0], free_views, np.array(counted)))
+        sequences.append(SequenceStats(view_blur(views[0], masks[0], label, H[0, 0]), matcher_stats(views, masks, H)))
+    return ViewStats.concat(parts), sequences, time.perf_counter() - start
 
 
 def to_uint8(images: Any) -> np.ndarray:
@@ -437,7 +493,7 @@ def to_uint8(images: Any) -> np.ndarray:
 
 
 BOOTSTRAP = 2000
-"""Resamples (of views, with replacement) for the interval of a figure."""
+"""Resamples (of views or of sequences, with replacement) for the interval of a figure."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -445,7 +501,7 @@ class Figure:
     """A statistic over a set of views: ``centre`` (the median over views, or the fraction of views),
     ``low``/``high`` (interquartile range over views, or equal to the interval), ``mean``, and
     ``interval`` and ``mean_interval``, the 5-95 % bootstrap intervals of ``centre`` and ``mean``
-    (resampling views)."""
+    (resampling views, or whole sequences for :func:`pooled` and :func:`pooled_fraction`)."""
 
     centre: float
     low: float
@@ -479,6 +535,40 @@ def of_views(flags: np.ndarray) -> Figure:
     return Figure(float(f.mean()), *interval, float(f.mean()), interval, interval)
 
 
+def bootstrap_sequences(groups: list[np.ndarray], statistic: Callable[[np.ndarray], float]) -> tuple[float, float]:
+    """5-95 % interval of ``statistic`` of the pooled values over :data:`BOOTSTRAP` resamples of whole
+    sequences: ``groups`` holds one ``(n_s,)`` array of values per sequence (``n_s`` may be 0); each
+    resample draws ``len(groups)`` sequences with replacement and pools their values (resamples that
+    pool no value are left out)."""
+    rng = np.random.default_rng(0)
+    picks = rng.integers(0, len(groups), size=(BOOTSTRAP, len(groups)))
+    resampled = [np.concatenate([groups[k] for k in pick]) for pick in picks]
+    figures = [statistic(values) for values in resampled if values.size]
+    if not figures:
+        return float("nan"), float("nan")
+    low, high = np.percentile(figures, [5, 95])
+    return float(low), float(high)
+
+
+def pooled(groups: list[np.ndarray]) -> Figure:
+    """Median, interquartile range and mean of the values of all sequences pooled (``groups``: one
+    ``(n_s,)`` array per sequence), with intervals from :func:`bootstrap_sequences`."""
+    values = np.concatenate(groups).astype(np.float64)
+    if values.size == 0:
+        return Figure(np.nan, np.nan, np.nan, np.nan, (np.nan, np.nan), (np.nan, np.nan))
+    q1, med, q3 = np.percentile(values, [25, 50, 75])
+    return Figure(float(med), float(q1), float(q3), float(values.mean()), bootstrap_sequences(groups, np.median),
+                  bootstrap_sequences(groups, np.mean))
+
+
+def pooled_fraction(groups: list[np.ndarray]) -> Figure:
+    """Fraction of the pooled items of all sequences with a property (``groups``: one ``(n_s,)`` bool
+    array per sequence), with its interval from :func:`bootstrap_sequences`."""
+    flags = np.concatenate(groups).astype(np.float64)
+    interval = bootstrap_sequences([g.astype(np.float64) for g in groups], np.mean)
+    return Figure(float(flags.mean()), *interval, float(flags.mean()), interval, interval)
+
+
 STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats], Figure] | None]] = [
     ("median luma of painting pixels", lambda s: per_view(s.median_luma), None),
     (f"near-white fraction (luma >= {WHITE})", lambda s: per_view(s.near_white), None),
@@ -501,8 +591,19 @@ STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats],
     ("occluders per view (ours: scene, bounding spheres)", lambda s: per_view(s.occluders_scene),
      lambda s: per_view(s.occluders_mask)),
     ("edge sharpness (largest step / whole step)", lambda s: per_view(s.sharpness), None),
+    ("occluder saturation (median HSV saturation of occluder pixels)", lambda s: per_view(s.saturation), None),
 ]
 """Rows: name, our figure, Blender's figure (None: the same function; else what Blender is compared with)."""
+
+SEQUENCE_STATISTICS: list[tuple[str, Callable[[list[SequenceStats]], Figure]]] = [
+    ("view 0's effective blur (px, one per sequence)", lambda s: per_view(np.array([q.blur for q in s]))),
+    ("SIFT keypoints per view on the painting", lambda s: pooled([q.matcher.keypoints for q in s])),
+    ("ratio-test matches per pair of views", lambda s: pooled([q.matcher.matches for q in s])),
+    (f"pairs matched (SIFT + RANSAC corner error < {SUCCESS_PX:g} px)",
+     lambda s: pooled_fraction([q.matcher.success for q in s])),
+    ("corner error of the matched pairs (px)", lambda s: pooled([q.matcher.errors[q.matcher.success] for q in s])),
+]
+"""Rows of whole sequences: name and figure (the same function for ours and Blender's)."""
 
 
 def verdict(ours: Figure, theirs: Figure) -> tuple[str, str]:
@@ -523,12 +624,15 @@ def show(f: Figure) -> str:
     return f"{f.centre:.{digits}f} [{f.low:.{digits}f}, {f.high:.{digits}f}] (mean {f.mean:.{digits}f})"
 
 
-def table(name: str, ours: ViewStats, theirs: ViewStats) -> str:
-    lines = [f"### {name}: {len(ours.median_luma)} views against Blender's {len(theirs.median_luma)}", "",
+def table(name: str, ours: ViewStats, our_sequences: list[SequenceStats], theirs: ViewStats,
+          their_sequences: list[SequenceStats]) -> str:
+    lines = [f"### {name}: {len(ours.median_luma)} views ({len(our_sequences)} sequences) against Blender's "
+             f"{len(theirs.median_luma)} ({len(their_sequences)} sequences)", "",
              "| statistic | ours: median [IQR] (mean) | Blender: median [IQR] (mean) | Blender's 90 % interval | "
              "ratio | within |", "|---|---|---|---|---|---|"]
-    for label, mine, other in STATISTICS:
-        a, b = mine(ours), (other or mine)(theirs)
+    figures = [(label, mine(ours), (other or mine)(theirs)) for label, mine, other in STATISTICS]
+    figures += [(label, figure(our_sequences), figure(their_sequences)) for label, figure in SEQUENCE_STATISTICS]
+    for label, a, b in figures:
         ratio, near = verdict(a, b)
         digits = 0 if abs(b.centre) >= 10 else 3
         low, high = b.mean_interval if b.centre == 0 else b.interval
@@ -558,7 +662,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.samples < 1:
         raise SystemExit(f"--samples {args.samples}: expected at least 1")
     sequences = anchor_sequences(args.anchors)
-    theirs = ViewStats.concat([anchor_stats(s) for s in sequences])
+    their_views, their_sequences = zip(*[anchor_stats(s) for s in sequences])
+    theirs = ViewStats.concat(list(their_views))
     size = read_rgb(sequences[0] / "source.png").shape[:2]
     overrides = parse_set(args.set)
     print(f"anchors: {len(sequences)} sequences, {len(theirs.median_luma)} views at {size[1]}x{size[0]}; "
@@ -566,8 +671,9 @@ def main(argv: list[str] | None = None) -> None:
           + (f", overrides {overrides}" if overrides else ""), flush=True)
     for preset in args.config:
         config = load_config(preset, image_size=size, **overrides)
-        ours, seconds = our_stats(config, [s / "source.png" for s in sequences], args.samples, args.seed)
-        print(f"\n{table(preset, ours, theirs)}\n\n({seconds:.0f} s for {args.samples} samples with their "
+        ours, our_sequences, seconds = our_stats(config, [s / "source.png" for s in sequences], args.samples,
+                                                 args.seed)
+        print(f"\n{table(preset, ours, our_sequences, theirs, list(their_sequences))}\n\n({seconds:.0f} s for {args.samples} samples with their "
               "shadows=False twins)", flush=True)
 
 

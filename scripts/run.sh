@@ -23,7 +23,7 @@ fi
 # torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).
 # Then the package with the versions the suite was last checked with (scripts/constraints.txt).
 .venv/bin/python -m pip install -q torch==2.13.0
-.venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test,ray]"
+.venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test,ray,bench]"
 
 task="${1:-}"; shift || true
 case "$task" in
