@@ -80,16 +80,29 @@ def test_every_pair_of_three_views_is_scored_in_order():
 
 
 def test_corner_error_is_the_mean_corner_distance():
+    corners = matcher.image_corners(SIZE)
     shifted = np.array([[1.0, 0, 3], [0, 1, 4], [0, 0, 1]])
-    assert matcher.corner_error(shifted, np.eye(3), SIZE) == pytest.approx(5.0)
+    assert matcher.corner_error(shifted, np.eye(3), corners) == pytest.approx(5.0)
     scaled = np.diag([2.0, 2.0, 1.0])  # corners (0, 0) unmoved, the other three moved by W-1, H-1, both
     h, w = SIZE
     expected = ((w - 1) + (h - 1) + np.hypot(w - 1, h - 1)) / 4
-    assert matcher.corner_error(scaled, np.eye(3), SIZE) == pytest.approx(expected)
+    assert matcher.corner_error(scaled, np.eye(3), corners) == pytest.approx(expected)
     horizon = np.array([[1.0, 0, 0], [0, 1, 0], [-1 / (w - 1), 0, 1]])  # sends x = W - 1 to infinity
-    assert matcher.corner_error(horizon, np.eye(3), SIZE) == np.inf
+    assert matcher.corner_error(horizon, np.eye(3), corners) == np.inf
     beyond = np.array([[1.0, 0, 0], [0, 1, 0], [-1 / 100, 0, 1]])  # w < 0 beyond x = 100: still mapped
-    assert matcher.corner_error(beyond, beyond, SIZE) == 0
+    assert matcher.corner_error(beyond, beyond, corners) == 0
+
+
+def test_the_error_is_measured_at_the_paintings_corners_not_the_images(monkeypatch):
+    # View 1 sees the painting shrunk to a quarter in its top-left; an estimate off by a 2 % scale about
+    # view 1's origin moves the painting's corners there by at most 0.02 * 64 px, the image's far corner
+    # by 6 px: the pair succeeds only if its error is taken at the painting's corners.
+    views, masks, homographies = pair(np.diag([0.25, 0.25, 1.0]))
+    off = np.diag([1.02, 1.02, 1.0])
+    monkeypatch.setattr(matcher, "estimate_homography", lambda points_i, points_j: off @ homographies[0, 1])
+    stats = matcher.matcher_stats(views, masks, homographies)
+    assert stats.errors[0] < 1.3 and stats.success.tolist() == [True]
+    assert matcher.corner_error(off, np.eye(3), matcher.image_corners(SIZE)) > 3
 
 
 def test_bootstrap_over_sequences_resamples_whole_sequences():
