@@ -157,6 +157,10 @@ class SidarConfig:
         "``glass`` occluders cast shadows as dark as opaque ones, as the paper's glass and refraction materials "
         "do in Cycles (refracted light from a light source carries no direct light); false: a tinted, lighter "
         "shadow like a ``transparent`` occluder's."))
+    glass_saturation: Range = _field((0.0, 0.3), bounds=(0.0, 1.0), meaning=(
+        "range of the saturation of a ``glass`` occluder's tint (HSV, hue uniform, value 1). The tint colours "
+        "the painting seen through the glass, as a glass BSDF's colour does. The paper's glass and "
+        "refraction materials draw their colour uniformly in RGB: ``(0, 1)``."))
     occluders_visible: bool = _field(True, meaning=(
         "false makes occluders invisible to cameras; they still cast shadows."))
     mask_min_opacity: float = _field(0.0, bounds=(0.0, 1.0), meaning=(

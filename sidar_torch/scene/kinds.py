@@ -185,10 +185,10 @@ class SimpleMaterial:
 
 
 def _glass(rng: np.random.Generator, config: SidarConfig) -> Material:
-    """Nearly clear (alpha 0.05-0.25, pale tint) with a sharp clear-coat highlight, an index of
-    refraction in [1, 2] (the paper's glass and refraction materials) and an opaque shadow if
-    ``glass_shadows_opaque``."""
-    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0.0, 0.3), 1.0)
+    """Nearly clear (alpha 0.05-0.25) with a tint of saturation ``glass_saturation`` (which also colours
+    the painting seen through it), a sharp clear-coat highlight, an index of refraction in [1, 2] (the
+    paper's glass and refraction materials) and an opaque shadow if ``glass_shadows_opaque``."""
+    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(*config.glass_saturation), 1.0)
     alpha, roughness, coat_roughness = rng.uniform(0.05, 0.25), rng.uniform(0.02, 0.1), rng.uniform(0.02, 0.08)
     return Material(np.array([*rgb, alpha]), 0.0, roughness, 0.5, 1.0, coat_roughness, ior=rng.uniform(1.0, 2.0),
                     opaque_shadow=config.glass_shadows_opaque)

@@ -101,7 +101,8 @@ def test_a_mirror_sphere_shows_both_halves_of_the_painting_where_the_reflected_r
 
 def test_a_glass_sphere_displaces_the_painting_as_a_ball_lens_does():
     # A painting whose red and green encode the texel (u, v), blue 255 for reference; a glass
-    # sphere (index 1.5, black tint, alpha 0) refracts it. Decoded texels at points inside the
+    # sphere (index 1.5, white tint, alpha 0) refracts it; the same render over a black painting, which
+    # holds only the glass surface's own shading, is subtracted. Decoded texels at points inside the
     # sphere's image match two refractions through the exact sphere within 1 texel (measured: 0.5
     # at most; the icosphere's faceted entry surface and interpolated normals, the 8-bit ramp of 2
     # levels per texel), while the undisplaced texel is 8.5-9.6 texels away off the centre.
@@ -110,10 +111,11 @@ def test_a_glass_sphere_displaces_the_painting_as_a_ball_lens_does():
     painting = np.stack([np.round(255 * u / (w - 1)), np.round(255 * v / (h - 1)), np.full((h, w), 255)], -1)
     painting = painting.astype(np.uint8)
     radius, ior = 0.15, 1.5  # the painting at 0.2 from its centre, inside the focal length 0.225
-    glass = Material(np.array([0.0, 0.0, 0.0, 0.0]), 0.0, 0.0, 0.5, 0.0, 0.0, ior=ior)
+    glass = Material(np.array([1.0, 1.0, 1.0, 0.0]), 0.0, 0.0, 0.5, 0.0, 0.0, ior=ior)
     assert mirror_define(glass) == "PAINTING_REFRACTION"
-    image, camera = render(glass, painting, radius)
-    linear = np.where(image / 255 <= 0.04045, image / 255 / 12.92, ((image / 255 + 0.055) / 1.055) ** 2.4)
+    (image, camera), (surface, _) = render(glass, painting, radius), render(glass, np.zeros_like(painting), radius)
+    linear = np.subtract(*(np.where(x / 255 <= 0.04045, x / 255 / 12.92, ((x / 255 + 0.055) / 1.055) ** 2.4)
+                           for x in (image, surface)))
     ratio = linear[..., :2] / linear[..., 2:]  # the painting's linear red / green, Fresnel and tint aside
     encoded = np.where(ratio <= 0.0031308, ratio * 12.92, 1.055 * ratio ** (1 / 2.4) - 0.055)
     decoded = encoded * np.array([w - 1, h - 1])  # texel (u, v)
@@ -137,6 +139,24 @@ def test_a_glass_sphere_displaces_the_painting_as_a_ball_lens_does():
     assert error.max() < 1.0, (got, expected)
     assert shift[:-1].min() > 6.0  # off-centre points move far more than the tolerance
     assert np.linalg.norm(got[-1] - undisplaced[-1]) < 1.0  # the centre stays: the lens is on the axis
+
+
+def test_the_glass_tint_colours_the_painting_seen_through_it():
+    # A clear glass sphere (alpha 0) over a white painting: the painting's light through it is the tint
+    # times what a white tint passes (up to the 4 % of the painting reflected untinted by its surface).
+    painting = np.full((*SMALL, 3), 255, np.uint8)
+    tint = np.array([1.0, 0.5, 0.25])
+
+    def linear_through(rgb):
+        image, camera = render(Material(np.array([*rgb, 0.0]), 0.0, 0.0, 0.5, 0.0, 0.0, ior=1.5), painting, 0.15)
+        centre = camera.K @ (camera.R @ CENTRE + camera.t)
+        x, y = np.round(centre[:2] / centre[2]).astype(int)
+        patch = image[y - 3:y + 4, x - 3:x + 4].reshape(-1, 3) / 255
+        return np.where(patch <= 0.04045, patch / 12.92, ((patch + 0.055) / 1.055) ** 2.4).mean(0)
+
+    clear, tinted = linear_through(np.ones(3)), linear_through(tint)
+    assert clear.min() > 0.3
+    np.testing.assert_allclose(tinted / clear, tint, atol=0.05)
 
 
 def test_mirror_variants_go_only_to_reflective_and_refractive_occluders():
