@@ -8,7 +8,8 @@ from ..render_choices import ANTIALIAS_SAMPLES, MAX_SHADOWED_LIGHTS, SHADOW_FILT
 __all__ = [
     "ANTIALIAS_SAMPLES", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
     "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
-    "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS",
+    "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "SPOT_FALLOFFS",
+    "TEXTURE_FILTERS",
 ]
 
 LIGHT_EMITTERS = {"spot": None, "point": None, "area": "area_light_samples"}
@@ -20,6 +21,7 @@ OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "
 ON_BAD_IMAGE = ("raise", "skip")
 BACKGROUNDS = ("black", "view", "sequence")
 MESH_DETAILS = ("fixed", "auto")
+SPOT_FALLOFFS = ("quadratic", "blender")
 GEOMETRY_DTYPES = ("float32", "float64")
 
 

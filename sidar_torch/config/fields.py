@@ -17,7 +17,8 @@ from typing import Any
 
 from .allowed import (ANTIALIAS_SAMPLES, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
                       MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
-                      OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
+                      OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, SPOT_FALLOFFS,
+                      TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
 
 __all__ = ["SidarConfig", "field_meaning"]
@@ -127,6 +128,11 @@ class SidarConfig:
     area_irradiance: Range = _field((2.0, 4.0), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
     light_saturation_max: float = _field(0.3, bounds=(0.0, 1.0), meaning="colour is HSV(U(0, 1), U(0, this), 1).")
     spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
+    spot_falloff: str = _field("quadratic", choices=SPOT_FALLOFFS, meaning=(
+        "how a spot light fades from its inner to its outer cone. ``quadratic``: pyrender's, the square of a "
+        "linear ramp in cos(angle), the inner cone ``outer x (1 - u)``; ``blender``: Blender's spot blend, "
+        "a smoothstep of that ramp, the inner cone where ``cos = cos(outer) + (1 - cos(outer)) u`` (``u`` the "
+        "blend, uniform in [0, 1] either way)."))
     area_light_size: float = _field(0.3, bounds=(1e-4, MAX_SCENE_EXTENT), meaning=(
         f"side of a square area light (at most {MAX_SCENE_EXTENT:g} painting units)."))
     area_spread_deg: Range = _field((180.0, 180.0), bounds=(1.0, 180.0), meaning=(

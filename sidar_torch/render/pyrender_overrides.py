@@ -130,11 +130,13 @@ def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) 
 
 class ShadowedSpotLight(pyrender.SpotLight):
     """A pyrender spot light whose shadow map is layer :attr:`shadow_layer` of the renderer's
-    :class:`~.shadow_array.ShadowMapArray` (pyrender's ``shadow_texture`` stays unused)."""
+    :class:`~.shadow_array.ShadowMapArray` (pyrender's ``shadow_texture`` stays unused), with
+    Blender's smoothstep falloff between its cones when :attr:`smooth_falloff` (``scene.Light``)."""
 
-    def __init__(self, shadow_layer: int, **kwargs: Any):
+    def __init__(self, shadow_layer: int, smooth_falloff: bool = False, **kwargs: Any):
         super().__init__(**kwargs)
         self.shadow_layer = shadow_layer
+        self.smooth_falloff = smooth_falloff
 
 
 class _PatchedProgram(ShaderProgram):
@@ -364,7 +366,8 @@ class GLRenderer(pyrender.Renderer):
             uniforms += [(name + "direction", -pose[:3, 2]), (name + "position", pose[:3, 3]),
                          (name + "light_angle_scale", scale),
                          (name + "light_angle_offset", -np.cos(light.outerConeAngle) * scale),
-                         (name + "color", light.color), (name + "intensity", light.intensity)]
+                         (name + "color", light.color), (name + "intensity", light.intensity),
+                         (name + "smooth_falloff", float(light.smooth_falloff))]
             if shadowed:
                 V, P = self._get_light_cam_matrices(scene, light_node, flags)
                 uniforms += [(name + "light_matrix", P.dot(V)), (name + "shadow_layer", light.shadow_layer)]

@@ -121,6 +121,11 @@ pyrender override.
     opacity: the view with no light blocked, from the same draw. The additions are the ones a
     draw without lookups makes, in its order, so it equals the scene drawn with ``shadows: false``
     bit for bit (tested).
+11. **pyrender's spot lights fade quadratically between their cones.** Each spot light gets a
+    ``smooth_falloff`` member; at 1 its falloff is Blender's spot blend, ``smoothstep`` of pyrender's
+    linear ramp in cos (``cone_ramp`` in ``shaders/spot_light.glsl`` returns its square root, so the
+    callers square it as before; at 0 it returns pyrender's ramp exactly). A uniform, not a variant:
+    one compiled program serves both.
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
@@ -172,6 +177,8 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         # Quirk 3: spot-light shadow maps are layers of one depth-compare array, read by spot_shadow.
         ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
          "int shadow_layer;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
+        # Quirk 11: Blender's spot blend, per light (spot_light.glsl's cone_ramp).
+        ("    float light_angle_offset;\n", "    float light_angle_offset;\n    float smooth_falloff;\n"),
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_map,",
          "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_layer,"),
         # Quirk 6: only the lights in [lookup_begin, lookup_end) may find a caster where this draw

@@ -73,6 +73,7 @@ class ShadowMaps:
             gl_light.intensity = light.intensity
             gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
             gl_light.innerConeAngle = light.inner_cone
+            gl_light.smooth_falloff = light.smooth_falloff
             node = add_node(scene, gl_pose(*look_at(light.emitters[b])), light=gl_light)  # aimed at the centre
             if k < n_shadowed:
                 shadowed.add(node)

@@ -97,7 +97,10 @@ class Light(_Plain):
         intensity: each emitter's intensity, such that an emitter at distance ``d`` whose ray
             meets the painting at incidence angle ``theta`` gives it irradiance
             ``intensity * cos(theta) / d**2`` inside its inner cone.
-        inner_cone, outer_cone: half-angles (rad); the light falls off quadratically between them.
+        inner_cone, outer_cone: half-angles (rad). Between them the light falls off as ``r**2``
+            (pyrender's), ``r = (cos a - cos outer) / (cos inner - cos outer)`` at angle ``a`` from
+            the axis, or as ``smoothstep(r) = r**2 (3 - 2 r)`` with ``smooth_falloff`` (Blender's spot blend).
+        smooth_falloff: Blender's smoothstep falloff between the cones.
     """
 
     kind: str
@@ -106,6 +109,7 @@ class Light(_Plain):
     intensity: float
     inner_cone: float
     outer_cone: float
+    smooth_falloff: bool = False
 
 
 @dataclass(frozen=True, eq=False)

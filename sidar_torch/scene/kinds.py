@@ -45,6 +45,7 @@ class Beam:
         emitters: ``(S, 3)`` emitter positions.
         inner_cone, outer_cone: half-angles (rad).
         irradiance: each emitter's irradiance at the painting's centre.
+        smooth_falloff: Blender's spot blend between the cones (see ``Light``), else pyrender's.
     """
 
     position: np.ndarray
@@ -52,6 +53,7 @@ class Beam:
     inner_cone: float
     outer_cone: float
     irradiance: float
+    smooth_falloff: bool = False
 
 
 @dataclass(frozen=True)
@@ -69,10 +71,15 @@ class LightKind:
 
 def _spot_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarray, irradiance: float,
                size: tuple[int, int]) -> Beam:
-    """One emitter with a drawn cone (``spot_cone_deg``) and a drawn inner share of it."""
+    """One emitter with a drawn cone (``spot_cone_deg``) and a drawn blend ``u`` that sets its inner
+    cone as ``spot_falloff`` says (``quadratic``: ``outer (1 - u)``; ``blender``: Blender's spot blend,
+    ``cos inner = cos outer + (1 - cos outer) u``, with the smoothstep falloff)."""
     outer = min(math.radians(rng.uniform(*config.spot_cone_deg)) / 2, MAX_EMITTER_CONE)
-    inner = outer * (1.0 - rng.uniform())
-    return Beam(position, position[None], inner, outer, irradiance)
+    blend = rng.uniform()
+    if config.spot_falloff == "blender":
+        inner = math.acos(math.cos(outer) + (1.0 - math.cos(outer)) * blend)
+        return Beam(position, position[None], inner, outer, irradiance, smooth_falloff=True)
+    return Beam(position, position[None], outer * (1.0 - blend), outer, irradiance)
 
 
 def _point_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarray, irradiance: float,

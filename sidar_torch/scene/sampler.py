@@ -140,7 +140,8 @@ def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int
     beam = kind.beam(config, rng, position, rng.uniform(*getattr(config, kind.irradiance)), size)
     distance = np.linalg.norm(beam.position)
     intensity = beam.irradiance * distance**2 / (beam.position[2] / distance)
-    return Light(name, beam.emitters, color, float(intensity), float(beam.inner_cone), float(beam.outer_cone))
+    return Light(name, beam.emitters, color, float(intensity), float(beam.inner_cone), float(beam.outer_cone),
+                 beam.smooth_falloff)
 
 
 OCCLUDER_ATTEMPTS = 100

@@ -13,9 +13,9 @@ import pytest
 
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.render.scene_graph import transmission_factors
-from sidar_torch.scene import PAPER_TORUS_SCALE, Material, spread_beam, sample_sequence
+from sidar_torch.scene import PAPER_TORUS_SCALE, Light, Material, spread_beam, sample_sequence
 
-from conftest import small_config
+from conftest import LAMBERTIAN, SMALL, render_flat_painting, small_config
 from test_realism import render
 from test_render import overhead_spot
 from test_transparent_shadows import WHITE, ball, linear, side_spot, umbra
@@ -116,3 +116,23 @@ def test_area_spread_makes_area_lights_beams_and_180_keeps_them_covering():
     covering = [light for v in sample_sequence(small_config(light_types=("area",)), np.random.default_rng(3)).views
                 for light in v.lights]
     assert all(light.inner_cone > math.radians(20) for light in covering)  # the painting's corners inside
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_a_spot_light_fades_between_its_cones_as_its_falloff_says(smooth):
+    # A spot light 1 unit straight above a white Lambertian painting, cones of 10 and 25 degrees: the
+    # painting's linear light at each pixel of the middle row, over the centre's, is cos^3 of the angle
+    # from the axis times the falloff, r^2 (pyrender's) or smoothstep(r) = r^2 (3 - 2 r) (Blender's spot
+    # blend), r the linear ramp in cos from the outer cone (0) to the inner one (1).
+    inner, outer = math.radians(10), math.radians(25)
+    light = Light("spot", np.array([[0.0, 0.0, 1.0]]), np.ones(3), 0.5, inner, outer, smooth_falloff=smooth)
+    green = linear(render_flat_painting(lights=[light], plane=LAMBERTIAN, painting=255).views[0])[..., 1]
+    h, w = SMALL
+    row = h // 2
+    x, y = (np.arange(w) - (w - 1) / 2) / h, (row - (h - 1) / 2) / h  # world units: the painting is 1 high
+    cos = 1.0 / np.sqrt(1.0 + x**2 + y**2)
+    r = np.clip((cos - math.cos(outer)) / (math.cos(inner) - math.cos(outer)), 0.0, 1.0)
+    falloff = r**2 * (3 - 2 * r) if smooth else r**2
+    centre = green[row, w // 2] / cos[w // 2] ** 3
+    assert 0.05 < centre < 0.5 and ((0 < r) & (r < 1)).sum() > 10  # lit, unclipped, the ramp crossed
+    np.testing.assert_allclose(green[row], centre * cos**3 * falloff, atol=2e-3)

@@ -133,3 +133,17 @@ def test_every_light_kind_is_drawn_with_its_emitters(kind):
     assert [light.kind for light in lights] == [kind, kind]
     assert all(len(light.emitters) == (4 if kind == "area" else 1) for light in lights)
     assert all(0 <= light.inner_cone <= light.outer_cone for light in lights)
+
+
+def test_blender_spot_falloff_puts_the_inner_cone_at_the_blend_in_cos():
+    def spots(**fields):
+        cfg = small_config(n_views=6, light_types=("spot",), **fields)
+        return [light for view in sample_sequence(cfg, np.random.default_rng(4)).views for light in view.lights]
+
+    pairs = list(zip(spots(), spots(spot_falloff="blender")))  # the same draws: cone and blend u
+    assert len(pairs) > 6
+    for quadratic, blender in pairs:
+        u = 1.0 - quadratic.inner_cone / quadratic.outer_cone
+        cos_outer = math.cos(blender.outer_cone)
+        assert blender.outer_cone == quadratic.outer_cone and blender.smooth_falloff and not quadratic.smooth_falloff
+        assert math.cos(blender.inner_cone) == pytest.approx(cos_outer + (1.0 - cos_outer) * u, abs=1e-12)

@@ -1,4 +1,14 @@
 
+float cone_ramp(int i, float cd)
+{
+    // Quirk 11: the square root of light i's cone falloff at cos(angle from its axis) cd. pyrender's
+    // falloff is the square of a linear ramp in cos from the outer cone (0) to the inner one (1);
+    // with smooth_falloff 1 it is Blender's spot blend, smoothstep of that ramp: r^2 (3 - 2 r).
+    // (Exactly pyrender's ramp at smooth_falloff 0: mix gives 1.0.)
+    float r = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
+    return r * mix(1.0, sqrt(3.0 - 2.0 * r), spot_lights[i].smooth_falloff);
+}
+
 vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_diff, vec3 albedo,
                 out vec3 l)
 {
@@ -7,11 +17,9 @@ vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_
     vec3 v = normalize(cam_pos - frag_position); // Vector towards camera
     l = normalize(position - frag_position); // Vector towards light
     vec3 direction = spot_lights[i].direction;
-    float las = spot_lights[i].light_angle_scale;
-    float lao = spot_lights[i].light_angle_offset;
     float dist = length(position - frag_position);
     float cd = clamp(dot(direction, -l), 0.0, 1.0);
-    float attenuation = clamp(cd * las + lao, 0.0, 1.0);
+    float attenuation = cone_ramp(i, cd);
     attenuation = attenuation * attenuation * spot_lights[i].intensity;
     attenuation = attenuation / (dist * dist);
     vec3 radiance = attenuation * spot_lights[i].color;
@@ -27,7 +35,7 @@ vec3 spot_irradiance(int i, vec3 p, vec3 n)
     float dist = length(to_light);
     vec3 l = to_light / dist;
     float cd = clamp(dot(spot_lights[i].direction, -l), 0.0, 1.0);
-    float spot = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
+    float spot = cone_ramp(i, cd);
     return max(dot(n, l), 0.0) * spot * spot * spot_lights[i].intensity / (dist * dist) * spot_lights[i].color;
 }
 
