@@ -261,6 +261,9 @@ class SidarConfig:
     mesh_error_px: float = _field(0.25, bounds=(0.0, MAX_GL_SIZE), meaning=(
         'the largest silhouette error, in pixels, ``mesh_detail`` "auto" allows (0: always the finest level; at '
         f"most {MAX_GL_SIZE}, an image's largest side)."))
+    highlight_spill: bool = _field(True, meaning=(
+        "over-exposed light spills into the other channels, so a blown-out red turns white; false: each "
+        "channel clips at white on its own, as Blender's Standard view transform does (the paper's renders)."))
     antialias: int = _field(1, choices=ANTIALIAS_SAMPLES, meaning=(
         "samples per pixel of each view's lit colour pass: 1 (none, the default: jagged silhouettes) or 2, 4, 8 "
         "(multisample antialiasing, resolved to one colour per pixel; the OpenGL context must offer the count, "

@@ -270,7 +270,7 @@ class GLRenderer(pyrender.Renderer):
     """
 
     def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1,
-                 outputs: int = 1, clear_written_texels: bool = True):
+                 outputs: int = 1, clear_written_texels: bool = True, highlight_spill: bool = True):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
         self._target = Framebuffer(width, height, samples, outputs)
@@ -285,6 +285,9 @@ class GLRenderer(pyrender.Renderer):
         """Clear only the texels of a shadow or transmittance map that its last draw may have
         written (``shadow_array``); false: every map whole."""
         self._shadow_writes: TexelBox = (0, 0, shadow_map_size, shadow_map_size)  # of the next shadow pass
+        self.highlight_spill = highlight_spill
+        """Over-exposed light spills into the other channels (a blown-out red turns white); false:
+        each channel clips at white on its own."""
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._split: tuple[Any, Sequence[PaintingPart]] | None = None  # (painting primitive, parts) of a lit draw
@@ -358,6 +361,7 @@ class GLRenderer(pyrender.Renderer):
                              f"got {len(spots)} spot lights of {len(scene.light_nodes)} lights")
         shadowed = bool(flags & RenderFlags.SHADOWS_SPOT)
         uniforms: list[tuple[str, Any]] = [("ambient_light", scene.ambient_light), ("n_spot_lights", len(spots)),
+                                           ("highlight_spill", float(self.highlight_spill)),
                                            ("lookup_begin", 0), ("lookup_end", self._n_shadowed if shadowed else 0)]
         textures: list[tuple[Any, str]] = []
         for k, light_node in enumerate(ranked(scene.light_nodes)):

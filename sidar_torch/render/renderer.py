@@ -135,7 +135,8 @@ class SceneRenderer:
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
         self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
                               outputs=2 if settings.shadow_free else 1,
-                              clear_written_texels=settings.clear_written_texels)
+                              clear_written_texels=settings.clear_written_texels,
+                              highlight_spill=settings.highlight_spill)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)

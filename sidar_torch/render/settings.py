@@ -48,6 +48,8 @@ class RenderSettings:
             other outputs are the same either way (config ``shadow_mask_output``).
         shadow_free: also render each view with no light blocked (``RenderedSequence.shadow_free``);
             the other outputs are the same either way (config ``shadow_free_output``).
+        highlight_spill: over-exposed light spills into the other channels, a blown-out red turning
+            white; false: each channel clips at white on its own (config ``highlight_spill``).
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
@@ -73,6 +75,7 @@ class RenderSettings:
     shadow_masks: bool = False
     shadow_free: bool = False
     antialias: int = 1
+    highlight_spill: bool = True
     mirrors: bool = True
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
@@ -114,6 +117,7 @@ class RenderSettings:
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
             opacities=config.opacity_output, shadow_masks=config.shadow_mask_output,
             shadow_free=config.shadow_free_output, antialias=config.antialias,
+            highlight_spill=config.highlight_spill,
         )
 
     def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:

@@ -136,3 +136,19 @@ def test_a_spot_light_fades_between_its_cones_as_its_falloff_says(smooth):
     centre = green[row, w // 2] / cos[w // 2] ** 3
     assert 0.05 < centre < 0.5 and ((0 < r) & (r < 1)).sum() > 10  # lit, unclipped, the ramp crossed
     np.testing.assert_allclose(green[row], centre * cos**3 * falloff, atol=2e-3)
+
+
+@pytest.mark.parametrize("spill", [True, False])
+def test_over_exposed_light_spills_into_white_or_clips_each_channel(spill):
+    # A pink light about three times too bright for the red channel of a white painting (its diffuse
+    # factor 0.96: red 2.88, green and blue 0.576 in linear light): with the spill the excess whitens
+    # every channel; without it each channel clips on its own, as Blender's Standard view transform
+    # does, and green and blue keep their own level.
+    light = Light("spot", np.array([[0.0, 0.0, 1.0]]), np.array([1.0, 0.2, 0.2]), 3.0 * math.pi, 0.5, 0.6)
+    centre = render_flat_painting(lights=[light], plane=LAMBERTIAN, painting=255, highlight_spill=spill).views[0][
+        SMALL[0] // 2, SMALL[1] // 2]
+    level = linear(centre.astype(np.uint8))
+    if spill:
+        assert centre.tolist() == [255, 255, 255]
+    else:
+        assert centre[0] == 255 and abs(level[1] - 0.576) < 0.005 and abs(level[2] - 0.576) < 0.005
