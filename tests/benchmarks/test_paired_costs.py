@@ -59,3 +59,17 @@ def test_shadow_outputs_cost_prints_both_clocks_and_the_draw(capsys, output):
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
         "wall", "cpu", f"{' + '.join(shadow_outputs_cost.OUTPUTS[output])} (wall)"]
+
+
+def test_revision_cost_runs_each_tree_in_its_own_process_and_prints_the_ratio(capsys, tmp_path):
+    from pathlib import Path
+
+    from benchmarks import revision_cost
+
+    root = str(Path(revision_cost.__file__).resolve().parents[1])
+    revision_cost.main(["--trees", root, root, "--size", "24x32", "--samples", "1", "--rounds", "1"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[1].startswith(f"round 1 {root}: median") and out[2].startswith(f"round 1 {root}: median")
+    assert out[3].startswith("median total: A ") and "B / A = " in out[3]
+    with pytest.raises(SystemExit, match="holds no sidar_torch package"):
+        revision_cost.main(["--trees", root, str(tmp_path)])
