@@ -217,6 +217,11 @@ class SidarConfig:
         'depth-compare tap (the default: closer to a 4096-map reference than the tent at every map size, for a '
         'quarter of the texture reads), or ``"tent"``, a 3 x 3 tent-weighted filter from 4 bilinear taps (shadow '
         "edges one texel softer)."))
+    light_radius: float = _field(0.0, bounds=(0.0, 0.5), meaning=(
+        "radius of every light's emitters, painting units: 0 (the default) casts hard shadows through "
+        "``shadow_filter``; above 0, soft ones (percentage-closer soft shadows: a penumbra that grows with the "
+        "distance from the caster, ``light_radius`` times receiver distance over caster distance, less one). "
+        "Blender's default light radius is 0.25 units, ``0.25 / 7``."))
 
     # View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
     # only, drawn after the scene so switching one on changes no scene, mask, label or homography;

@@ -19,7 +19,8 @@ Everything else cannot change a pixel and is left out (each test below is conser
   receiving need no shadow.
 
 "Reads" includes the lookup's filter footprint (:data:`SHADOW_READ_TEXELS`), turned into an angle
-around the emitter by :func:`shadow_margin`.
+around the emitter by :func:`shadow_margin`, and with soft shadows the penumbra's search around it
+(:func:`soft_reach`): :func:`lookup_margins`.
 
 And within the painting's colour draw, each shadowed emitter's lookup is made only where a caster
 may be read (``render.footprints``: the draw is split into screen rectangles, ``painting_parts``).
@@ -44,7 +45,8 @@ from .footprints import PaintingPart, lookup_ranges, painting_parts
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
-__all__ = ["SHADOW_READ_TEXELS", "ViewPlan", "plan_views", "shadow_margin"]
+__all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "ViewPlan", "lookup_margins", "plan_views", "shadow_margin",
+           "soft_reach"]
 
 SHADOW_READ_TEXELS = 3.0
 """How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
@@ -76,6 +78,36 @@ def shadow_margin(outer_cone: float, map_size: int) -> float:
     if half >= math.pi / 2:
         return math.inf
     return math.sqrt(2) * SHADOW_READ_TEXELS * 2 * math.tan(half) / map_size
+
+
+SOFT_REACH_MAX = 0.5
+"""Largest reach (tangent units) of a soft shadow lookup around its own direction (:func:`soft_reach`)."""
+
+
+def soft_reach(emitter: np.ndarray, centres: np.ndarray, radii: np.ndarray, light_radius: float) -> float:
+    """How far from its own direction, in tangent units of the emitter's frame, a soft shadow lookup
+    (``light_radius`` above 0, ``shaders/spot_shadow.glsl``) reads the map: the widest penumbra any of
+    the view's occluder balls can throw, ``light_radius`` over the distance of the nearest ball's
+    surface (a penumbra is ``light_radius (w_r - w_b) / (w_b w_r)`` for a caster at depth ``w_b`` and
+    a receiver at ``w_r``), at most :data:`SOFT_REACH_MAX`; 0 without a radius or occluders.
+
+    Args:
+        emitter: ``(3,)`` world position; centres, radii: ``(B, 3)``, ``(B,)`` the occluders' balls.
+    """
+    if light_radius <= 0 or len(radii) == 0:
+        return 0.0
+    nearest = float((np.linalg.norm(np.asarray(centres).reshape(-1, 3) - emitter, axis=1) - radii).min())
+    return light_radius / nearest if nearest * SOFT_REACH_MAX > light_radius else SOFT_REACH_MAX
+
+
+def lookup_margins(view: ViewScene, emitters: list[tuple[int, int]], map_size: int, light_radius: float) -> np.ndarray:
+    """``(E,)`` angles (rad) around which each emitter's lookups read its map: the filter's
+    (:func:`shadow_margin`) plus the soft reach (:func:`soft_reach`; a tangent offset spans at most
+    that angle)."""
+    centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
+    radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+    return np.array([shadow_margin(view.lights[a].outer_cone, map_size)
+                     + soft_reach(view.lights[a].emitters[b], centres, radii, light_radius) for a, b in emitters])
 
 
 @dataclass(frozen=True)
@@ -134,18 +166,17 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
         casters = frozenset().union(*(p.casters for p in plans))
         plans = [replace(p, casters=casters) for p in plans]
     if settings.split_shadow_lookups:
-        plans = [_with_painting_parts(view, p, sequence.image_size, settings.shadow_map_size)
-                 for view, p in zip(sequence.views, plans)]
+        plans = [_with_painting_parts(view, p, sequence.image_size, settings) for view, p in zip(sequence.views, plans)]
     return plans
 
 
-def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], map_size: int) -> ViewPlan:
+def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], settings: RenderSettings) -> ViewPlan:
     """``plan`` with the painting's draw split by shadow footprints (``render.footprints``),
     unless every part would need every lookup."""
     if not plan.n_shadowed:
         return plan
     emitters = list(plan.order[:plan.n_shadowed])
-    margins = np.array([shadow_margin(view.lights[a].outer_cone, map_size) for a, _ in emitters])
+    margins = lookup_margins(view, emitters, settings.shadow_map_size, settings.light_radius)
     begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size)
     if (begin == 0).all() and (end == plan.n_shadowed).all():
         return plan
@@ -169,7 +200,7 @@ class _ViewFacts:
         if not (self.emitters and len(hidden)):
             return
         emitters = np.array([view.lights[a].emitters[b] for a, b in self.emitters])
-        margins = np.array([shadow_margin(view.lights[a].outer_cone, map_size) for a, _ in self.emitters])
+        margins = lookup_margins(view, self.emitters, map_size, settings.light_radius)
         region = clip_polygon(plane_corners(size)[:, :2], visible_halfplanes(cam.K, cam.R, cam.t, size))
         drawn = sorted(self.drawn)
         hit = shadow_may_reach(emitters, centres[hidden], radii[hidden], region, margins) \

@@ -131,12 +131,15 @@ def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) 
 class ShadowedSpotLight(pyrender.SpotLight):
     """A pyrender spot light whose shadow map is layer :attr:`shadow_layer` of the renderer's
     :class:`~.shadow_array.ShadowMapArray` (pyrender's ``shadow_texture`` stays unused), with
-    Blender's smoothstep falloff between its cones when :attr:`smooth_falloff` (``scene.Light``)."""
+    Blender's smoothstep falloff between its cones when :attr:`smooth_falloff` (``scene.Light``)
+    and the reach of its soft shadow lookups (:attr:`soft_reach`)."""
 
     def __init__(self, shadow_layer: int, smooth_falloff: bool = False, **kwargs: Any):
         super().__init__(**kwargs)
         self.shadow_layer = shadow_layer
         self.smooth_falloff = smooth_falloff
+        self.soft_reach = 0.0
+        """How far its soft lookups search the map (``plan.soft_reach``; tangent units)."""
 
 
 class _PatchedProgram(ShaderProgram):
@@ -270,7 +273,8 @@ class GLRenderer(pyrender.Renderer):
     """
 
     def __init__(self, width: int, height: int, shadow_map_size: int, shadow_taps: int, samples: int = 1,
-                 outputs: int = 1, clear_written_texels: bool = True, highlight_spill: bool = True):
+                 outputs: int = 1, clear_written_texels: bool = True, highlight_spill: bool = True,
+                 light_radius: float = 0.0):
         super().__init__(width, height)
         self._program_cache = ProgramCache(shadow_taps)
         self._target = Framebuffer(width, height, samples, outputs)
@@ -286,6 +290,14 @@ class GLRenderer(pyrender.Renderer):
         written (``shadow_array``); false: every map whole."""
         self._shadow_writes: TexelBox = (0, 0, shadow_map_size, shadow_map_size)  # of the next shadow pass
         self.highlight_spill = highlight_spill
+        self.light_radius = light_radius
+        """Every emitter's radius (painting units); above 0 the lookups are soft (``shadow_taps`` 0)."""
+        self._depth_sampler = GL.glGenSamplers(1)  # the shadow maps read as depths (soft lookups' search)
+        for name, value in ((GL.GL_TEXTURE_MIN_FILTER, GL.GL_NEAREST), (GL.GL_TEXTURE_MAG_FILTER, GL.GL_NEAREST),
+                            (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE),
+                            (GL.GL_TEXTURE_COMPARE_MODE, GL.GL_NONE)):
+            GL.glSamplerParameteri(self._depth_sampler, name, value)
+        self._depth_unit: int | None = None  # texture unit the depth sampler is bound to during a draw
         """Over-exposed light spills into the other channels (a blown-out red turns white); false:
         each channel clips at white on its own."""
         self._filtered = False  # whether the current draw's lights have transmittance maps
@@ -339,6 +351,9 @@ class GLRenderer(pyrender.Renderer):
             unit = self._get_next_active_texture()
             GL.glActiveTexture(GL.GL_TEXTURE0 + unit)
             texture._bind()
+            if name == "spot_shadow_depths":  # the same maps without their depth comparison
+                self._depth_unit = unit
+                GL.glBindSampler(unit, self._depth_sampler)
             if first:
                 program.set_uniform(name, unit)
 
@@ -375,8 +390,14 @@ class GLRenderer(pyrender.Renderer):
             if shadowed:
                 V, P = self._get_light_cam_matrices(scene, light_node, flags)
                 uniforms += [(name + "light_matrix", P.dot(V)), (name + "shadow_layer", light.shadow_layer)]
+                if self.light_radius > 0:  # window depth back to depth along the axis; uv per tangent
+                    uniforms += [(name + "soft_depth", np.array([P[2, 2], P[2, 3], P[0, 0] / 2, P[1, 1] / 2])),
+                                 (name + "soft_reach", float(light.soft_reach))]
         if shadowed:
             textures.append((self.shadow_maps, "spot_shadow_maps"))
+            if self.light_radius > 0:
+                uniforms.append(("light_radius", float(self.light_radius)))
+                textures.append((self.shadow_maps, "spot_shadow_depths"))
             if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
                 textures.append((self.transmittance, "transmittance_maps"))
                 uniforms.append(("transmittance_layout", np.array(self.transmittance.layout, np.int32)))
@@ -439,11 +460,12 @@ class GLRenderer(pyrender.Renderer):
             program.set_uniform("lookup_end", self._n_shadowed)
 
     def _reset_active_textures(self) -> None:
-        """pyrender's reset after each primitive, and the painting's sampler unbound (the unit goes
-        to the next primitive's textures, which keep their own filters)."""
-        if self._mirror_unit is not None:
-            GL.glBindSampler(self._mirror_unit, 0)
-            self._mirror_unit = None
+        """pyrender's reset after each primitive, and the painting's and the depth sampler unbound
+        (the units go to the next primitive's textures, which keep their own filters)."""
+        for unit in (self._mirror_unit, self._depth_unit):
+            if unit is not None:
+                GL.glBindSampler(unit, 0)
+        self._mirror_unit = self._depth_unit = None
         super()._reset_active_textures()
 
     def _compute_max_n_lights(self, flags: int) -> list[int]:

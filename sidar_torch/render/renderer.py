@@ -136,7 +136,7 @@ class SceneRenderer:
         self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
                               outputs=2 if settings.shadow_free else 1,
                               clear_written_texels=settings.clear_written_texels,
-                              highlight_spill=settings.highlight_spill)
+                              highlight_spill=settings.highlight_spill, light_radius=settings.light_radius)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
@@ -240,7 +240,7 @@ class SceneRenderer:
                 mesh.primitives[0].material = gl_material(occ.material)
                 nodes.append(add_node(scene, occ.object_to_world(), mesh=mesh))
             self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
-            shadowed = self._shadows.add_lights(scene, view.lights, plan.order, plan.n_shadowed)
+            shadowed = self._shadows.add_lights(scene, view, plan.order, plan.n_shadowed)
             casters = {nodes[i] for i in plan.casters}
             transmitting = {nodes[i] for i in plan.casters
                             if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow}

@@ -9,6 +9,7 @@ configuration's fields by name, so the render layer never imports ``sidar_torch.
 
 from __future__ import annotations
 
+import math
 import operator
 from dataclasses import dataclass
 from typing import Any
@@ -50,6 +51,8 @@ class RenderSettings:
             the other outputs are the same either way (config ``shadow_free_output``).
         highlight_spill: over-exposed light spills into the other channels, a blown-out red turning
             white; false: each channel clips at white on its own (config ``highlight_spill``).
+        light_radius: every emitter's radius, painting units: above 0, soft shadows (percentage-closer
+            soft shadows, ``shader_patches`` quirk 12) instead of ``shadow_filter`` (config ``light_radius``).
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
@@ -76,6 +79,7 @@ class RenderSettings:
     shadow_free: bool = False
     antialias: int = 1
     highlight_spill: bool = True
+    light_radius: float = 0.0
     mirrors: bool = True
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
@@ -103,6 +107,8 @@ class RenderSettings:
             raise ValueError(f"mesh_error_px: expected None or a number >= 0, got {self.mesh_error_px!r}")
         if self.antialias not in ANTIALIAS_SAMPLES or isinstance(self.antialias, bool):
             raise ValueError(f"antialias: expected one of {ANTIALIAS_SAMPLES} samples per pixel, got {self.antialias!r}")
+        if not 0 <= self.light_radius < math.inf:
+            raise ValueError(f"light_radius: expected a finite value >= 0, got {self.light_radius!r}")
         if not 0 <= self.mask_min_opacity <= 1:
             raise ValueError(f"mask_min_opacity: expected a value in [0, 1], got {self.mask_min_opacity!r}")
 
@@ -117,7 +123,7 @@ class RenderSettings:
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
             opacities=config.opacity_output, shadow_masks=config.shadow_mask_output,
             shadow_free=config.shadow_free_output, antialias=config.antialias,
-            highlight_spill=config.highlight_spill,
+            highlight_spill=config.highlight_spill, light_radius=config.light_radius,
         )
 
     def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:
@@ -145,5 +151,8 @@ class RenderSettings:
 
     @property
     def shadow_taps(self) -> int:
-        """Depth-compare taps per shadow lookup: 4 (tent) or 1 (bilinear)."""
+        """The lookup's program define ``SIDAR_SHADOW_TAPS``: depth-compare taps per shadow lookup, 4
+        (tent) or 1 (bilinear); 0 for soft shadows (``light_radius`` above 0)."""
+        if self.light_radius > 0:
+            return 0
         return 1 if self.shadow_filter == "bilinear" else 4

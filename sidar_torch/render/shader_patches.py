@@ -19,7 +19,7 @@ pyrender override.
    samplers (``sampler2DShadow``, set up by the renderer) read with 4 hardware-filtered taps
    at +-0.5 texel: a 3 x 3 tent-weighted percentage-closer filter for 4 reads; or, with the
    program define ``SIDAR_SHADOW_TAPS`` = 1 (config ``shadow_filter: bilinear``), one tap at
-   the centre: a 2 x 2 filter.
+   the centre: a 2 x 2 filter; 0 is the soft lookup of quirk 12.
 4. **The lit shader's output encoding is a gamma-2.2 approximation** (``pow(x, 1/2.2)``)
    although it decodes textures with the exact sRGB curve, so an ambient-only render is up to
    9 levels off its texture. :data:`SHADER_PATCHES` swaps in the exact sRGB encoding.
@@ -126,6 +126,18 @@ pyrender override.
     linear ramp in cos (``cone_ramp`` in ``shaders/spot_light.glsl`` returns its square root, so the
     callers square it as before; at 0 it returns pyrender's ramp exactly). A uniform, not a variant:
     one compiled program serves both.
+12. **pyrender's shadows are hard.** With ``RenderSettings.light_radius`` above 0 the program
+    define ``SIDAR_SHADOW_TAPS`` is 0 and ``spot_shadow`` is a percentage-closer soft shadow
+    (``soft_shadow`` in ``shaders/spot_shadow.glsl``): 12 raw depth reads of the light's map (the
+    same texture through a sampler without comparison, ``spot_shadow_depths``) within
+    ``soft_reach`` of the fragment (``plan.soft_reach``: the widest penumbra any of the view's
+    occluders can throw) give the casters' mean depth ``w_b`` along the light's axis (window depth
+    turned back through the projection's ``P[2][2]``, ``P[2][3]``), then 12 depth-compare taps over
+    the penumbra ``light_radius (w - w_b) / (w_b w)`` (tangent units, times ``P[0][0] / 2`` and
+    ``P[1][1] / 2`` in texture units) give the share of the light that passes. No caster within
+    reach: exactly lit, as quirk 6 needs; the plan widens every lookup margin (footprints, idle
+    lights, culling) and each fitted frustum by the same reach. Penumbrae measured by rendering
+    are within 0.4 px of ``2 r h / (L - h)`` (``tests/render/test_soft_shadows.py``).
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
 loudly if a pyrender release changes it. The GLSL we add lives in ``shaders/`` (``*.glsl`` pieces,
@@ -178,9 +190,10 @@ SHADER_PATCHES: dict[str, list[tuple[str, str]]] = {
         ("sampler2D shadow_map;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight",
          "int shadow_layer;\n    mat4 light_matrix;\n    #endif\n};\n\nstruct DirectionalLight"),
         # Quirk 11: Blender's spot blend, per light (spot_light.glsl's cone_ramp).
-        ("    float light_angle_offset;\n", "    float light_angle_offset;\n    float smooth_falloff;\n"),
+        ("    float light_angle_offset;\n",
+         "    float light_angle_offset;\n    float smooth_falloff;\n    vec4 soft_depth;\n    float soft_reach;\n"),
         ("float shadow = shadow_calc(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_map,",
-         "float shadow = spot_shadow(\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_layer,"),
+         "float shadow = spot_shadow(i,\n            spot_lights[i].light_matrix,\n            spot_lights[i].shadow_layer,"),
         # Quirk 6: only the lights in [lookup_begin, lookup_end) may find a caster where this draw
         # shades: the others run in loops without the lookup, which would return "lit".
         (glsl("pyrender_spot_loop_head.glsl"), glsl("shadowed_spot_loop_head.glsl")),

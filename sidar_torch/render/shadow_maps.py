@@ -13,7 +13,8 @@ import pyrender
 from pyrender.constants import RenderFlags
 
 from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
-from ..scene import Camera, Light, SceneSequence, ViewScene
+from ..scene import Camera, SceneSequence, ViewScene
+from .plan import soft_reach
 from .pyrender_overrides import GLRenderer, ShadowedSpotLight, add_node
 from .scene_graph import gl_pose
 from .settings import RenderSettings
@@ -54,10 +55,11 @@ class ShadowMaps:
         """Record that the maps of ``keys`` now hold what their keys say."""
         self._held.update(keys.values())
 
-    def add_lights(self, scene: pyrender.Scene, lights: tuple[Light, ...], order: list[tuple[int, int]],
+    def add_lights(self, scene: pyrender.Scene, view: ViewScene, order: list[tuple[int, int]],
                    n_shadowed: int) -> set[pyrender.Node]:
-        """Add the emitters ``order`` (``(light, emitter)`` indices) as spot lights, in that order;
-        returns the nodes of the first ``n_shadowed``, which get shadows.
+        """Add the emitters ``order`` (``(light, emitter)`` indices of ``view.lights``) as spot lights,
+        in that order; returns the nodes of the first ``n_shadowed``, which get shadows. Each light
+        carries its soft lookups' reach among ``view.occluders`` (``plan.soft_reach``).
 
         The order is fixed for a given view whatever ``n_shadowed`` is: the shader sums lights in
         insertion order, and it looks shadows up only for the first ``n_shadowed`` spot lights.
@@ -65,15 +67,18 @@ class ShadowMaps:
         order, whatever its place in ``order``: views sharing the lights keep each emitter's map.
         """
         rank = {e: k for k, e in enumerate(sorted(order))}
+        centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
+        radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
         shadowed = set()
         for k, (a, b) in enumerate(order):
-            light = lights[a]
+            light = view.lights[a]
             gl_light = self._light(rank[a, b])
             gl_light.color = light.color
             gl_light.intensity = light.intensity
             gl_light.outerConeAngle = light.outer_cone  # outer first: inner must not exceed it
             gl_light.innerConeAngle = light.inner_cone
             gl_light.smooth_falloff = light.smooth_falloff
+            gl_light.soft_reach = soft_reach(light.emitters[b], centres, radii, self.settings.light_radius)
             node = add_node(scene, gl_pose(*look_at(light.emitters[b])), light=gl_light)  # aimed at the centre
             if k < n_shadowed:
                 shadowed.add(node)
@@ -109,8 +114,8 @@ class ShadowMaps:
                             if other.lights == view.lights and other.occluders == view.occluders
                             for p in self._visible_receivers(other.camera, casters)])
         margin = SHADOW_MARGIN_TEXELS / self._gl.shadow_map_size
-        frusta = {node: light_frustum(node.matrix[:3, 3], node.light.outerConeAngle, points, casters, margin)
-                  for node in shadowed}
+        frusta = {node: light_frustum(node.matrix[:3, 3], node.light.outerConeAngle, points, casters, margin,
+                                      node.light.soft_reach) for node in shadowed}
         return {node: frustum for node, frustum in frusta.items() if frustum is not None}
 
     def _visible_receivers(self, cam: Camera, casters: np.ndarray) -> list[np.ndarray]:

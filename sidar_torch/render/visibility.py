@@ -261,7 +261,7 @@ def ball_shadow_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, emitte
 
 
 def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray, casters: np.ndarray,
-                  margin: float = 0.0) -> np.ndarray | None:
+                  margin: float = 0.0, reach: float = 0.0) -> np.ndarray | None:
     """The tightest perspective shadow-map frustum of a spot light aimed at the origin.
 
     The frustum is expressed in the light's own frame, :func:`look_at` ``(emitter)`` (OpenCV axes:
@@ -278,7 +278,8 @@ def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray,
       (a caster closer to the light than that would be inside the lamp).
 
     The window is widened by ``margin`` times its size on each side (for the texels a filtered
-    shadow lookup reads around a point), and ``far`` by ``margin`` times the depth range.
+    shadow lookup reads around a point), then by ``reach`` (tangent units: how far a soft lookup
+    searches, ``plan.soft_reach``), and ``far`` by ``margin`` times the depth range.
 
     Args:
         emitter: ``(3,)`` light position (world, painting units), not at the origin.
@@ -286,6 +287,7 @@ def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray,
         receivers: ``(N, 3)`` world points.
         casters: ``(M, 4)`` balls ``(centre x, y, z, radius)`` that may cast shadows.
         margin: relative widening (>= 0).
+        reach: absolute widening (>= 0), tangent units.
 
     Returns:
         ``(6,)`` float64, or ``None`` when a receiver is not in front of the light (no frustum
@@ -301,7 +303,7 @@ def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray,
     high = np.clip(tangents.max(axis=0), -limit, limit)
     if (high <= low).any():
         return None
-    pad = margin * (high - low)
+    pad = margin * (high - low) + reach
     far = float(cam[:, 2].max())
     depths = [float(cam[:, 2].min())]
     if len(casters):

@@ -40,6 +40,7 @@ def test_keyword_overrides_replace_preset_values():
     ("image_size", (64, 0)), ("n_views", -3), ("camera_height", (1.0, 0.5)), ("light_irradiance", (2.0, 1.0)),
     ("min_coverage", 1.5), ("min_overlap", -0.1), ("on_bad_image", "ignore"), ("on_bad_image", None),
     ("reference_height", (0.0, 1.0)), ("reference_height", (1e-4, 1e-4)), ("reference_height", (-1.0, 1.0)),
+    ("light_radius", -0.01), ("light_radius", 1.0), ("light_radius", float("nan")),
 ])
 def test_bad_values_raise_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):

@@ -165,7 +165,7 @@ def test_shared_lights_get_one_frustum_over_the_views():
         for view in sequence.views:
             scene = pyrender.Scene()
             order = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-            nodes = renderer._shadows.add_lights(scene, view.lights, order, len(order))
+            nodes = renderer._shadows.add_lights(scene, view, order, len(order))
             frusta.append(sorted(map(tuple, renderer._shadows.frusta(nodes, view, sequence).values())))
         assert frusta[0] and all(f == frusta[0] for f in frusta)
     finally:

@@ -45,9 +45,13 @@ def assert_same_pixels(a, b):
         assert np.array_equal(x, y), f"{name}: {int((x != y).sum())} values differ"
 
 
-@pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
-def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(preset):
-    cfg = small_config(preset, **NARROW_VIEWS)
+SOFT = 0.04
+"""A light radius whose penumbrae span several pixels in these scenes (soft shadows' wider reads)."""
+
+
+@pytest.mark.parametrize("preset, light_radius", [("shadows_only", 0.0), ("misaligned", 0.0), ("misaligned", SOFT)])
+def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(preset, light_radius):
+    cfg = small_config(preset, light_radius=light_radius, **NARROW_VIEWS)
     settings = RenderSettings.from_config(cfg)
     painting = textured_painting(SMALL)
     idle = 0
@@ -75,30 +79,38 @@ def test_lights_are_summed_in_rank_order_so_the_shadowed_ones_come_first():
 def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(preset):
     """The painting's lit draw split into screen rectangles with only the lookups each needs
     (``render.footprints``) gives the same bytes as one draw with every lookup, with tent and
-    bilinear filters, transparent casters (transmittance lookups) and antialiasing (paper preset).
-    So does the shadow-free view, drawn in the same pass (each part with its lookups, all of its
-    light unshadowed)."""
+    bilinear filters, soft shadows (whose lookups read farther), transparent casters (transmittance
+    lookups) and antialiasing (paper preset). So does the shadow-free view, drawn in the same pass
+    (each part with its lookups, all of its light unshadowed)."""
     cfg = small_config(preset, image_size=(160, 224), n_views=3, n_occluders=(2, 4), shadow_free_output=True)
     painting = textured_painting((160, 224))
-    left_out = 0
-    for seed, shadow_filter in zip(range(4), ["tent", "bilinear"] * 2):
-        settings = RenderSettings.from_config(cfg.replace(shadow_filter=shadow_filter))
+    left_out = softened = 0
+    lookups = [dict(shadow_filter="tent"), dict(shadow_filter="bilinear"), dict(light_radius=SOFT)] * 2
+    for seed, lookup in zip(range(6), lookups):
+        settings = RenderSettings.from_config(cfg.replace(**lookup))
         seq = sample_sequence(cfg, np.random.default_rng(seed))
         for plan in plan_views(seq, settings):
             left_out += sum(part.width * part.height * (plan.n_shadowed - part.end + part.begin)
                             for part in plan.painting_parts)
-        assert_same_pixels(*render_both(settings, seq, painting, "split_shadow_lookups"))
+        split, whole = render_both(settings, seq, painting, "split_shadow_lookups")
+        assert_same_pixels(split, whole)
+        if settings.light_radius:
+            hard = shared_renderer(replace(settings, light_radius=0.0)).render(seq, painting)
+            softened += int((hard.views != split.views).any(axis=-1).sum())
     assert left_out > 0  # lookups were left out
+    assert softened > 100  # and the soft shadows differ from hard ones
 
 
-@pytest.mark.parametrize("preset", ["shadows_only", "misaligned"])
-def test_culling_hidden_occluders_changes_no_pixel(preset):
+@pytest.mark.parametrize("preset, light_radius", [("shadows_only", 0.0), ("misaligned", 0.0), ("shadows_only", SOFT)])
+def test_culling_hidden_occluders_changes_no_pixel(preset, light_radius):
     # Transparent and opaque occluders, visible or only casting shadows, in narrow and wide views.
     # Masks drawn, not taken from the outline: culling leaves the mask draws without occluders.
-    settings = replace(RenderSettings.from_config(small_config(preset)), masks_from_outline=False)
+    settings = replace(RenderSettings.from_config(small_config(preset, light_radius=light_radius)),
+                       masks_from_outline=False)
     before = skipped(settings, "occluders_culled")
     painting = textured_painting(SMALL)
-    for cfg in (small_config(preset, **NARROW_VIEWS), small_config(preset, n_views=4, n_occluders=(2, 3))):
+    for cfg in (small_config(preset, light_radius=light_radius, **NARROW_VIEWS),
+                small_config(preset, light_radius=light_radius, n_views=4, n_occluders=(2, 3))):
         assert RenderSettings.from_config(cfg) == replace(settings, masks_from_outline=True)
         for seed in range(6):
             seq = sample_sequence(cfg, np.random.default_rng(seed))
