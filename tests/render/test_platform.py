@@ -170,9 +170,9 @@ def test_own_framebuffer_gives_the_pixels_of_osmesas_buffer(monkeypatch):
     # drawn upright, lit pixels round differently.
     sequences = [(sample_sequence(small_config(p), np.random.default_rng(s)), textured_painting(SMALL, s))
                  for p, s in SEQUENCES]
-    settings = {replace(RenderSettings.from_config(small_config(p)), antialias=1, highlight_spill=True)
+    settings = {replace(RenderSettings.from_config(small_config(p)), antialias=1, highlight_spill=True, light_radius=0.0)
                 for p, _ in SEQUENCES}
-    assert len(settings) == 1  # the presets' renderer, at one sample per pixel, spilling highlights
+    assert len(settings) == 1  # the presets' renderer, at one sample per pixel, spilling highlights, hard shadows
     ours, theirs = (SceneRenderer(*settings) for _ in range(2))
     theirs._gl._target = OSMesaOwnBuffer(*SMALL)
     for seq, painting in sequences:
