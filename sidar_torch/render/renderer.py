@@ -48,6 +48,7 @@ import os
 import weakref
 from collections import Counter
 from dataclasses import dataclass
+from typing import Hashable
 
 import numpy as np
 import pyrender
@@ -142,6 +143,7 @@ class SceneRenderer:
         self._shadows = ShadowMaps(self._gl, settings)
         self._painting: np.ndarray | None = None
         self._texture: pyrender.Texture | None = None
+        self._warmed_up: set[Hashable] = set()
 
     @property
     def program_count(self) -> int:
@@ -191,6 +193,31 @@ class SceneRenderer:
                                 np.stack(hidden) if self.settings.opacities else None,
                                 np.stack(shadow_masks) if self.settings.shadow_masks else None,
                                 np.stack(shadow_free) if self.settings.shadow_free else None)
+
+    def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
+        """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
+        its draws meet are compiled now rather than in the middle of a later sample
+        (``sidar_torch.warm_up`` builds a sequence that meets every variant of a config).
+
+        Nothing a later render reads is left changed: the GL objects it made (programs, meshes,
+        shadow maps) are reused as any earlier sample's are, and the painting's texture and the
+        shadow maps are keyed on their contents. :attr:`skipped` counts no warm-up work.
+
+        Args:
+            sequence: the scenes (``sequence.image_size`` must be this renderer's).
+            key: names what ``sequence`` warms up; a renderer already warmed up with ``key``
+                renders nothing.
+
+        Returns:
+            Whether it rendered (False: already warmed up with ``key``).
+        """
+        if key in self._warmed_up:
+            return False
+        skipped = self.skipped.copy()
+        self.render(sequence, np.full((*self.image_size, 3), 128, np.uint8))
+        self.skipped = skipped
+        self._warmed_up.add(key)
+        return True
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
