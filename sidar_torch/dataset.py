@@ -58,7 +58,7 @@ class SidarDataset(IterableDataset):
 
     Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
     created (every shader variant compiled, :meth:`warm_up`) at the first sample: each
-    DataLoader worker makes its own and reuses it.
+    DataLoader worker makes its own, or takes over its copy of the parent's, and reuses it.
 
     Sharding: the ``num_workers`` DataLoader workers of each of the ``world_size`` ranks split
     the indices into ``n = world_size * num_workers`` shards; worker ``w`` of rank ``r`` draws shard
@@ -190,7 +190,9 @@ class SidarDataset(IterableDataset):
     def warm_up(self) -> None:
         """Compile every shader variant this dataset's samples can need in this process's renderer
         now (``sidar_torch.warm_up``), which the first sample does otherwise; later calls return at
-        once."""
+        once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
+        too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
+        and compile nothing."""
         warm_renderer(self.config)
 
     def __iter__(self) -> Iterator[dict[str, Any]]:

@@ -20,7 +20,9 @@ its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
 
 :func:`warm_renderer`, which every sample is rendered through (``sample.render_arrays``), renders
 it once per renderer before the renderer's first sample (``SceneRenderer.warm_up``): it hands out no
-sample and changes no pixel of later samples (``tests/render/test_warm_up.py``).
+sample and changes no pixel of later samples (``tests/render/test_warm_up.py``). A forked DataLoader
+worker or render-pool process takes over its parent's renderer (``render.renderer.shared_renderer``):
+if the parent rendered, or called ``SidarDataset.warm_up``, the worker compiles nothing at all.
 """
 
 from __future__ import annotations
@@ -108,7 +110,8 @@ def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
 def warm_renderer(config: SidarConfig) -> SceneRenderer:
     """This process's renderer for ``config`` (``render.shared_renderer``), with every shader variant
     ``config``'s samples can need compiled: the first call for a renderer and config renders
-    :func:`warm_up_sequence` (``SceneRenderer.warm_up``), later ones return at once.
+    :func:`warm_up_sequence` (``SceneRenderer.warm_up``), later ones return at once; a forked
+    worker's renderer, taken over from its parent, comes warm if the parent's was.
 
     Raises:
         RuntimeError: no GL context can be opened (the message names the package to install).
