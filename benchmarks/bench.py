@@ -13,7 +13,8 @@ In one process and one run (torch on one thread, llvmpipe in the calling thread)
   batch per image; with a render pool (``num_workers=2``, when ``SidarAugment`` has one), the
   wall-clock throughput of the pool over the single-process one;
 * **workers**: steady-state sequences/s of the preset at 384x512 through a DataLoader with 1 and
-  2 workers (wall clock; see :func:`loader_rate`) and their ratio;
+  2 workers (wall clock; see :func:`loader_rate`) and their ratio, and where the first sample of the
+  fresh worker went (its start, its warm-up, the sample, the handover);
 * **targets**: each speed goal of :data:`TARGETS`, met or not, with its figure.
 
 The figures are printed as markdown (and written as JSON with ``--json PATH``); nothing is asserted.
@@ -155,9 +156,12 @@ def _wall_seconds(call: Callable[[], object]) -> float:
 
 
 class _Stamped(IterableDataset):
-    """Worker ``k`` of ``w``: a warm-up sample, then samples ``k, k + w, k + 2w, ...`` of ``dataset``
-    (endless), each with ``"worker"`` (``k``) and ``"done"`` (the worker's ``perf_counter`` when the
-    sample was made, seconds) added."""
+    """Worker ``k`` of ``w``: the dataset's worker warm-up (:meth:`SidarDataset.warm_up`, as its own
+    ``__iter__`` does), a warm-up sample, then samples ``k, k + w, k + 2w, ...`` of ``dataset``
+    (endless), each with ``"worker"`` (``k``), ``"done"`` (the worker's ``perf_counter`` when the
+    sample was made, seconds), ``"started"`` (when the worker began iterating) and ``"warmed"``
+    (when its warm-up ended) added. ``perf_counter`` is the system's monotonic clock on Linux, so
+    the stamps of all processes compare."""
 
     def __init__(self, dataset: SidarDataset):
         super().__init__()
@@ -166,19 +170,25 @@ class _Stamped(IterableDataset):
     def __iter__(self) -> Iterator[dict[str, Any]]:
         info = get_worker_info()
         k, w = (info.id, info.num_workers) if info is not None else (0, 1)
+        started = time.perf_counter()
+        self.dataset.warm_up()
+        warmed = time.perf_counter()
         for index in itertools.chain([_WARMUP_INDEX + k], itertools.count(k, w)):
-            yield {**self.dataset.sample(index), "worker": k, "done": time.perf_counter()}
+            yield {**self.dataset.sample(index), "worker": k, "done": time.perf_counter(), "started": started,
+                   "warmed": warmed}
 
 
-def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[float, float]:
+def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[float, dict[str, float]]:
     """Steady-state sequences/s through a DataLoader with ``workers`` (default start method) workers,
-    and the seconds from creating its iterator (which starts the workers) to the first sample.
+    and where the first sample's wall time went, from creating the loader's iterator (which starts
+    the workers): ``{"total", "start", "warm_up", "sample", "handover"}`` seconds (the first worker
+    starts iterating, its warm-up, its warm-up sample, the sample's way back to this process).
 
-    Each worker makes a warm-up sample (start-up, shaders), then ``per_worker`` measured samples
+    Each worker warms up and makes a warm-up sample, then ``per_worker`` measured samples
     (samples ``0 .. workers * per_worker - 1`` in all, round robin), stamping each with its clock.
     The rate is ``workers`` times the measured samples over the summed time each worker spent on
-    its share (warm-up stamp to last stamp: making, handing over, any wait for this process), so a
-    worker that drew cheaper samples does not inflate it.
+    its share (warm-up sample's stamp to last stamp: making, handing over, any wait for this
+    process), so a worker that drew cheaper samples does not inflate it.
     """
     begin = time.perf_counter()
     loader = iter(DataLoader(_Stamped(SidarDataset(config=config, seed=seed)), batch_size=None,
@@ -188,7 +198,10 @@ def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[
     for n in range(workers * (1 + per_worker)):  # in-order delivery: round robin over the workers
         sample = next(loader)
         if n == 0:
-            first = time.perf_counter() - begin
+            end = time.perf_counter()
+            first = {"total": end - begin, "start": sample["started"] - begin,
+                     "warm_up": sample["warmed"] - sample["started"], "sample": sample["done"] - sample["warmed"],
+                     "handover": end - sample["done"]}
         stamps[sample["worker"]].append(sample["done"])
         if n >= workers:
             indices.append(sample["index"])
@@ -217,7 +230,8 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
         log(f"DataLoader 1 and 2 workers: done ({time.perf_counter() - start:.0f} s)")
     loaders = {"preset": settings.presets[0], "size": size_label(settings.loader_size), "views": config.n_views,
                "samples_per_worker": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
-               "scaling": rates[2] / rates[1], "first_sample_s": measured[1][1]}
+               "scaling": rates[2] / rates[1], "first_sample_s": measured[1][1]["total"],
+               "first_sample": measured[1][1]}
     report = {"settings": asdict(settings), "machine": {"before": before, "after": machine()}, "views": rows,
               "augment": augment, "loaders": loaders, "seconds": time.perf_counter() - start}
     report["targets"] = targets(report)
@@ -294,6 +308,10 @@ def format_report(report: dict[str, Any]) -> str:
               "|---|---|---|---|---|---|---|",
               f"| {w['preset']} | {w['size']} | {w['views']} | {rates['1']:.2f} | {rates['2']:.2f} "
               f"| {w['scaling']:.2f}x | {w['first_sample_s']:.2f} |",
+              "", "First sample of the fresh worker (wall clock, s): " + ", ".join(
+                  f"{name} {w['first_sample'][key]:.3f}" for key, name in (
+                      ("start", "worker start"), ("warm_up", "warm-up"), ("sample", "sample"),
+                      ("handover", "handover"), ("total", "total"))) + ".",
               "", "## Targets (reported, never asserted)", "", "| target | measured | met |",
               "|---|---|---|"]
     verdict = {True: "met", False: "not met", None: "-"}

@@ -5,9 +5,10 @@ A *task* is everything image ``b`` of a call needs: its position, the entropy of
 ``(3, h, w)`` uint8. :func:`render_task` turns a task into :class:`~sidar_torch.sample.SampleArrays`;
 it is the only rendering path, whichever process runs it, so the pixels do not depend on the pool.
 
-:class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (created at its first
-task and reused), fed one task at a time through its own pipe: a process that finishes takes the
-next task, and results are put back in batch order.
+:class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
+parent's, or one created and warmed up at its first task, ``sidar_torch.warm_up``; then reused),
+fed one task at a time through its own pipe: a process that finishes takes the next task, and
+results are put back in batch order.
 
 A worker ends with its parent, whatever it is doing (rendering, waiting, or blocked sending a reply
 no one reads): right after the fork it calls :func:`sidar_torch.orphans.exit_with_parent` and lets
@@ -17,8 +18,9 @@ included, and any file of the parent's), see :mod:`sidar_torch.orphans`.
 Processes are forked (``fork`` start method): a worker starts in milliseconds, where ``spawn`` or
 ``forkserver`` pay about 2 s of imports each. This is safe after the parent rendered because
 ``sidar_torch.render`` sets ``LP_NUM_THREADS=0`` (llvmpipe keeps no threads that a child would
-miss) and disables Mesa's on-disk shader cache in the parent; a child disowns the parent's renderer
-and opens its own context (see :func:`sidar_torch.render.shared_renderer`).
+miss) and disables Mesa's on-disk shader cache in the parent; a child takes over its copy of the
+parent's renderer, with every shader variant the parent compiled (see
+:func:`sidar_torch.render.shared_renderer`).
 """
 
 from __future__ import annotations

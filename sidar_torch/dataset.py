@@ -21,6 +21,7 @@ from .render import preload
 from .sample import SampleArrays, render_arrays
 from .scene import SceneSequence, sample_sequence
 from .paintings import PaintingSource, make_source
+from .warm_up import warm_renderer
 
 __all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
@@ -56,7 +57,8 @@ class SidarDataset(IterableDataset):
     when each is present, are the table :data:`sidar_torch.sample.KEYS`.
 
     Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
-    created at the first sample: each DataLoader worker makes its own and reuses it.
+    created (every shader variant compiled, :meth:`warm_up`) at the first sample: each
+    DataLoader worker makes its own, or takes over its copy of the parent's, and reuses it.
 
     Sharding: the ``num_workers`` DataLoader workers of each of the ``world_size`` ranks split
     the indices into ``n = world_size * num_workers`` shards; worker ``w`` of rank ``r`` draws shard
@@ -184,6 +186,14 @@ class SidarDataset(IterableDataset):
         state = dict(self.__dict__)
         state["_pickled_rank"] = _process_group_rank() or state.get("_pickled_rank")
         return state
+
+    def warm_up(self) -> None:
+        """Compile every shader variant this dataset's samples can need in this process's renderer
+        now (``sidar_torch.warm_up``), which the first sample does otherwise; later calls return at
+        once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
+        too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
+        and compile nothing."""
+        warm_renderer(self.config)
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
         # indices() runs now, not at the first next(): the epoch is the one set before iter().

@@ -23,9 +23,9 @@ import torch
 from . import geometry
 from .effects import apply_effects, draw_effects
 from .config import SidarConfig
-from .render import RenderSettings, shared_renderer
 from .scene import SceneSequence
 from .timing import timed
+from .warm_up import warm_renderer
 
 __all__ = ["KEYS", "SampleArrays", "SampleKey", "render_arrays", "render_sample", "sequence_homographies",
            "stack_samples"]
@@ -235,7 +235,8 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     Args:
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer's settings (image size, shadow-map size and filter,
+        config: gives the renderer (this process's for its settings, warmed up for it before its
+            first sample: ``sidar_torch.warm_up``) and its settings (image size, shadow-map size and filter,
             ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``) and the view effects (:mod:`sidar_torch.effects`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
@@ -246,7 +247,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             when ``config`` switches an effect on (``ValueError`` otherwise).
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    rendered = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting, timings)
+    rendered = warm_renderer(config).render(sequence, painting, timings)
     views, shadow_free = rendered.views, rendered.shadow_free
     if effects is not None:
         with timed(timings, "effects"):

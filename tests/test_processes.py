@@ -68,6 +68,40 @@ def test_workers_yield_each_index_once_with_the_same_content(context, num_worker
     assert dict(drawn) == {i: sample_digest(ds.sample(i)) for i in range(7)}
 
 
+class _RendererOfEachSample(torch.utils.data.IterableDataset):
+    """Samples ``0 .. length - 1`` of ``dataset`` (sharded over the workers), each with the ``id`` of
+    the renderer that drew it and the programs that renderer had built before and after it."""
+
+    def __init__(self, dataset, length):
+        self.dataset, self.length = dataset, length
+
+    def __iter__(self):
+        from sidar_torch.render import RenderSettings, shared_renderer
+
+        info = torch.utils.data.get_worker_info()
+        renderer = shared_renderer(RenderSettings.from_config(self.dataset.config))
+        for index in range(info.id, self.length, info.num_workers):
+            before = renderer.program_count
+            digest = sample_digest(self.dataset.sample(index))
+            yield index, digest, id(renderer), before, renderer.program_count
+
+
+def test_forked_workers_take_over_the_warm_renderer_of_their_parent_and_compile_nothing():
+    from sidar_torch.render import RenderSettings, shared_renderer
+
+    ds = SidarDataset(config=small_config(n_views=2, n_occluders=(2, 3)), seed=5)
+    ds.warm_up()
+    parent = shared_renderer(RenderSettings.from_config(ds.config))
+    loader = DataLoader(_RendererOfEachSample(ds, 4), batch_size=None, num_workers=2, multiprocessing_context="fork",
+                        timeout=WAIT)
+    drawn = list(loader)
+    assert sorted(index for index, *_ in drawn) == [0, 1, 2, 3]
+    for index, digest, renderer, before, after in drawn:
+        assert renderer == id(parent), "the worker made a renderer of its own"
+        assert before == after == parent.program_count, f"sample {index} compiled in the worker"
+        assert digest == sample_digest(ds.sample(index))
+
+
 def _note_worker_start(path, worker_id):
     with open(path, "a") as log:
         log.write(f"{worker_id} {os.getpid()}\n")

@@ -2,7 +2,8 @@
 
 :class:`SceneRenderer` owns one offscreen GL context and everything uploaded to it (shader
 programs, meshes, shadow maps, the current painting's texture) and reuses them for every
-sample. Create it in the process that uses it (a DataLoader worker creates its own).
+sample. Create it in the process that uses it (a forked DataLoader worker takes over its parent's
+shared renderers, or creates its own; see :func:`shared_renderer`).
 
 Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry``):
 
@@ -48,6 +49,7 @@ import os
 import weakref
 from collections import Counter
 from dataclasses import dataclass
+from typing import Hashable
 
 import numpy as np
 import pyrender
@@ -57,7 +59,7 @@ from pyrender.constants import RenderFlags
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
 from .pyrender_overrides import GLRenderer, add_node
-from .context import open_context
+from .context import GL_PLATFORM, open_context
 from .framebuffer import size_limits
 from .meshes import MeshPool, mesh_level, plane_mesh
 from .mirror import PaintingMirror
@@ -143,6 +145,7 @@ class SceneRenderer:
         self._shadows = ShadowMaps(self._gl, settings)
         self._painting: np.ndarray | None = None
         self._texture: pyrender.Texture | None = None
+        self._warmed_up: set[Hashable] = set()
 
     @property
     def program_count(self) -> int:
@@ -193,13 +196,38 @@ class SceneRenderer:
                                 np.stack(shadow_masks) if self.settings.shadow_masks else None,
                                 np.stack(shadow_free) if self.settings.shadow_free else None)
 
+    def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
+        """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
+        its draws meet are compiled now rather than in the middle of a later sample
+        (``sidar_torch.warm_up`` builds a sequence that meets every variant of a config).
+
+        Nothing a later render reads is left changed: the GL objects it made (programs, meshes,
+        shadow maps) are reused as any earlier sample's are, and the painting's texture and the
+        shadow maps are keyed on their contents. :attr:`skipped` counts no warm-up work.
+
+        Args:
+            sequence: the scenes (``sequence.image_size`` must be this renderer's).
+            key: names what ``sequence`` warms up; a renderer already warmed up with ``key``
+                renders nothing.
+
+        Returns:
+            Whether it rendered (False: already warmed up with ``key``).
+        """
+        if key in self._warmed_up:
+            return False
+        skipped = self.skipped.copy()
+        self.render(sequence, np.full((*self.image_size, 3), 128, np.uint8))
+        self.skipped = skipped
+        self._warmed_up.add(key)
+        return True
+
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
         self._release()
 
     def disown(self) -> None:
         """Retire this renderer without touching its context: for a forked child holding a copy of
-        its parent's renderer, whose GL state it must neither use nor free.
+        its parent's renderer, whose GL state it must neither use nor free (see :func:`shared_renderer`).
 
         The renderer is kept alive for the rest of the process: the inherited context may still
         be current, and freeing its pixel buffer (or letting pyrender's ``Platform.__del__``
@@ -310,15 +338,32 @@ _DISOWNED: list[SceneRenderer] = []
 """Renderers inherited from a parent process, kept alive and unused (see ``SceneRenderer.disown``)."""
 
 
+def _inherited_contexts_usable() -> bool:
+    """Whether a forked child may go on using the GL contexts it inherited: on OSMesa with llvmpipe
+    rasterising in the calling thread (``LP_NUM_THREADS=0``, see ``sidar_torch.render``), a context
+    is plain process memory (no thread, no device file), which the fork copied whole, compiled
+    shader variants included. Elsewhere (EGL, a GPU driver, llvmpipe threads) it is not."""
+    return GL_PLATFORM == "osmesa" and os.environ.get("LP_NUM_THREADS") == "0"
+
+
 def shared_renderer(settings: RenderSettings) -> SceneRenderer:
     """This process's renderer for ``settings``, created at first use and then reused.
 
-    A forked child (a DataLoader worker) inherits its parent's renderers; it disowns them
-    without touching their GL state and creates its own.
+    A forked child (a DataLoader worker, a render-pool process) inherits its parent's renderers. On
+    OSMesa without llvmpipe threads it takes them over: each is its own copy of the parent's, GL
+    state and compiled shader variants included, so the child compiles only variants its parent
+    never drew (``sidar_torch.warm_up`` compiles every one a config needs) and renders the same
+    pixels (``tests/test_processes.py``). Elsewhere it disowns them without touching their GL state
+    and creates its own.
     """
     pid = os.getpid()
+    adopt = _inherited_contexts_usable()
     for key in [k for k in _SHARED if k[0] != pid]:
-        _SHARED.pop(key).disown()
+        renderer = _SHARED.pop(key)
+        if adopt:
+            _SHARED[(pid, key[1])] = renderer
+        else:
+            renderer.disown()
     key = (pid, settings)
     if key not in _SHARED:
         _SHARED[key] = SceneRenderer(settings)

@@ -30,6 +30,9 @@ def test_report_structure_and_consistency(report):
     w = report["loaders"]
     assert w["scaling"] == pytest.approx(w["sequences_per_s"]["2"] / w["sequences_per_s"]["1"]) and w["scaling"] > 0
     assert 0 < w["first_sample_s"] < report["seconds"]
+    first = w["first_sample"]  # where the first sample went adds up to it
+    assert first["total"] == w["first_sample_s"] and min(first.values()) >= 0
+    assert first["start"] + first["warm_up"] + first["sample"] + first["handover"] == pytest.approx(first["total"])
     m = report["machine"]["before"]
     assert m["cpus"] >= 1 and m["load"] >= 0 and report["seconds"] > 0
 
@@ -74,6 +77,7 @@ def test_format_report_prints_every_table_and_verdict(report):
     text = bench.format_report(report)
     assert "| misaligned | 48x64 | 2 |" in text and "size (H x W)" in text
     assert text.count("| - |") >= 5 and "## Targets" in text and "load average" in text
+    assert "First sample of the fresh worker (wall clock, s): worker start " in text
 
 
 def test_settings_reject_bad_values():

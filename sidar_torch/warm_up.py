@@ -1,0 +1,121 @@
+"""Warming a renderer up: every shader variant a config can need, compiled before its first sample.
+
+llvmpipe compiles a fragment-shader variant the first time a program is drawn with a new
+combination of GL state (program defines, blending, bound texture layout, draw buffers,
+multisampling): 0.1-0.3 s each with a cold cache, about 1.3 s in all for the first ``misaligned``
+sample at 384x512, against 0.25 s for the sample itself. Samples meet the variants in whatever
+order their scenes bring them (a transparent caster, a glass occluder, a view whose lights shade
+nothing), so without a warm-up a later sample now and then pays a compile in the middle of a stream.
+
+:func:`warm_up_sequence` builds, from a config, one small sequence whose views meet every variant
+that config's samples can draw: view 0's camera, lights and painting material of a sample of the
+config, and small spheres above the painting's centre, one per distinct variant of the materials
+its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
+
+1. a view with every occluder (shadowed lights, transmittance maps if a caster transmits, every
+   mirror variant),
+2. a view with the occluders whose shadows are opaque (shadowed lights without transmittance),
+3. the first view without its lights (every occluder drawn with the unshadowed programs),
+4. a view without occluders (the painting's unshadowed program).
+
+:func:`warm_renderer`, which every sample is rendered through (``sample.render_arrays``), renders
+it once per renderer before the renderer's first sample (``SceneRenderer.warm_up``): it hands out no
+sample and changes no pixel of later samples (``tests/render/test_warm_up.py``). A forked DataLoader
+worker or render-pool process takes over its parent's renderer (``render.renderer.shared_renderer``):
+if the parent rendered, or called ``SidarDataset.warm_up``, the worker compiles nothing at all.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import replace
+from typing import TYPE_CHECKING, Hashable
+
+import numpy as np
+
+from .config import SidarConfig
+from .render import shared_renderer
+from .render.settings import RenderSettings
+from .scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
+
+if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
+    from .render import SceneRenderer
+
+__all__ = ["WARM_UP_SEED", "variant_signature", "warm_renderer", "warm_up_sequence"]
+
+WARM_UP_SEED = 0x5EED
+"""Seed of the generator that draws the warm-up scene (any fixed value: the scene is never handed out)."""
+
+_DRAWS_PER_KIND = 8
+"""Materials drawn per kind when collecting variants, so that a kind whose draws can land in
+different variants shows each with high odds (today every kind's draws share one, but for
+draws of probability 0: a ``principled`` material without any specular layer, a glass of index 1)."""
+
+_HEIGHT, _RADIUS, _SPACING = 0.1, 0.03, 0.08
+"""The spheres: centre height above the painting, radius and spacing along x (painting units; the
+painting's shorter side is 1), so that each is seen by view 0 and shadows the painting under it."""
+
+
+def variant_signature(material: Material) -> tuple[str | None, bool, bool]:
+    """What of an occluder's ``material`` picks its shader variants: its mirror define
+    (``render.mirror.mirror_define``), whether it is blended (transparent), and whether its shadow
+    goes to the depth maps (opaque, or ``opaque_shadow``) rather than the transmittance maps."""
+    from .render.mirror import mirror_define  # imports pyrender: at the first warm-up, not with the package
+
+    return mirror_define(material), material.transparent, not material.transparent or material.opaque_shadow
+
+
+def _variant_materials(config: SidarConfig, rng: np.random.Generator) -> list[Material]:
+    """One material per distinct :func:`variant_signature` among draws of ``config.occluder_materials``."""
+    found: dict[tuple, Material] = {}
+    for kind in config.occluder_materials:
+        for _ in range(_DRAWS_PER_KIND):
+            material = MATERIAL_KINDS[kind](rng, config)
+            found.setdefault(variant_signature(material), material)
+    return [found[key] for key in sorted(found, key=repr)]
+
+
+def warm_up_sequence(config: SidarConfig) -> SceneSequence:
+    """The warm-up scenes of ``config`` (see the module docstring), at ``config.image_size``.
+
+    Their lights are those of the first of up to 64 samples of the config (seed :data:`WARM_UP_SEED`)
+    whose view 0 has a light, so that the shadowed variants are met whenever the config can draw a
+    light; with ``n_lights = (0, 0)`` the views have none, and with ``n_occluders = (0, 0)`` no
+    occluder.
+    """
+    rng = np.random.default_rng(WARM_UP_SEED)
+    for _ in range(64):
+        first = sample_sequence(config, rng).views[0]
+        if first.lights or config.n_lights[1] == 0:
+            break
+    materials = _variant_materials(config, rng) if config.n_occluders[1] > 0 else []
+    x = (np.arange(len(materials)) - (len(materials) - 1) / 2) * _SPACING
+    spheres = tuple(Occluder("sphere", np.array([xk, 0.0, _HEIGHT]), np.eye(3), np.full(3, _RADIUS), material)
+                    for xk, material in zip(x, materials))
+    opaque = tuple(o for o in spheres if variant_signature(o.material)[2])
+    views = (replace(first, occluders=spheres), replace(first, occluders=opaque),
+             replace(first, occluders=spheres, lights=()), replace(first, occluders=()))
+    return SceneSequence(tuple(config.image_size), views)
+
+
+@functools.lru_cache(maxsize=32)
+def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
+    """:func:`warm_up_sequence` of ``config`` and what it warms up: whether it has lights, and the
+    :func:`variant_signature` s of its occluders (configs that agree on these need one warm-up)."""
+    sequence = warm_up_sequence(config)
+    signatures = sorted({variant_signature(o.material) for v in sequence.views for o in v.occluders}, key=repr)
+    return sequence, (bool(sequence.views[0].lights), *signatures)
+
+
+def warm_renderer(config: SidarConfig) -> SceneRenderer:
+    """This process's renderer for ``config`` (``render.shared_renderer``), with every shader variant
+    ``config``'s samples can need compiled: the first call for a renderer and config renders
+    :func:`warm_up_sequence` (``SceneRenderer.warm_up``), later ones return at once; a forked
+    worker's renderer, taken over from its parent, comes warm if the parent's was.
+
+    Raises:
+        RuntimeError: no GL context can be opened (the message names the package to install).
+    """
+    renderer = shared_renderer(RenderSettings.from_config(config))
+    renderer.warm_up(*_scenes_and_key(config))
+    return renderer

@@ -1,0 +1,73 @@
+"""The warm-up (``sidar_torch.warm_up``): every program a preset's samples draw is compiled before
+the first sample, and warming up hands out nothing and changes no pixel."""
+
+import numpy as np
+import pytest
+
+from sidar_torch import SidarDataset, available_presets, load_config
+from sidar_torch.render import RenderSettings, SceneRenderer
+from sidar_torch.scene import sample_sequence
+from sidar_torch.warm_up import variant_signature, warm_up_sequence
+
+from conftest import small_config, textured_painting
+
+pytestmark = pytest.mark.gl  # renders
+
+
+def painting_of(dataset, index):
+    return dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
+
+
+@pytest.mark.parametrize("preset", available_presets())
+def test_after_the_warm_up_no_sample_of_a_preset_compiles_a_program(preset):
+    # Without the warm-up, samples 1 and 3 of aligned (and 1 of misaligned, paper_aligned) each add
+    # programs to the 13 the first sample compiles.
+    config = load_config(preset, image_size=(48, 64))
+    renderer = SceneRenderer(RenderSettings.from_config(config))
+    try:
+        assert renderer.warm_up(warm_up_sequence(config), "all variants")
+        compiled = renderer.program_count
+        dataset = SidarDataset(config=config, seed=0)
+        for index in range(24):
+            renderer.render(dataset.scene(index), painting_of(dataset, index))
+            assert renderer.program_count == compiled, f"sample {index} compiled a program"
+    finally:
+        renderer.close()
+
+
+def test_the_warm_up_meets_every_variant_of_the_configs_materials():
+    config = small_config("paper_misaligned")
+    sequence = warm_up_sequence(config)
+    assert sequence.image_size == config.image_size
+    everything, opaque, unlit, empty = sequence.views
+    drawn = {variant_signature(o.material) for o in everything.occluders}
+    rng = np.random.default_rng(1)
+    for _ in range(20):  # what samples draw is among the warm-up's variants
+        for view in sample_sequence(config, rng).views:
+            assert {variant_signature(o.material) for o in view.occluders} <= drawn
+    assert len(drawn) == len(everything.occluders) >= 3
+    assert all(variant_signature(o.material)[2] for o in opaque.occluders) and len(opaque.occluders) < len(drawn)
+    assert everything.lights and not unlit.lights and unlit.occluders == everything.occluders
+    assert not empty.occluders
+
+
+def test_the_warm_up_hands_out_nothing_and_changes_no_pixel():
+    config = small_config("misaligned", shadow_free_output=True, opacity_output=True, shadow_mask_output=True)
+    settings = RenderSettings.from_config(config)
+    sequence = sample_sequence(config, np.random.default_rng(3))
+    painting = textured_painting(config.image_size)
+    cold, warm = SceneRenderer(settings), SceneRenderer(settings)
+    try:
+        expected = cold.render(sequence, painting)
+        assert warm.warm_up(warm_up_sequence(config), "key")
+        assert not warm.skipped  # the warm-up's work is counted nowhere
+        assert not warm.warm_up(warm_up_sequence(config), "key")  # once per key
+        got = warm.render(sequence, painting)
+        for name in ("views", "masks", "label", "background", "opacities", "shadow_masks", "shadow_free"):
+            a, b = getattr(expected, name), getattr(got, name)
+            assert np.array_equal(a, b), f"{name}: {int((a != b).sum())} values differ"
+        assert warm.skipped == cold.skipped
+        assert warm.program_count > cold.program_count  # it compiled variants this sample does not meet
+    finally:
+        cold.close()
+        warm.close()
