@@ -44,6 +44,12 @@ BLACK = 5
 LUMA = np.array([0.2126, 0.7152, 0.0722])
 """Rec. 709 luma weights for R, G, B."""
 
+CLIPPED, STILL_COLOURED, MIN_CLIPPED = 254, 200, 100
+"""A painting pixel is *clipped* when a channel is at least ``CLIPPED``, and a clipped one is still
+coloured when another channel is below ``STILL_COLOURED`` (an over-exposure clipped per channel, as
+Blender's Standard view transform does, where a spill into white would have whitened it); a view
+needs ``MIN_CLIPPED`` clipped pixels for a figure."""
+
 
 @dataclass(frozen=True)
 class ViewExposure:
@@ -56,6 +62,8 @@ class ViewExposure:
         histogram: ``(V, bins)`` luma histogram of the painting pixels over 0..256, each row summing
             to 1.
         painting: ``(V,)`` number of painting pixels; a view with none has NaN statistics.
+        clipped_coloured: ``(V,)`` fraction of the clipped painting pixels that are still coloured
+            (:data:`CLIPPED`; NaN with fewer than :data:`MIN_CLIPPED` clipped pixels).
     """
 
     white: np.ndarray
@@ -63,6 +71,7 @@ class ViewExposure:
     median: np.ndarray
     histogram: np.ndarray
     painting: np.ndarray
+    clipped_coloured: np.ndarray
 
 
 def view_exposure(views: np.ndarray, masks: np.ndarray, bins: int = 16) -> ViewExposure:
@@ -80,14 +89,18 @@ def view_exposure(views: np.ndarray, masks: np.ndarray, bins: int = 16) -> ViewE
         raise ValueError(f"masks: expected shape {views.shape[:3]}, got {masks.shape}")
     rows = []
     for view, mask in zip(views, masks):
-        luma = (view.astype(np.float64) @ LUMA)[~mask]
+        pixels = view[~mask]
+        luma = pixels.astype(np.float64) @ LUMA
         if luma.size == 0:
-            rows.append((np.nan, np.nan, np.nan, np.full(bins, np.nan), 0))
+            rows.append((np.nan, np.nan, np.nan, np.full(bins, np.nan), 0, np.nan))
             continue
         histogram = np.histogram(luma, bins=bins, range=(0, 256))[0] / luma.size
-        rows.append(((luma >= WHITE).mean(), (luma <= BLACK).mean(), np.median(luma), histogram, luma.size))
-    white, black, median, histogram, painting = zip(*rows)
-    return ViewExposure(np.array(white), np.array(black), np.array(median), np.stack(histogram), np.array(painting))
+        clipped = pixels.max(axis=1) >= CLIPPED
+        coloured = (pixels[clipped].min(axis=1) < STILL_COLOURED).mean() if clipped.sum() >= MIN_CLIPPED else np.nan
+        rows.append(((luma >= WHITE).mean(), (luma <= BLACK).mean(), np.median(luma), histogram, luma.size, coloured))
+    white, black, median, histogram, painting, coloured = zip(*rows)
+    return ViewExposure(np.array(white), np.array(black), np.array(median), np.stack(histogram), np.array(painting),
+                        np.array(coloured))
 
 
 def anchor_sheet(path: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

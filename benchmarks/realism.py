@@ -32,6 +32,9 @@ Definitions (every threshold is a named constant below):
   ``WHITE``) or with a dark albedo (below :data:`MIN_ALBEDO`) are not judged. Spot-cone edges and
   specular washes also fall below the level, so the estimate is compared only with the estimate;
   ours by both methods shows how far the estimate is from the truth (``docs/realism.md``).
+* *clipped pixels still coloured*: of a view's painting pixels with a channel at ``exposure.CLIPPED``
+  or more, the fraction with another channel below ``exposure.STILL_COLOURED`` (how over-exposure is
+  clipped: per channel keeps colour, a spill into white does not).
 * *occluder coverage*: fraction of the painting region covered by the mask.
 * *occluders per view*: ours from the scene: occluders whose bounding sphere, projected into the view,
   overlaps the painting region; ours and Blender's from the mask: 8-connected components of the mask
@@ -65,7 +68,7 @@ from PIL import Image
 from scipy import ndimage
 
 from benchmarks.common import parse_set
-from benchmarks.exposure import LUMA, WHITE, view_exposure
+from benchmarks.exposure import CLIPPED, LUMA, STILL_COLOURED, WHITE, view_exposure
 from benchmarks.matcher import SUCCESS_PX, MatcherStats, matcher_stats
 
 DARK_MEDIAN = 50
@@ -323,6 +326,7 @@ class ViewStats:
     median_luma: np.ndarray
     near_white: np.ndarray
     near_black: np.ndarray
+    clipped_coloured: np.ndarray
     shadow_exact: np.ndarray
     shadow_estimated: np.ndarray
     shadow_estimated_twin: np.ndarray
@@ -367,7 +371,7 @@ def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: 
         components.append(occluder_components(mask, region))
         sharpness.append(edge_sharpness(view, mask, region))
         saturation.append(occluder_saturation(view, mask, region))
-    return ViewStats(exposure.median, exposure.white, exposure.black, *np.array(shadows).T,
+    return ViewStats(exposure.median, exposure.white, exposure.black, exposure.clipped_coloured, *np.array(shadows).T,
                      np.array(coverage), nan if occluders_scene is None else np.asarray(occluders_scene, float),
                      np.array(components, float), np.array(sharpness), np.array(saturation))
 
@@ -576,6 +580,8 @@ STATISTICS: list[tuple[str, Callable[[ViewStats], Figure], Callable[[ViewStats],
     (f"dark views (median luma < {DARK_MEDIAN})", lambda s: of_views(s.median_luma < DARK_MEDIAN), None),
     (f"blown-out views (near-white > {BLOWN_VIEW:.0%})", lambda s: of_views(s.near_white > BLOWN_VIEW), None),
     (f"mostly black views (near-black > {BLACK_VIEW:.0%})", lambda s: of_views(s.near_black > BLACK_VIEW), None),
+    (f"clipped pixels still coloured (a channel >= {CLIPPED}, another < {STILL_COLOURED})",
+     lambda s: per_view(s.clipped_coloured), None),
     ("cast-shadow fraction (estimated from view / label)", lambda s: per_view(s.shadow_estimated), None),
     ("cast-shadow fraction (ours exact: vs shadows=False)", lambda s: per_view(s.shadow_exact),
      lambda s: per_view(s.shadow_estimated)),
