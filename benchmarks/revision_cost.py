@@ -9,7 +9,9 @@ shaders) and then samples ``0 .. N - 1`` of ``SidarDataset(config=P at HxW, seed
 in the process's CPU time (one thread: ``common.one_thread``, llvmpipe in the calling thread). Printed:
 per tree and round the median per view and the total, then per tree the median of its rounds' totals
 and the ratio ``B / A``. A tree is any folder holding a checkout, e.g. ``git worktree add --detach
-/tmp/before HEAD~3``.
+/tmp/before HEAD~3``. ``--env-a``/``--env-b NAME=VALUE`` set an environment variable in one side's
+processes only, so one tree can be compared with itself under two settings of the environment
+(e.g. PyOpenGL's ``PYOPENGL_USE_ACCELERATE=0``).
 
     python -m benchmarks.revision_cost --trees /tmp/before . --config paper_misaligned --samples 16 --rounds 3
 """
@@ -18,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -55,14 +58,26 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW", help="image size (default 384x512)")
     parser.add_argument("--samples", type=int, default=16, help="measured samples per process (default 16)")
     parser.add_argument("--rounds", type=int, default=3, help="processes per tree, alternated (default 3)")
+    for side in "ab":
+        parser.add_argument(f"--env-{side}", action="append", type=_assignment, default=[], metavar="NAME=VALUE",
+                            help=f"an environment variable for tree {side.upper()}'s processes only (repeatable)")
     return parser
 
 
-def measure(tree: Path, preset: str, size: tuple[int, int], samples: int) -> tuple[int, list[float]]:
+def _assignment(text: str) -> tuple[str, str]:
+    """``NAME=VALUE`` as ``(NAME, VALUE)``."""
+    name, sep, value = text.partition("=")
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    return name, value
+
+
+def measure(tree: Path, preset: str, size: tuple[int, int], samples: int,
+            env: dict[str, str] | None = None) -> tuple[int, list[float]]:
     """Views per sample and the CPU seconds of each of ``samples`` samples, measured by a fresh process
-    importing ``sidar_torch`` from ``tree``."""
+    importing ``sidar_torch`` from ``tree`` (with ``env`` added to this process's environment)."""
     result = subprocess.run([sys.executable, "-c", _CHILD, str(tree), preset, json.dumps(size), str(samples)],
-                            capture_output=True, text=True, check=False)
+                            capture_output=True, text=True, check=False, env={**os.environ, **(env or {})})
     if result.returncode != 0:
         raise SystemExit(f"revision_cost: the process for {tree} failed:\n{result.stderr[-2000:]}")
     out = json.loads(result.stdout.strip().splitlines()[-1])
@@ -77,16 +92,18 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit(f"revision_cost: --trees: {tree} holds no sidar_torch package")
     if args.samples < 1 or args.rounds < 1:
         raise SystemExit("revision_cost: --samples and --rounds must be at least 1")
+    envs = [dict(args.env_a), dict(args.env_b)]
     before = machine()
-    totals: dict[Path, list[float]] = {tree: [] for tree in trees}
+    totals: list[list[float]] = [[], []]
     print(f"{args.config} at {size_label(args.size)}, {args.samples} samples per process, {args.rounds} rounds")
     for round_ in range(args.rounds):
-        for tree in trees:
-            views, seconds = measure(tree, args.config, args.size, args.samples)
-            totals[tree].append(sum(seconds))
-            print(f"round {round_ + 1} {tree}: median {1e3 * median(seconds) / views:.2f} ms/view, "
+        for side, (tree, env) in enumerate(zip(trees, envs)):
+            views, seconds = measure(tree, args.config, args.size, args.samples, env)
+            totals[side].append(sum(seconds))
+            setting = "".join(f" {name}={value}" for name, value in env.items())
+            print(f"round {round_ + 1} {'AB'[side]} {tree}{setting}: median {1e3 * median(seconds) / views:.2f} ms/view, "
                   f"total {sum(seconds):.2f} s")
-    a, b = (median(totals[tree]) for tree in trees)
+    a, b = (median(side) for side in totals)
     print(f"median total: A {a:.2f} s, B {b:.2f} s; B / A = {b / a:.3f}")
     print(machine_line(before, machine()))
 

@@ -125,11 +125,18 @@ def look_at(position: np.ndarray, target: np.ndarray | None = None) -> tuple[np.
     target = np.zeros(3) if target is None else np.asarray(target, dtype=np.float64)
     z = target - position
     z /= np.linalg.norm(z)
-    x = np.cross(z, WORLD_UP)
+    x = _cross(z, WORLD_UP)
     x /= np.linalg.norm(x)
-    y = np.cross(z, x)
+    y = _cross(z, x)
     rotation = np.stack([x, y, z])
     return rotation, -rotation @ position
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of two ``(3,)`` float64 vectors, bit for bit (the same products and
+    differences, in Python floats): a quarter of its cost, which is mostly its axis handling."""
+    (a0, a1, a2), (b0, b1, b2) = a.tolist(), b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def reference_camera(image_size: tuple[int, int], distance: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

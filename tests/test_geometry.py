@@ -72,3 +72,17 @@ def test_a_non_finite_fit_raises_naming_kornia(monkeypatch):
                         lambda *args, **kwargs: real(*args, **kwargs) * float("nan"))
     with pytest.raises(RuntimeError, match=r"kornia .* needs kornia >= 0.9"):
         geometry.homographies_from_points(points)
+
+
+def test_look_at_matches_numpys_cross_bit_for_bit(rng):
+    # look_at's cross products (geometry._cross) are np.cross's: the same poses, so the same pixels.
+    for scale in (1e-3, 1.0, 1e3):
+        for _ in range(2000):
+            a, b = rng.normal(size=3) * scale, rng.normal(size=3)
+            assert geometry._cross(a, b).tobytes() == np.cross(a, b).tobytes()
+    position = np.array([0.3, -0.2, 1.7])
+    z = -position / np.linalg.norm(position)
+    x = np.cross(z, geometry.WORLD_UP)
+    x /= np.linalg.norm(x)
+    R, t = geometry.look_at(position)
+    assert R.tobytes() == np.stack([x, np.cross(z, x), z]).tobytes() and t.tobytes() == (-R @ position).tobytes()

@@ -6,6 +6,8 @@ Kornia pixels) meet OpenGL's (y up, looking along -z, pixel centres at +0.5).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pyrender
 from OpenGL import GL
@@ -16,7 +18,7 @@ from .pyrender_overrides import add_node
 from .mirror import SurfaceMaterial, mirror_define
 from .shader_patches import surface_factors
 
-__all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene",
+__all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "FlatScene", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene",
            "transmission_factors"]
 
 GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -32,6 +34,50 @@ PAINTING_SAMPLERS = {  # keys: render_choices.TEXTURE_FILTERS
 """The painting's texture filters (``RenderSettings.texture_filter``): trilinear blends mipmap levels
 where a view shrinks the painting; bilinear reads the full-size texture only (aliases there).
 Clamping keeps texels of the opposite edge out of the border pixels."""
+
+
+class FlatScene(pyrender.Scene):
+    """A pyrender scene of one draw, whose nodes all hang from its root: each node's world pose and
+    the scene's scale are computed once, as pyrender computes them.
+
+    pyrender recomputes a pose from the scene graph at every ``get_pose`` (about 70 per view, for
+    the shadow cameras, the uniforms and sorting) and the scale from the bounds at every shadow
+    camera. Here a pose is kept while the node keeps its matrix (setting ``node.matrix`` or
+    ``set_pose`` gives it a new one) and is in the scene, and is handed out read-only: a caller that
+    changed it in place would raise rather than move the node for every later caller.
+    """
+
+    def __init__(self, **kwargs: Any):
+        super().__init__(**kwargs)
+        self._poses: dict[pyrender.Node, tuple[np.ndarray, np.ndarray]] = {}  # node -> (its matrix, pose)
+        self._scale_of: tuple[np.ndarray, float] | None = None  # (the bounds it was computed from, scale)
+
+    def add_node(self, node: pyrender.Node, parent_node: pyrender.Node | None = None) -> None:
+        if parent_node is not None:
+            raise ValueError("FlatScene.add_node: every node hangs from the root; got a parent_node")
+        super().add_node(node)
+
+    def get_pose(self, node: pyrender.Node) -> np.ndarray:
+        """``(4, 4)`` float64 world pose of ``node`` (read-only; pyrender's value)."""
+        matrix, pose = self._poses.get(node, (None, None))
+        if matrix is None or matrix is not node._matrix:  # pyrender's _matrix: None until derived
+            pose = super().get_pose(node)
+            pose.flags.writeable = False
+            self._poses[node] = (node._matrix, pose)
+        return pose
+
+    def remove_node(self, node: pyrender.Node) -> None:
+        self._poses.pop(node, None)
+        super().remove_node(node)
+
+    @property
+    def scale(self) -> float:
+        """The length of the diagonal of the scene's bounding box (pyrender's), kept until the
+        bounds change (pyrender drops them when a node is added or removed)."""
+        bounds = self.bounds
+        if self._scale_of is None or self._scale_of[0] is not bounds:
+            self._scale_of = (bounds, pyrender.Scene.scale.fget(self))
+        return self._scale_of[1]
 
 
 def gl_camera(camera: Camera, znear: float, zfar: float) -> tuple[pyrender.IntrinsicsCamera, np.ndarray]:
@@ -124,7 +170,7 @@ def new_scene(camera: Camera, ambient: float, painting: pyrender.Mesh, material:
     ``texture``, ambient light ``ambient`` and ``camera``; returns it and the painting's node.
     Occluders and lights are added by the caller."""
     # Alpha 0 where nothing is drawn: ``RenderedSequence.background``.
-    scene = pyrender.Scene(bg_color=(0.0, 0.0, 0.0, 0.0), ambient_light=np.full(3, ambient))
+    scene = FlatScene(bg_color=(0.0, 0.0, 0.0, 0.0), ambient_light=np.full(3, ambient))
     painting.primitives[0].material = gl_material(material, texture)
     plane = add_node(scene, mesh=painting)
     gl_cam, pose = gl_camera(camera, *clip_range(camera, image_size))

@@ -69,7 +69,22 @@ def test_revision_cost_runs_each_tree_in_its_own_process_and_prints_the_ratio(ca
     root = str(Path(revision_cost.__file__).resolve().parents[1])
     revision_cost.main(["--trees", root, root, "--size", "24x32", "--samples", "1", "--rounds", "1"])
     out = capsys.readouterr().out.splitlines()
-    assert out[1].startswith(f"round 1 {root}: median") and out[2].startswith(f"round 1 {root}: median")
+    assert out[1].startswith(f"round 1 A {root}: median") and out[2].startswith(f"round 1 B {root}: median")
     assert out[3].startswith("median total: A ") and "B / A = " in out[3]
     with pytest.raises(SystemExit, match="holds no sidar_torch package"):
         revision_cost.main(["--trees", root, str(tmp_path)])
+
+
+def test_revision_cost_sets_a_sides_environment_in_its_processes_only(capsys):
+    from pathlib import Path
+
+    from benchmarks import revision_cost
+
+    root = str(Path(revision_cost.__file__).resolve().parents[1])
+    common = ["--trees", root, root, "--size", "24x32", "--samples", "1", "--rounds", "1"]
+    revision_cost.main([*common, "--env-b", "PYOPENGL_ERROR_CHECKING=0"])
+    assert capsys.readouterr().out.splitlines()[2].startswith(f"round 1 B {root} PYOPENGL_ERROR_CHECKING=0: median")
+    with pytest.raises(SystemExit, match="the process for"):  # a platform PyOpenGL has not: B's process fails
+        revision_cost.main([*common, "--env-b", "PYOPENGL_PLATFORM=no-such-platform"])
+    with pytest.raises(SystemExit):
+        revision_cost.main([*common, "--env-a", "NO_EQUALS_SIGN"])
