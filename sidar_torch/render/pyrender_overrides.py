@@ -34,6 +34,7 @@ from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
 from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps, vertex_defines
+from .uniforms import set_uniform_array
 from .visibility import bounds_corners, map_texel_box
 
 __all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection", "ranked"]
@@ -167,9 +168,10 @@ class _PatchedProgram(ShaderProgram):
         """pyrender's ``set_uniform``, with each uniform's location asked of GL once per program.
 
         pyrender looks the location up at every call (about 230 calls per lit view; a third of
-        the call's cost); a linked program's locations never change. As in pyrender, a name
-        the compiler removed (location -1) is ignored; unlike it, a value of a type GL has no
-        uniform for raises instead of being dropped silently.
+        the call's cost); a linked program's locations never change. Arrays go to GL through
+        :func:`~.uniforms.set_uniform_array` (no PyOpenGL array handling). As in pyrender, a name
+        the compiler removed (location -1) is ignored; unlike it, a value of a type or shape GL
+        has no uniform for raises instead of being dropped silently.
 
         Args:
             name: the uniform's name in the program (``"spot_lights[2].color"``).
@@ -183,16 +185,8 @@ class _PatchedProgram(ShaderProgram):
         if location == -1:
             return
         if isinstance(value, np.ndarray):
-            if value.ndim == 2:
-                self._FUNC_MAP[value.shape](location, 1, GL.GL_TRUE, value)
-                return
-            if unsigned or np.issubdtype(value.dtype, np.unsignedinteger):
-                kind, value = "u", value.astype(np.uint32)
-            elif np.issubdtype(value.dtype, np.integer):
-                kind, value = "i", value.astype(np.int32)
-            else:
-                kind, value = "f", value.astype(np.float32)
-            self._FUNC_MAP[(value.shape[0], kind)](location, 1, value)
+            kind = "u" if unsigned or value.dtype.kind == "u" else "i" if value.dtype.kind == "i" else "f"
+            set_uniform_array(location, value, kind)
         elif isinstance(value, float):
             GL.glUniform1f(location, value)
         elif isinstance(value, (int, bool)):

@@ -9,6 +9,7 @@ import pytest
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
 from sidar_torch.render.pyrender_overrides import GLRenderer, ProgramCache, RankedNode, _PatchedProgram
+from sidar_torch.render.scene_graph import FlatScene
 
 OVERRIDES = {
     (GLRenderer, pyrender.Renderer): (
@@ -18,6 +19,7 @@ OVERRIDES = {
     (ProgramCache, ShaderProgramCache): ("get_program",),
     (_PatchedProgram, ShaderProgram): ("_add_to_context", "_load", "set_uniform"),
     (RankedNode, pyrender.Node): ("__hash__", "matrix", "rotation", "scale", "translation"),
+    (FlatScene, pyrender.Scene): ("add_node", "get_pose", "remove_node", "scale"),
 }
 """Per (our class, pyrender's), every attribute of ours that replaces one of pyrender's."""
 
