@@ -295,5 +295,11 @@ def test_a_ranked_node_keeps_its_pose_and_derives_pyrenders_decomposition_on_dem
         assert np.array_equal(getattr(ours, field), getattr(theirs, field)), field
     ours.translation = theirs.translation = np.array([1.0, 2.0, 3.0])
     assert np.allclose(ours.matrix, theirs.matrix) and np.allclose(ours.matrix[:3, 3], [1.0, 2.0, 3.0])
-    with pytest.raises(ValueError, match="bottom row"):
-        RankedNode(1, matrix=np.ones((4, 4)))
+    for row in ([1.0, 1.0, 1.0, 1.0], [0.0, 0.0, 0.0, np.nan], [0.0, 1e-7, 0.0, 1.0]):
+        bad = pose.copy()
+        bad[3] = row
+        with pytest.raises(ValueError, match="bottom row"):
+            RankedNode(1, matrix=bad)
+    close = pose.copy()
+    close[3] = [1e-9, 0.0, 0.0, 1.0 + 1e-6]  # within np.allclose's tolerances, as before
+    assert np.array_equal(RankedNode(1, matrix=close).matrix, close)
