@@ -244,9 +244,9 @@ def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray, whe
     Returns:
         The largest distance in view-j pixels (0 when ``where`` selects nothing).
     """
-    src = np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2)
-    a = np.einsum("ijab,inb->ijna", H_a, src)
-    b = np.einsum("ijab,inb->ijna", H_b, src)
+    src = np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2)[:, None]  # (V, 1, N, 3)
+    a = src @ np.swapaxes(H_a, -1, -2)  # (V, V, N, 3): H[i, j] applied to view i's points
+    b = src @ np.swapaxes(H_b, -1, -2)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # unselected points may map to infinity
         distance = np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1)
     return float(distance.max() if where is None else distance[where].max(initial=0.0))
