@@ -7,10 +7,11 @@ In one process and one run (torch on one thread, llvmpipe in the calling thread)
   ``SidarDataset.sample(i)`` over ``--samples`` samples after one warm-up sample (shader
   compilation, reported on its own), per sequence and per view; and kornia's 2-D pipeline
   (:func:`benchmarks.common.kornia_pipeline`, batch 1) per image at the same size, median CPU
-  time; the ratio of the two;
+  time of calls made between the samples (so both meet the same state of a shared machine); the
+  ratio of the two;
 * **augment**: ``SidarAugment(preset, n_views=2, image_size=192x256)`` on a batch of 8 images,
   median CPU time per call after a warm-up call, per image, against kornia's pipeline on the same
-  batch per image; with a render pool (``num_workers=2``, when ``SidarAugment`` has one), the
+  batch per image (its calls between ours); with a render pool (``num_workers=2``, when ``SidarAugment`` has one), the
   wall-clock throughput of the pool over the single-process one;
 * **workers**: steady-state sequences/s of the preset at 384x512 through a DataLoader with 1 and
   2 workers (wall clock; see :func:`loader_rate`) and their ratio, and where the first sample of the
@@ -37,7 +38,7 @@ from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 
 from sidar_torch import SidarAugment, SidarDataset, load_config
 
-from .common import (DEFAULT_PRESET, cpu_seconds, kornia_cpu_seconds, machine, machine_line, median, one_thread,
+from .common import (DEFAULT_PRESET, cpu_seconds, kornia_call, machine, machine_line, median, one_thread,
                      parse_size, size_label)
 
 __all__ = ["BenchSettings", "build_parser", "format_report", "loader_rate", "main", "run_bench", "targets"]
@@ -65,7 +66,7 @@ class BenchSettings:
         presets: preset names or YAML paths for the per-view rows (targets: :data:`DEFAULT_PRESET`).
         sizes: output sizes ``(H, W)`` of the per-view rows.
         samples: measured samples per per-view row, after one warm-up sample.
-        kornia_calls: measured kornia calls per size and for the batch.
+        kornia_calls: kornia calls timed after each measured sample (and each ``SidarAugment`` call).
         augment_batch, augment_views, augment_size: the ``SidarAugment`` batch, views and ``(H, W)``.
         augment_calls: measured ``SidarAugment`` calls, after one warm-up call.
         loader_size: ``(H, W)`` of the DataLoader rows.
@@ -76,12 +77,12 @@ class BenchSettings:
 
     presets: tuple[str, ...] = (DEFAULT_PRESET,)
     sizes: tuple[tuple[int, int], ...] = tuple(TARGET_SIZES.values())
-    samples: int = 8
-    kornia_calls: int = 20
+    samples: int = 12
+    kornia_calls: int = 3
     augment_batch: int = 8
     augment_views: int = 2
     augment_size: tuple[int, int] = TARGET_SIZES["small"]
-    augment_calls: int = 3
+    augment_calls: int = 5
     loader_size: tuple[int, int] = TARGET_SIZES["default"]
     loader_samples: int = 6
     views: int | None = None
@@ -106,7 +107,7 @@ class BenchSettings:
     def quick(cls, **changes: Any) -> "BenchSettings":
         """Seconds, for tests: one 48x64 size, 2 views, 2 samples, a batch of 2, 2 loader samples."""
         tiny = (48, 64)
-        return cls(**{"sizes": (tiny,), "samples": 2, "kornia_calls": 2, "augment_batch": 2, "augment_size": tiny,
+        return cls(**{"sizes": (tiny,), "samples": 2, "kornia_calls": 1, "augment_batch": 2, "augment_size": tiny,
                       "augment_calls": 1, "loader_size": tiny, "loader_samples": 2, "views": 2, **changes})
 
 
@@ -114,12 +115,25 @@ def _config(preset: str, size: tuple[int, int], views: int | None) -> Any:
     return load_config(preset, image_size=size, **({} if views is None else {"n_views": views}))
 
 
-def view_row(preset: str, size: tuple[int, int], settings: BenchSettings, kornia_s: float) -> dict[str, Any]:
+def alternated(measured: Callable[[int], object], baseline: Callable[[], object], calls: int,
+               baseline_calls: int) -> tuple[float, float]:
+    """Median CPU seconds of ``measured(k)`` for ``k`` in ``0 .. calls - 1`` and of ``baseline()``,
+    timed ``baseline_calls`` times after each of them: a machine that slows down or speeds up
+    during the run moves both."""
+    ours, theirs = [], []
+    for k in range(calls):
+        ours.append(cpu_seconds(lambda: measured(k)))
+        theirs += [cpu_seconds(baseline) for _ in range(baseline_calls)]
+    return median(ours), median(theirs)
+
+
+def view_row(preset: str, size: tuple[int, int], settings: BenchSettings) -> dict[str, Any]:
     """Median CPU seconds per sequence and per view of ``preset`` at ``size``, against kornia."""
     config = _config(preset, size, settings.views)
     dataset = SidarDataset(config=config, seed=settings.seed)
     warmup = cpu_seconds(lambda: dataset.sample(_WARMUP_INDEX))
-    per_sequence = median(cpu_seconds(lambda: dataset.sample(i)) for i in range(settings.samples))
+    per_sequence, kornia_s = alternated(dataset.sample, kornia_call(1, size, settings.seed), settings.samples,
+                                        settings.kornia_calls)
     per_view = per_sequence / config.n_views
     return {"preset": preset, "size": size_label(size), "views": config.n_views, "samples": settings.samples,
             "s_per_sequence": per_sequence, "ms_per_view": 1e3 * per_view, "warmup_s": warmup,
@@ -133,8 +147,9 @@ def augment_row(settings: BenchSettings) -> dict[str, Any]:
     images = torch.rand(batch, 3, *size, generator=torch.Generator().manual_seed(settings.seed))
     serial = SidarAugment(preset, seed=settings.seed, n_views=settings.augment_views, image_size=size)
     serial(images)  # warm-up: shaders
-    per_image = median(cpu_seconds(lambda: serial(images)) for _ in range(settings.augment_calls)) / batch
-    kornia_s = kornia_cpu_seconds(batch, size, settings.kornia_calls, settings.seed) / batch
+    per_call, kornia_per_call = alternated(lambda _: serial(images), kornia_call(batch, size, settings.seed),
+                                           settings.augment_calls, settings.kornia_calls)
+    per_image, kornia_s = per_call / batch, kornia_per_call / batch
     row = {"preset": preset, "batch": batch, "views": settings.augment_views, "size": size_label(size),
            "ms_per_image": 1e3 * per_image, "kornia_ms_per_image": 1e3 * kornia_s, "kornia_ratio": per_image / kornia_s,
            "pool_speedup": None}
@@ -218,9 +233,8 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
     rows = []
     with one_thread():
         for size in settings.sizes:
-            kornia_s = kornia_cpu_seconds(1, size, settings.kornia_calls, settings.seed)
             for preset in settings.presets:
-                rows.append(view_row(preset, size, settings, kornia_s))
+                rows.append(view_row(preset, size, settings))
                 log(f"{preset} at {size_label(size)}: done ({time.perf_counter() - start:.0f} s)")
         augment = augment_row(settings)
         log(f"SidarAugment: done ({time.perf_counter() - start:.0f} s)")
@@ -293,7 +307,8 @@ def format_report(report: dict[str, Any]) -> str:
                      f"| {r['kornia_ms_per_image']:.1f} | {r['kornia_ratio']:.2f}x | {r['warmup_s']:.2f} |")
     a = report["augment"]
     pool = "-" if a["pool_speedup"] is None else f"{a['pool_speedup']:.2f}x"
-    lines += ["", f"Medians over {s['samples']} samples after a warm-up sample (the warm-up compiles shaders). "
+    lines += ["", f"Medians over {s['samples']} samples after a warm-up sample (the warm-up compiles shaders), and "
+              f"over kornia's calls, {s['kornia_calls']} after each sample. "
               "Ratio: ms per view over kornia's ms per image at that size. Kornia's pipeline: RandomPerspective "
               "+ ColorJitter + RandomPlasmaShadow + RandomGaussianNoise.", "",
               "## SidarAugment against kornia on the same batch, process CPU time, one core", "",
@@ -329,7 +344,7 @@ def build_parser() -> argparse.ArgumentParser:
                              f"the DataLoader rows (default {DEFAULT_PRESET})")
     parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
                         help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
-    parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 8)")
+    parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 12)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
     return parser
 

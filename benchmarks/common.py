@@ -8,7 +8,8 @@
 * Sizes are ``(H, W)`` pixels everywhere, written ``HxW`` on the command line and in tables
   (``384x512`` is 384 rows by 512 columns); :func:`parse_size` reads them, :func:`size_label`
   writes them.
-* Ratios to kornia are always to a baseline run in the same process (:func:`kornia_cpu_seconds`).
+* Ratios to kornia are always to a baseline run in the same process (:func:`kornia_call`), its calls
+  timed in between the calls it is compared with.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ import torch
 
 from sidar_torch.cli import parse_overrides as parse_set
 
-__all__ = ["DEFAULT_PRESET", "cpu_seconds", "kornia_cpu_seconds", "kornia_pipeline", "machine", "machine_line",
+__all__ = ["DEFAULT_PRESET", "cpu_seconds", "kornia_call", "kornia_pipeline", "machine", "machine_line",
            "median", "one_thread", "parse_set", "parse_size", "rss_mb", "size_label"]
 
 DEFAULT_PRESET = "misaligned"
@@ -114,12 +115,17 @@ def kornia_pipeline() -> torch.nn.Module:
         KA.RandomPlasmaShadow(p=1.0), KA.RandomGaussianNoise(std=0.05, p=1.0))
 
 
-def kornia_cpu_seconds(batch: int, size: tuple[int, int], calls: int, seed: int = 0) -> float:
-    """Median process CPU seconds of one call of :func:`kornia_pipeline` on a ``(batch, 3, H, W)``
-    float32 batch (one untimed call first), in the calling thread setting."""
+def kornia_call(batch: int, size: tuple[int, int], seed: int = 0) -> Callable[[], object]:
+    """One call of :func:`kornia_pipeline` on a ``(batch, 3, H, W)`` float32 batch, as a function to
+    time (one untimed call made here). Benchmarks time its calls between their own, so that the
+    baseline and what it is compared with meet the same state of the machine."""
     torch.manual_seed(seed)
     pipeline = kornia_pipeline()
     images = torch.rand(batch, 3, *size)
-    with torch.no_grad():
-        pipeline(images)
-        return median(cpu_seconds(lambda: pipeline(images)) for _ in range(calls))
+
+    def call() -> object:
+        with torch.no_grad():
+            return pipeline(images)
+
+    call()
+    return call

@@ -107,3 +107,12 @@ def test_command_rejects_bad_arguments(argv, message, capsys):
     with pytest.raises(SystemExit) as error:
         bench.main(argv)
     assert message in str(error.value) + capsys.readouterr().err
+
+
+def test_the_baseline_is_timed_between_the_measured_calls(monkeypatch):
+    # Each measured call is followed by its baseline calls, and each side gets its own median.
+    calls, clock = [], iter([0.5, 0.1, 0.2, 0.7, 0.3, 0.4, 0.6, 0.5, 0.6])
+    monkeypatch.setattr(bench, "cpu_seconds", lambda call: (call(), next(clock))[1])
+    ours, theirs = bench.alternated(lambda k: calls.append(f"ours {k}"), lambda: calls.append("kornia"), 3, 2)
+    assert calls == ["ours 0", "kornia", "kornia", "ours 1", "kornia", "kornia", "ours 2", "kornia", "kornia"]
+    assert (ours, theirs) == (0.6, 0.35)  # medians of 0.5, 0.7, 0.6 and of 0.1, 0.2, 0.3, 0.4, 0.5, 0.6
