@@ -39,12 +39,15 @@ from torch.utils.data import DataLoader, IterableDataset, get_worker_info
 from sidar_torch import SidarAugment, SidarDataset, load_config
 
 from .common import (DEFAULT_PRESET, cpu_seconds, kornia_call, machine, machine_line, median, one_thread,
-                     parse_size, size_label)
+                     parse_size, size_label, warm_heap)
 
 __all__ = ["BenchSettings", "build_parser", "format_report", "loader_rate", "main", "run_bench", "targets"]
 
 _WARMUP_INDEX = 1_000_000
 """Index of warm-up samples, apart from the measured indices ``0 .. samples - 1``."""
+
+HEAPS = ("warm", "cold")
+"""The heap states a run can measure in (``BenchSettings.heap``)."""
 
 TARGET_SIZES = {"small": (192, 256), "default": (384, 512), "large": (768, 1024)}
 """The sizes the speed goals name, ``(H, W)``."""
@@ -73,6 +76,9 @@ class BenchSettings:
         loader_samples: measured samples per worker of a DataLoader row.
         views: views per sequence (``None``: each preset's own).
         seed: dataset and module seed.
+        heap: ``"warm"`` (:func:`~benchmarks.common.warm_heap` before measuring: no side pays page
+            faults for fresh memory, as in a long training run) or ``"cold"`` (glibc's defaults, as
+            a fresh process has them: what faults depends on what ran before).
     """
 
     presets: tuple[str, ...] = (DEFAULT_PRESET,)
@@ -87,6 +93,7 @@ class BenchSettings:
     loader_samples: int = 6
     views: int | None = None
     seed: int = 0
+    heap: str = "warm"
 
     def __post_init__(self) -> None:
         if not self.presets or not self.sizes:
@@ -100,6 +107,8 @@ class BenchSettings:
         bad = {k: v for k, v in counts.items() if v < 1}
         if bad or (self.views is not None and self.views < 1):
             raise ValueError(f"{', '.join(bad) or 'views'}: expected >= 1, got {bad or self.views}")
+        if self.heap not in HEAPS:
+            raise ValueError(f"heap: expected one of {HEAPS}, got {self.heap!r}")
         for preset in self.presets:  # unknown presets fail before measuring anything
             load_config(preset)
 
@@ -108,7 +117,8 @@ class BenchSettings:
         """Seconds, for tests: one 48x64 size, 2 views, 2 samples, a batch of 2, 2 loader samples."""
         tiny = (48, 64)
         return cls(**{"sizes": (tiny,), "samples": 2, "kornia_calls": 1, "augment_batch": 2, "augment_size": tiny,
-                      "augment_calls": 1, "loader_size": tiny, "loader_samples": 2, "views": 2, **changes})
+                      "augment_calls": 1, "loader_size": tiny, "loader_samples": 2, "views": 2, "heap": "cold",
+                      **changes})
 
 
 def _config(preset: str, size: tuple[int, int], views: int | None) -> Any:
@@ -228,7 +238,10 @@ def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[
 
 
 def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> dict[str, Any]:
-    """Every measurement, as plain data (see :func:`format_report`); ``log`` gets progress lines."""
+    """Every measurement, as plain data (see :func:`format_report`); ``log`` gets progress lines.
+    With ``settings.heap`` ``"warm"`` it first calls :func:`~benchmarks.common.warm_heap` (for the
+    rest of the process)."""
+    heap = settings.heap if settings.heap == "cold" or warm_heap() else "cold (no glibc mallopt)"
     start, before = time.perf_counter(), machine()
     rows = []
     with one_thread():
@@ -246,7 +259,7 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
                "samples_per_worker": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
                "scaling": rates[2] / rates[1], "first_sample_s": measured[1][1]["total"],
                "first_sample": measured[1][1]}
-    report = {"settings": asdict(settings), "machine": {"before": before, "after": machine()}, "views": rows,
+    report = {"settings": asdict(settings), "heap": heap, "machine": {"before": before, "after": machine()}, "views": rows,
               "augment": augment, "loaders": loaders, "seconds": time.perf_counter() - start}
     report["targets"] = targets(report)
     return report
@@ -298,7 +311,7 @@ def format_report(report: dict[str, Any]) -> str:
     """The report as markdown: per-view table, SidarAugment, DataLoader workers, targets."""
     m, s = report["machine"], report["settings"]
     lines = ["# sidar_torch speed (python -m benchmarks.bench)", "", machine_line(m["before"], m["after"]) +
-             f"; {report['seconds']:.0f} s.", "",
+             f"; heap {report['heap']}; {report['seconds']:.0f} s.", "",
              "## Per view against kornia's 2-D pipeline (batch 1), process CPU time, one core", "",
              "| preset | size (H x W) | views | s / sequence | ms / view | kornia ms / image | ratio | warm-up s |",
              "|---|---|---|---|---|---|---|---|"]
@@ -345,6 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
                         help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
     parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 12)")
+    parser.add_argument("--heap", choices=HEAPS, default=None,
+                        help="warm: no page faults for fresh memory on either side, as in a long run (default); "
+                             "cold: glibc's defaults, as in a fresh process")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
     return parser
 
@@ -352,7 +368,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     changes = {k: tuple(v) if isinstance(v, list) else v
-               for k, v in {"presets": args.presets, "sizes": args.sizes, "samples": args.samples}.items()
+               for k, v in {"presets": args.presets, "sizes": args.sizes, "samples": args.samples,
+                            "heap": args.heap}.items()
                if v is not None}
     try:
         settings = (BenchSettings.quick if args.quick else BenchSettings)(**changes)

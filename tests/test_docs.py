@@ -336,7 +336,8 @@ def test_benchmarks_tell_users_nothing_about_issue_numbers():
                "lp_num_threads": "0"}
     row = {"preset": "misaligned", "size": "384x512", "views": 6, "s_per_sequence": 0.3, "ms_per_view": 50.0,
            "kornia_ms_per_image": 40.0, "kornia_ratio": 1.25, "warmup_s": 2.0}
-    report = {"settings": {"samples": 8}, "machine": {"before": machine, "after": machine}, "seconds": 60.0,
+    report = {"settings": {"samples": 8, "kornia_calls": 3}, "heap": "warm", "machine": {"before": machine, "after": machine},
+              "seconds": 60.0,
               "views": [row], "augment": {**row, "batch": 8, "size": "192x256", "ms_per_image": 100.0,
                                           "pool_speedup": 1.1},
               "loaders": {"preset": "misaligned", "size": "384x512", "views": 6, "scaling": 1.5,

@@ -116,3 +116,37 @@ def test_the_baseline_is_timed_between_the_measured_calls(monkeypatch):
     ours, theirs = bench.alternated(lambda k: calls.append(f"ours {k}"), lambda: calls.append("kornia"), 3, 2)
     assert calls == ["ours 0", "kornia", "kornia", "ours 1", "kornia", "kornia", "ours 2", "kornia", "kornia"]
     assert (ours, theirs) == (0.6, 0.35)  # medians of 0.5, 0.7, 0.6 and of 0.1, 0.2, 0.3, 0.4, 0.5, 0.6
+
+
+def test_a_warm_heap_is_asked_for_or_refused_by_name(monkeypatch):
+    assert bench.BenchSettings.quick().heap == "cold"  # tests leave the heap alone
+    with pytest.raises(ValueError, match="heap"):
+        bench.BenchSettings(heap="hot")
+    warmed = []
+    monkeypatch.setattr(bench, "warm_heap", lambda: warmed.append(True) or True)
+    monkeypatch.setattr(bench, "view_row", lambda *args: pytest.fail("stops after the heap"))
+    with pytest.raises(pytest.fail.Exception):
+        bench.run_bench(bench.BenchSettings.quick(heap="warm"), log=lambda line: None)
+    assert warmed == [True]
+
+
+def test_a_warm_heap_hands_out_touched_pages():
+    # Blocks of 2, 4, ..., 30 MiB, each freed before the next: under glibc's defaults a block that
+    # outgrows the mmap threshold the last free set is a fresh mapping (about 7800 page faults in
+    # all here); from a warm heap, pages already touched (0 here).
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    def faults(warm):
+        code = ("import resource, numpy as np\nfrom benchmarks.common import warm_heap\n"
+                f"assert warm_heap() if {warm} else True\n"
+                "before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt\n"
+                "for mib in range(2, 32, 2):\n    block = np.ones(mib << 17)\n    del block\n"
+                "print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)")
+        root = Path(bench.__file__).resolve().parents[1]
+        return int(subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True, text=True,
+                                  check=True).stdout)
+
+    cold, warm = faults(False), faults(True)
+    assert cold > 2000 and warm < cold / 10, (cold, warm)
