@@ -10,9 +10,8 @@
   writes them.
 * Ratios to kornia are always to a baseline run in the same process (:func:`kornia_call`), its calls
   timed in between the calls it is compared with.
-* Fresh memory costs page faults, counted in CPU time: kornia's pipeline on a batch of 8 192x256
-  images faults in about 17-22 thousand pages per call under glibc's default heap, none in a warm
-  one (:func:`warm_heap`), and a process's history decides which it gets.
+* Fresh memory costs page faults, counted in CPU time, and under glibc's defaults a process's
+  history decides which allocations fault; :func:`warm_heap` puts the heap where none does.
 """
 
 from __future__ import annotations
@@ -58,9 +57,9 @@ def warm_heap() -> bool:
     Blocks up to 32 MiB (glibc's largest mmap threshold) come from the heap, freed memory is never
     returned to the system, and :data:`WARM_HEAP_MIB` are faulted in and freed now: a call that
     allocates afterwards reuses touched pages instead of faulting fresh ones in. Under glibc's
-    defaults whether it does depends on what the process allocated before (kornia's pipeline on a
-    batch of 8 192x256 images faults in 17-22 thousand pages per call in a fresh process, none
-    after this or after some larger rows of the bench), which no two benchmarks share.
+    defaults whether it does depends on what the process allocated before (in the bench, kornia's
+    batched pipeline cost 11.3-11.9 ms per image timed in a block of its own calls, 6.8-7.2 ms timed
+    between ``SidarAugment``'s calls; docs/speed.md), which no two benchmarks share.
 
     Returns:
         Whether it applied (False without glibc's ``mallopt``).
