@@ -15,6 +15,8 @@ import time
 from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
 from sidar_torch import SidarConfig, SidarDataset, load_config
 
 from .common import DEFAULT_PRESET, parse_set, parse_size
@@ -58,8 +60,13 @@ def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list
                                  samples)
 
 
-def paired_settings_times(config: Any, off: Any, on: Any, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
+def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
+                          differences: list[np.ndarray] | None = None) -> tuple[dict, list[tuple[dict, dict]]]:
     """Render ``samples`` sequences of ``config`` with the ``RenderSettings`` ``off`` and ``on``.
+
+    Args:
+        differences: if given, gets each measured sequence's ``(V, H, W, 3)`` int16 difference of the
+            views, ``on`` minus ``off`` (8-bit sRGB levels).
 
     Returns:
         ms per view keyed ``(clock, on)`` (``on`` False for ``off``; lists in sample order), and each
@@ -76,16 +83,19 @@ def paired_settings_times(config: Any, off: Any, on: Any, samples: int) -> tuple
         sequence = dataset.scene(index)
         painting = dataset.source.painting(index % len(dataset.source), config.image_size)
         pair: dict[bool, dict[str, float]] = {}
+        views: dict[bool, np.ndarray] = {}
         for on in ((False, True) if index % 2 else (True, False)):
             pair[on] = {}
             start = {clock: read() for clock, read in CLOCKS.items()}
-            renderers[on].render(sequence, painting, pair[on])
+            views[on] = renderers[on].render(sequence, painting, pair[on]).views
             if index in warmup:
                 continue
             for clock, read in CLOCKS.items():
                 ms_per_view[clock, on].append(1e3 * (read() - start[clock]) / len(sequence.views))
         if index not in warmup:
             steps.append((pair[False], pair[True]))
+            if differences is not None:
+                differences.append(views[True].astype(np.int16) - views[False])
     return ms_per_view, steps
 
 

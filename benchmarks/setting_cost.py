@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
+
 from .common import parse_set, size_label
 from .paired import paired_config, paired_parser, paired_settings_times, print_paired
 
@@ -41,12 +43,26 @@ def main(argv: list[str] | None = None) -> None:
     if not changed:
         raise SystemExit(f"setting_cost: {args.field} = {args.values[0]} and {args.values[1]} give the renderer the "
                          "same settings (a field of the scenes, not of how they are drawn?)")
-    ms_per_view, _ = paired_settings_times(config, *settings, args.samples)
+    differences: list[np.ndarray] = []
+    ms_per_view, _ = paired_settings_times(config, *settings, args.samples, differences)
     given = "; ".join(f"{value}: " + ", ".join(f"{n}={getattr(s, n)}" for n in sorted(changed))
                       for value, s in zip(args.values, settings))
     print(f"{args.field}: {args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} sequences "
           f"x {config.n_views} views; renderer: {given}")
     print_paired(ms_per_view, tuple(args.values))
+    print(view_difference(differences, tuple(args.values)))
+
+
+def view_difference(differences: list[np.ndarray], labels: tuple[str, str]) -> str:
+    """One line: how far the views of the second value are from the first's, from each sequence's
+    ``(V, H, W, 3)`` difference in 8-bit levels: PSNR (dB, peak 255) over every view, views with
+    the same bytes, mean absolute and largest difference."""
+    views = np.concatenate(differences).astype(np.float64)
+    mse = float(np.mean(views ** 2))
+    psnr = "inf (the same bytes)" if mse == 0 else f"{10 * np.log10(255 ** 2 / mse):.2f} dB"
+    same = int((views.reshape(len(views), -1) == 0).all(axis=1).sum())
+    return (f"views: {labels[1]} against {labels[0]}: PSNR {psnr}; {same} of {len(views)} views the same bytes; "
+            f"mean |difference| {np.abs(views).mean():.3f} levels, largest {np.abs(views).max():.0f}")
 
 
 if __name__ == "__main__":

@@ -7,12 +7,15 @@ names live here, under both: this module imports nothing, loads no GL, and ``con
 them for users.
 """
 
-__all__ = ["ANTIALIAS_SAMPLES", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
+__all__ = ["ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
            "SHADOW_FILTERS",
            "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
+
+AREA_LIGHT_SHADINGS = ("per_light", "per_emitter")
+"""How often an area light's shading is evaluated at a fragment (``SidarConfig.area_light_shading``)."""
 
 SHADOW_FILTERS = ("tent", "bilinear")
 """How a shadow-map lookup is filtered (``SidarConfig.shadow_filter``)."""

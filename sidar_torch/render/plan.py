@@ -3,7 +3,8 @@
 Per view, :func:`plan_views` decides
 
 * which occluders the camera may see (**drawn**: colour and mask passes),
-* which emitters get a shadow map and lookup (**shadowed**, added first, in a fixed order),
+* which emitters get a shadow map and lookup (**shadowed**, added first, in a fixed order; with
+  ``group_emitters`` a light's emitters are shaded together and shadowed all or none),
 * which occluders go into the shadow maps (**casters**).
 
 Everything else cannot change a pixel and is left out (each test below is conservative, and
@@ -46,7 +47,7 @@ from .settings import RenderSettings
 from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
 __all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "ViewPlan", "lookup_margins", "plan_views", "shadow_margin",
-           "soft_reach"]
+           "soft_reach", "whole_lights"]
 
 SHADOW_READ_TEXELS = 3.0
 """How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
@@ -149,6 +150,9 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
     casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
     plans = []
     for view, f, cast in zip(sequence.views, facts, casting):
+        if settings.group_emitters:  # a light's emitters are shaded together: shadowed all or none
+            lights = {a for a, _ in cast}
+            cast = {e for e in f.emitters if e[0] in lights}
         # The same order whatever is skipped: the shader sums lights in this order.
         order = tuple(sorted(f.emitters, key=lambda e: e not in cast))
         if not (settings.shadows and view.occluders):
@@ -170,6 +174,29 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
     return plans
 
 
+def whole_lights(begin: np.ndarray, end: np.ndarray, lights: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Lookup ranges widened to whole lights, for a shader that shades a light's emitters together.
+
+    Args:
+        begin, end: per-tile ranges of indices into ``lights`` (:func:`~.footprints.lookup_ranges`);
+            ``begin == end``: no lookup.
+        lights: the light of each shadowed emitter, in lookup order (a light's emitters adjacent).
+
+    Returns:
+        ``begin`` moved back to its light's first emitter and ``end`` on to just past its light's last;
+        empty ranges stay empty.
+    """
+    lights = np.asarray(lights)
+    new_light = np.r_[True, lights[1:] != lights[:-1]]
+    starts = np.flatnonzero(new_light)
+    stops = np.r_[starts[1:], len(lights)]
+    light_of = np.cumsum(new_light) - 1  # each emitter's run
+    empty = begin == end
+    wide_begin = np.where(empty, begin, starts[light_of[np.minimum(begin, len(lights) - 1)]])
+    wide_end = np.where(empty, end, stops[light_of[np.maximum(end - 1, 0)]])
+    return wide_begin, wide_end
+
+
 def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], settings: RenderSettings) -> ViewPlan:
     """``plan`` with the painting's draw split by shadow footprints (``render.footprints``),
     unless every part would need every lookup."""
@@ -178,6 +205,8 @@ def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int],
     emitters = list(plan.order[:plan.n_shadowed])
     margins = lookup_margins(view, emitters, settings.shadow_map_size, settings.light_radius)
     begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size)
+    if settings.group_emitters:
+        begin, end = whole_lights(begin, end, [a for a, _ in emitters])
     if (begin == 0).all() and (end == plan.n_shadowed).all():
         return plan
     return replace(plan, painting_parts=tuple(painting_parts(begin, end, size)))

@@ -137,8 +137,9 @@ def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) 
 class ShadowedSpotLight(pyrender.SpotLight):
     """A pyrender spot light whose shadow map is layer :attr:`shadow_layer` of the renderer's
     :class:`~.shadow_array.ShadowMapArray` (pyrender's ``shadow_texture`` stays unused), with
-    Blender's smoothstep falloff between its cones when :attr:`smooth_falloff` (``scene.Light``)
-    and the reach of its soft shadow lookups (:attr:`soft_reach`)."""
+    Blender's smoothstep falloff between its cones when :attr:`smooth_falloff` (``scene.Light``),
+    the reach of its soft shadow lookups (:attr:`soft_reach`), and the group of emitters it is
+    shaded with (:attr:`group_size`, :attr:`group_pose`; quirk 13)."""
 
     def __init__(self, shadow_layer: int, smooth_falloff: bool = False, **kwargs: Any):
         super().__init__(**kwargs)
@@ -146,6 +147,11 @@ class ShadowedSpotLight(pyrender.SpotLight):
         self.smooth_falloff = smooth_falloff
         self.soft_reach = 0.0
         """How far its soft lookups search the map (``plan.soft_reach``; tangent units)."""
+        self.group_size = 1
+        """How many emitters, this one and the next in the shader's order, are shaded together."""
+        self.group_pose: np.ndarray | None = None
+        """``(4, 4)`` pose (OpenGL frame) the group is shaded from, aimed as its emitters are; ``None``:
+        the light's own."""
 
 
 class _PatchedProgram(ShaderProgram):
@@ -381,7 +387,10 @@ class GLRenderer(pyrender.Renderer):
         for k, light_node in enumerate(ranked(scene.light_nodes)):
             light, pose, name = light_node.light, scene.get_pose(light_node), f"spot_lights[{k}]."
             scale = 1.0 / max(0.001, np.cos(light.innerConeAngle) - np.cos(light.outerConeAngle))
+            group = pose if light.group_pose is None else light.group_pose
             uniforms += [(name + "direction", -pose[:3, 2]), (name + "position", pose[:3, 3]),
+                         (name + "group_direction", -group[:3, 2]), (name + "group_position", group[:3, 3]),
+                         (name + "group_size", int(light.group_size)),
                          (name + "light_angle_scale", scale),
                          (name + "light_angle_offset", -np.cos(light.outerConeAngle) * scale),
                          (name + "color", light.color), (name + "intensity", light.intensity),

@@ -53,6 +53,9 @@ class RenderSettings:
             white; false: each channel clips at white on its own (config ``highlight_spill``).
         light_radius: every emitter's radius, painting units: above 0, soft shadows (percentage-closer
             soft shadows, ``shader_patches`` quirk 12) instead of ``shadow_filter`` (config ``light_radius``).
+        group_emitters: the emitters of a light are shaded once, from their centre, and dimmed by the
+            mean of their shadow lookups (``shader_patches`` quirk 13; config ``area_light_shading``
+            ``"per_light"``); false: each emitter is shaded on its own.
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
@@ -80,6 +83,7 @@ class RenderSettings:
     antialias: int = 1
     highlight_spill: bool = True
     light_radius: float = 0.0
+    group_emitters: bool = True
     mirrors: bool = True
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
@@ -124,6 +128,7 @@ class RenderSettings:
             opacities=config.opacity_output, shadow_masks=config.shadow_mask_output,
             shadow_free=config.shadow_free_output, antialias=config.antialias,
             highlight_spill=config.highlight_spill, light_radius=config.light_radius,
+            group_emitters=config.area_light_shading == "per_light",
         )
 
     def check_gl_limits(self, max_renderbuffer_size: int, max_texture_size: int) -> None:

@@ -59,7 +59,9 @@ class ShadowMaps:
                    n_shadowed: int) -> set[pyrender.Node]:
         """Add the emitters ``order`` (``(light, emitter)`` indices of ``view.lights``) as spot lights,
         in that order; returns the nodes of the first ``n_shadowed``, which get shadows. Each light
-        carries its soft lookups' reach among ``view.occluders`` (``plan.soft_reach``).
+        carries its soft lookups' reach among ``view.occluders`` (``plan.soft_reach``) and, with
+        ``settings.group_emitters``, its light's group: the number of its emitters and the pose of
+        their centre (quirk 13; ``order`` keeps a light's emitters adjacent).
 
         The order is fixed for a given view whatever ``n_shadowed`` is: the shader sums lights in
         insertion order, and it looks shadows up only for the first ``n_shadowed`` spot lights.
@@ -67,6 +69,10 @@ class ShadowMaps:
         order, whatever its place in ``order``: views sharing the lights keep each emitter's map.
         """
         rank = {e: k for k, e in enumerate(sorted(order))}
+        group = self.settings.group_emitters
+        # A light shaded as one (quirk 13) is shaded from its emitters' centre, aimed as they are.
+        group_poses = {a: gl_pose(*look_at(view.lights[a].emitters.mean(axis=0)))
+                       for a in {a for a, _ in order} if group and len(view.lights[a].emitters) > 1}
         centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
         radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
         shadowed = set()
@@ -79,6 +85,8 @@ class ShadowMaps:
             gl_light.innerConeAngle = light.inner_cone
             gl_light.smooth_falloff = light.smooth_falloff
             gl_light.soft_reach = soft_reach(light.emitters[b], centres, radii, self.settings.light_radius)
+            gl_light.group_size = len(light.emitters) if a in group_poses else 1
+            gl_light.group_pose = group_poses.get(a)
             node = add_node(scene, gl_pose(*look_at(light.emitters[b])), light=gl_light)  # aimed at the centre
             if k < n_shadowed:
                 shadowed.add(node)

@@ -1,6 +1,7 @@
 """The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``skip_cost``, ``shadow_outputs_cost``, over ``benchmarks.paired``) on tiny
 settings: what they print and that a wrong override is named, never speed."""
 
+import numpy as np
 import pytest
 
 from benchmarks import mirror_cost, opacity_cost, setting_cost, shadow_outputs_cost, skip_cost
@@ -41,8 +42,20 @@ def test_setting_cost_prints_what_each_value_gives_the_renderer(capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[0].endswith("renderer: 1024: shadow_map_size=1024; auto: shadow_map_size=512")
     assert out[1].startswith("wall: median ms / view 1024 ") and ", auto " in out[1]
+    assert out[3].startswith("views: auto against 1024: PSNR ") and "of 4 views the same bytes" in out[3]
     with pytest.raises(SystemExit, match="same settings"):
         setting_cost.main(["--field", "n_lights", "--values", "[1,2]", "[2,3]", "--samples", "1"])
+
+
+def test_the_view_difference_line_tells_the_same_bytes_from_a_difference():
+    same = [np.zeros((2, 4, 4, 3), np.int16)]
+    assert setting_cost.view_difference(same, ("a", "b")) == (
+        "views: b against a: PSNR inf (the same bytes); 2 of 2 views the same bytes; "
+        "mean |difference| 0.000 levels, largest 0")
+    one = np.zeros((2, 4, 4, 3), np.int16)
+    one[1, 0, 0, 0] = -51  # mse 51^2 / 96: PSNR 10 log10(96 * 25)
+    line = setting_cost.view_difference([one], ("a", "b"))
+    assert f"PSNR {10 * np.log10(96 * 25):.2f} dB; 1 of 2 views the same bytes" in line and line.endswith("largest 51")
 
 
 def test_skip_cost_prints_the_texels_cleared(capsys):

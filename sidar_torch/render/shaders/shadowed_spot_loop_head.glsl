@@ -5,12 +5,16 @@
 #ifdef SHADOW_FREE
     vec3 shadow_free = color.xyz;  // quirk 10: the colour with every light unblocked
 #endif
-    for (int i = 0; i < lookup_begin; i++) {  // lights before the lookup range: no lookup
+    // Quirk 13: spot lights g .. g + group_size - 1 are shaded once (spot_light(g), from the group's
+    // centre) and each adds that shade, darkened by its own lookup; a group of one is a light as before.
+    for (int g = 0; g < lookup_begin; g += spot_lights[g].group_size) {  // lights before the lookup range: no lookup
 #include "light_without_lookup.glsl"
     }
-    for (int i = lookup_begin; i < lookup_end; i++) {  // lights with a shadow lookup
-        vec3 l;
-        vec3 res = spot_light(i, n, roughness, metallic, f0, c_diff, base_color.rgb, l);
+    for (int g = lookup_begin; g < lookup_end; g += spot_lights[g].group_size) {  // lights with a shadow lookup
+#include "group_shade.glsl"
+      for (int i = g; i < g + spot_lights[g].group_size; i++) {  // each emitter's lookup
+        vec3 res = shade;
+        l = normalize(spot_lights[i].position - frag_position);  // this emitter's: its lookup's slope bias
 #ifdef SHADOW_FREE
         shadow_free += res;  // before the lookup darkens it
 #endif

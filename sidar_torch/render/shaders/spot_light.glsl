@@ -12,11 +12,12 @@ float cone_ramp(int i, float cd)
 vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_diff, vec3 albedo,
                 out vec3 l)
 {
-    // pyrender's spot-light loop body, without the shadow: light i's reflected radiance.
-    vec3 position = spot_lights[i].position;
+    // pyrender's spot-light loop body, without the shadow: light i's reflected radiance, from its
+    // group's centre (quirk 13; a light's own position and direction in a group of one).
+    vec3 position = spot_lights[i].group_position;
     vec3 v = normalize(cam_pos - frag_position); // Vector towards camera
     l = normalize(position - frag_position); // Vector towards light
-    vec3 direction = spot_lights[i].direction;
+    vec3 direction = spot_lights[i].group_direction;
     float dist = length(position - frag_position);
     float cd = clamp(dot(direction, -l), 0.0, 1.0);
     float attenuation = cone_ramp(i, cd);
@@ -31,10 +32,10 @@ vec3 spot_irradiance(int i, vec3 p, vec3 n)
     // Spot light i's direct irradiance at point p of normal n, per channel: cone and distance
     // falloff as in spot_light, times n . l (the painting's light in a mirror, the weight of a
     // light's shadow in the shadow fraction).
-    vec3 to_light = spot_lights[i].position - p;
+    vec3 to_light = spot_lights[i].group_position - p;
     float dist = length(to_light);
     vec3 l = to_light / dist;
-    float cd = clamp(dot(spot_lights[i].direction, -l), 0.0, 1.0);
+    float cd = clamp(dot(spot_lights[i].group_direction, -l), 0.0, 1.0);
     float spot = cone_ramp(i, cd);
     return max(dot(n, l), 0.0) * spot * spot * spot_lights[i].intensity / (dist * dist) * spot_lights[i].color;
 }

@@ -1,6 +1,7 @@
         color.xyz += res;
     }
-    for (int i = lookup_end; i < n_spot_lights; i++) {  // lights after the lookup range: no lookup
+    }
+    for (int g = lookup_end; g < n_spot_lights; g += spot_lights[g].group_size) {  // lights after the lookup range: no lookup
 #include "light_without_lookup.glsl"
     }
     color.xyz += base_color.xyz * ambient_light;
