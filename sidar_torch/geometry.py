@@ -22,6 +22,7 @@ import torch
 
 __all__ = [
     "clip_polygon",
+    "is_reference_camera",
     "painting_pixel_area",
     "point_disagreement",
     "polygon_area",
@@ -154,6 +155,15 @@ def reference_camera(image_size: tuple[int, int], distance: float) -> tuple[np.n
     K = np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
     R, t = look_at(np.array([0.0, 0.0, distance]))
     return K, R, t
+
+
+def is_reference_camera(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> bool:
+    """Whether ``K, R, t`` is, bit for bit, :func:`reference_camera` at its own height ``t[2]`` (the
+    camera whose pixel (u, v) sees the painting's texel (u, v) at its centre)."""
+    if not t[2] > 0:
+        return False
+    ref = reference_camera(image_size, float(t[2]))
+    return all(np.array_equal(a, b) for a, b in zip((K, R, t), ref))
 
 
 def project(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:

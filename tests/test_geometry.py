@@ -86,3 +86,17 @@ def test_look_at_matches_numpys_cross_bit_for_bit(rng):
     x /= np.linalg.norm(x)
     R, t = geometry.look_at(position)
     assert R.tobytes() == np.stack([x, np.cross(z, x), z]).tobytes() and t.tobytes() == (-R @ position).tobytes()
+
+
+def test_a_reference_camera_is_recognised_bit_for_bit(rng):
+    for _ in range(50):
+        size, distance = (int(rng.integers(1, 900)), int(rng.integers(1, 900))), rng.uniform(0.05, 20.0)
+        K, R, t = geometry.reference_camera(size, distance)
+        assert geometry.is_reference_camera(K, R, t, size)
+        nudged = K.copy()
+        nudged[0, 0] = np.nextafter(K[0, 0], np.inf)
+        assert not geometry.is_reference_camera(nudged, R, t, size)
+        assert not geometry.is_reference_camera(K, R, t, (size[0] + 1, size[1]))
+    tilted = geometry.look_at(np.array([0.1, 0.0, 1.0]))
+    assert not geometry.is_reference_camera(K, *tilted, size)
+    assert not geometry.is_reference_camera(K, R, -t, size)  # behind the painting

@@ -56,6 +56,7 @@ import pyrender
 from OpenGL import GL
 from pyrender.constants import RenderFlags
 
+from ..geometry import is_reference_camera
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
 from .pyrender_overrides import GLRenderer, add_node
@@ -113,7 +114,8 @@ class SceneRenderer:
     Attributes:
         settings: as given.
         skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
-            ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes).
+            ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes),
+            ``"label_from_painting"`` (label draws).
 
     Raises:
         ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context
@@ -189,7 +191,15 @@ class SceneRenderer:
             hidden.append(opacity)
             shadow_masks.append(shadow)
             shadow_free.append(unshadowed)
-        label = render_label(self._gl, sequence.views[0].camera, self._plane, texture, self.image_size, timings)
+        reference = sequence.views[0].camera
+        if self.settings.label_from_painting and is_reference_camera(reference.K, reference.R, reference.t,
+                                                                     self.image_size):
+            # The reference camera sees texel (u, v) at pixel (u, v)'s centre: the label is the
+            # painting, which the draw reproduces byte for byte (tests/render/test_skips.py).
+            self.skipped["label_from_painting"] += 1
+            label = painting.copy()
+        else:
+            label = render_label(self._gl, reference, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 np.stack(hidden) if self.settings.opacities else None,

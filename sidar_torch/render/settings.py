@@ -60,8 +60,8 @@ class RenderSettings:
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
         skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps,
-            split_shadow_lookups, clear_written_texels: the skips of work that cannot change a
-            pixel (``render.plan``, ``render.footprints``, ``render.shadow_array`` and
+            split_shadow_lookups, clear_written_texels, label_from_painting: the skips of work that
+            cannot change a pixel (``render.plan``, ``render.footprints``, ``render.shadow_array`` and
             ``SceneRenderer``), all on; tests turn each off to compare. No config field sets them.
 
     Raises:
@@ -91,6 +91,7 @@ class RenderSettings:
     reuse_shadow_maps: bool = True
     split_shadow_lookups: bool = True
     clear_written_texels: bool = True
+    label_from_painting: bool = True
 
     def __post_init__(self) -> None:
         try:

@@ -291,3 +291,34 @@ def test_margins_grow_the_shadow_tests():
     holding = visibility.shadow_may_fall_on_ball(emitter, np.array([[0.0, 0.0, 1.95]]), np.array([0.1]), centres[1:],
                                                radii[1:])
     assert holding.tolist() == [[[True]]]
+
+
+@pytest.mark.parametrize("preset", ["misaligned", "paper_misaligned", "aligned"])
+def test_the_label_from_the_painting_is_the_drawn_label(preset):
+    """View 0's reference camera sees texel (u, v) at pixel (u, v)'s centre: the label is the
+    painting itself, which the label draw gives byte for byte, at sizes odd and even, with both
+    texture filters and random paintings of every level."""
+    rng = np.random.default_rng(5)
+    for size, texture_filter in [((17, 23), "trilinear"), ((101, 77), "bilinear"), ((192, 256), "trilinear"),
+                                 ((511, 513), "bilinear")]:
+        cfg = small_config(preset, image_size=size, texture_filter=texture_filter, n_views=2, n_occluders=(0, 1))
+        settings = RenderSettings.from_config(cfg)
+        seq = sample_sequence(cfg, rng)
+        painting = rng.integers(0, 256, (*size, 3), dtype=np.uint8)
+        before = skipped(settings, "label_from_painting")
+        on, off = render_both(settings, seq, painting, "label_from_painting")
+        assert skipped(settings, "label_from_painting") - before == 1
+        assert_same_pixels(on, off)
+        assert np.array_equal(off.label, painting)  # drawn
+
+
+def test_a_view_0_off_the_reference_camera_has_its_label_drawn():
+    cfg = small_config(n_views=2, n_occluders=(0, 0))
+    seq = sample_sequence(cfg, np.random.default_rng(0))
+    tilted = SceneSequence(seq.image_size, (seq.views[1], seq.views[0]))  # view 0 from a random camera
+    settings = RenderSettings.from_config(cfg)
+    before = skipped(settings, "label_from_painting")
+    on, off = render_both(settings, tilted, textured_painting(SMALL), "label_from_painting")
+    assert skipped(settings, "label_from_painting") == before  # drawn, not copied
+    assert_same_pixels(on, off)
+    assert not np.array_equal(on.label, textured_painting(SMALL))
