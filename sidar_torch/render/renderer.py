@@ -197,7 +197,8 @@ class SceneRenderer:
             # The reference camera sees texel (u, v) at pixel (u, v)'s centre: the label is the
             # painting, which the draw reproduces byte for byte (tests/render/test_skips.py).
             self.skipped["label_from_painting"] += 1
-            label = painting.copy()
+            with timed(timings, "label"):
+                label = painting.copy()
         else:
             label = render_label(self._gl, reference, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
