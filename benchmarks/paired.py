@@ -61,12 +61,13 @@ def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list
 
 
 def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
-                          differences: list[np.ndarray] | None = None) -> tuple[dict, list[tuple[dict, dict]]]:
+                          differences: Any = None) -> tuple[dict, list[tuple[dict, dict]]]:
     """Render ``samples`` sequences of ``config`` with the ``RenderSettings`` ``off`` and ``on``.
 
     Args:
-        differences: if given, gets each measured sequence's ``(V, H, W, 3)`` int16 difference of the
-            views, ``on`` minus ``off`` (8-bit sRGB levels).
+        differences: if given, its ``append`` gets each measured sequence's ``(V, H, W, 3)`` int16
+            difference of the views, ``on`` minus ``off`` (8-bit sRGB levels; e.g.
+            ``setting_cost.ViewDifference``, which keeps a summary).
 
     Returns:
         ms per view keyed ``(clock, on)`` (``on`` False for ``off``; lists in sample order), and each

@@ -43,27 +43,47 @@ def main(argv: list[str] | None = None) -> None:
     if not changed:
         raise SystemExit(f"setting_cost: {args.field} = {args.values[0]} and {args.values[1]} give the renderer the "
                          "same settings (a field of the scenes, not of how they are drawn?)")
-    differences: list[np.ndarray] = []
+    differences = ViewDifference()
     ms_per_view, _ = paired_settings_times(config, *settings, args.samples, differences)
     given = "; ".join(f"{value}: " + ", ".join(f"{n}={getattr(s, n)}" for n in sorted(changed))
                       for value, s in zip(args.values, settings))
     print(f"{args.field}: {args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} sequences "
           f"x {config.n_views} views; renderer: {given}")
     print_paired(ms_per_view, tuple(args.values))
-    print(view_difference(differences, tuple(args.values)))
+    print(differences.line(tuple(args.values)))
+
+
+class ViewDifference:
+    """A running summary of how far one value's views are from the other's: :meth:`append` takes a
+    sequence's ``(V, H, W, 3)`` difference in 8-bit levels (int), so no sequence's difference is kept."""
+
+    def __init__(self) -> None:
+        self.views = self.same = self.values = self.squares = self.absolute = self.largest = 0
+
+    def append(self, difference: np.ndarray) -> None:
+        levels = np.abs(difference.astype(np.int64))
+        self.views += len(levels)
+        self.same += int((levels.reshape(len(levels), -1) == 0).all(axis=1).sum())
+        self.values += levels.size
+        self.squares += int(np.square(levels).sum())
+        self.absolute += int(levels.sum())
+        self.largest = max(self.largest, int(levels.max(initial=0)))
+
+    def line(self, labels: tuple[str, str]) -> str:
+        """PSNR (dB, peak 255) over every view, views with the same bytes, mean absolute and largest
+        difference, of ``labels[1]``'s views against ``labels[0]``'s."""
+        mse = self.squares / self.values
+        psnr = "inf (the same bytes)" if mse == 0 else f"{10 * np.log10(255 ** 2 / mse):.2f} dB"
+        return (f"views: {labels[1]} against {labels[0]}: PSNR {psnr}; {self.same} of {self.views} views the same "
+                f"bytes; mean |difference| {self.absolute / self.values:.3f} levels, largest {self.largest}")
 
 
 def view_difference(differences: list[np.ndarray], labels: tuple[str, str]) -> str:
-    """One line: how far the views of the second value are from the first's, from each sequence's
-    ``(V, H, W, 3)`` difference in 8-bit levels: PSNR (dB, peak 255) over every view, views with
-    the same bytes, mean absolute and largest difference."""
-    views = np.concatenate(differences).astype(np.float64)
-    mse = float(np.mean(views ** 2))
-    psnr = "inf (the same bytes)" if mse == 0 else f"{10 * np.log10(255 ** 2 / mse):.2f} dB"
-    same = int((views.reshape(len(views), -1) == 0).all(axis=1).sum())
-    return (f"views: {labels[1]} against {labels[0]}: PSNR {psnr}; {same} of {len(views)} views the same bytes; "
-            f"mean |difference| {np.abs(views).mean():.3f} levels, largest {np.abs(views).max():.0f}")
-
+    """:meth:`ViewDifference.line` of the sequences' differences ``differences``."""
+    summary = ViewDifference()
+    for difference in differences:
+        summary.append(difference)
+    return summary.line(labels)
 
 if __name__ == "__main__":
     main()
