@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import signal
 import sys
+import threading
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator, TextIO
+from typing import Any, Callable, Iterator, TextIO
 
 from torch.utils.data import DataLoader, Dataset
 
@@ -91,11 +93,47 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     begin = time.perf_counter()
     workers = as_int("workers", workers, 0)
     with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards)) as plan:
-        with Progress(len(plan.missing), sys.stderr if progress else None) as bar:
+        with Progress(len(plan.missing), sys.stderr if progress else None) as bar, ctrl_c_between() as check:
             take = _InOrder(_render(dataset, plan.missing, workers))
+
+            def advance(*args: Any) -> None:
+                bar.advance(*args)
+                check()
+
             for unit in plan.units():
-                plan.layout.write(plan.out, unit, take, bar.advance)
+                plan.layout.write(plan.out, unit, take, advance)
     return ExportSummary(plan.out, tuple(plan.missing), len(plan.present), time.perf_counter() - begin)
+
+
+@contextmanager
+def ctrl_c_between() -> Iterator[Callable[[], None]]:
+    """Hold a first Ctrl-C until the block calls the function this yields (raising
+    ``KeyboardInterrupt`` there, between two written sequences); a second Ctrl-C raises at once.
+
+    A ``KeyboardInterrupt`` raised wherever the signal lands can land inside ctypes' conversion of a
+    GL call's argument, which turns it into a ``ctypes.ArgumentError``: a traceback instead of
+    :class:`ExportInterrupted`. Outside the main thread (where Python cannot take signals) the
+    block runs as it is and the function does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    pressed: list[bool] = []
+
+    def hold(signum: int, frame: Any) -> None:
+        if pressed:
+            raise KeyboardInterrupt
+        pressed.append(True)
+
+    def check() -> None:
+        if pressed:
+            raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield check
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def either_shard_size(shard_size: int | None, shards: int | None) -> int | None:

@@ -395,3 +395,21 @@ def test_the_shard_size_option_and_its_old_name(tmp_path, capsys):
     assert tree(tmp_path / "old-name") == tree(tmp_path / "cli")
     with pytest.raises(ValueError, match="shards=2: the older name of shard_size; pass shard_size only"):
         export_dataset(tiny_dataset(), tmp_path / "both", count=1, shard_size=2, shards=2, progress=False)
+
+
+def test_a_first_ctrl_c_waits_for_the_next_sequence_and_a_second_stops_at_once():
+    # A KeyboardInterrupt raised wherever SIGINT lands could land in ctypes' conversion of a GL
+    # argument and come out as a ctypes.ArgumentError (a traceback, exit 1, seen in CI).
+    from sidar_torch.io.export import ctrl_c_between
+
+    before = signal.getsignal(signal.SIGINT)
+    with ctrl_c_between() as check:
+        check()  # nothing pressed: nothing raised
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handler has run: held, not raised
+        with pytest.raises(KeyboardInterrupt):
+            check()
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)  # the second press
+            time.sleep(1)
+    assert signal.getsignal(signal.SIGINT) is before
