@@ -13,7 +13,8 @@ order in three loops (``shader_patches`` quirk 6): lights ``[0, begin)`` without
 ``res * (1 - 0) * 1 == res``, and the sum is the same float sum in the same order whichever loop a
 light is in. A part's range ``[begin, end)`` holds every shadowed emitter (the first ones of
 ``ViewPlan.order``) whose lookups may read a caster at one of its pixels; the emitters it leaves out
-would all return "lit" there.
+would all return "lit" there. A part with an empty range is drawn by the program without lookups,
+which adds the same lights in one loop, in the same order.
 
 Where a lookup may read a caster: what ``plan`` tests for a drawn occluder
 (:func:`~.visibility.shadow_may_fall_on_ball`), with every caster's ball, the emitter's lookup

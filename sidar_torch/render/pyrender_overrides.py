@@ -23,7 +23,7 @@ import numpy as np
 import pyrender
 from OpenGL import GL
 from OpenGL.GL import shaders as gl_shaders
-from pyrender.constants import MAX_N_LIGHTS, RenderFlags
+from pyrender.constants import MAX_N_LIGHTS, ProgramFlags, RenderFlags
 from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
 from ..render_choices import MAX_SHADOWED_LIGHTS
@@ -215,10 +215,11 @@ class ProgramCache(ShaderProgramCache):
     that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7). While
     :attr:`mirror` names a define of ``mirror.MIRROR_DEFINES``, lit programs are that variant
     (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``). While
-    :attr:`shadow_fraction` is true, lit programs with spot-light shadows output the fraction of the
-    direct light the occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9). While
-    :attr:`shadow_free` is true, lit programs with spot-light shadows also output the colour with no
-    light blocked (define ``SHADOW_FREE``, quirk 10).
+    :attr:`shadow_fraction` is true, lit programs output the fraction of the direct light the
+    occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9). While
+    :attr:`shadow_free` is true, lit programs also output the colour with no light blocked (define
+    ``SHADOW_FREE``, quirk 10). Both are set only for draws with spot-light shadows, whose painting
+    parts without a lookup use the program without them (``GLRenderer._draw_parts``).
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
@@ -238,9 +239,9 @@ class ProgramCache(ShaderProgramCache):
             defines["TRANSMITTANCE_SHADOWS"] = 1
         if self.mirror and fragment_shader == "mesh.frag":
             defines[self.mirror] = 1
-        if self.shadow_fraction and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+        if self.shadow_fraction and fragment_shader == "mesh.frag":
             defines["SHADOW_FRACTION"] = 1
-        if self.shadow_free and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
+        if self.shadow_free and fragment_shader == "mesh.frag":
             defines["SHADOW_FREE"] = 1
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
@@ -307,7 +308,7 @@ class GLRenderer(pyrender.Renderer):
         each channel clips at white on its own."""
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
-        self._split: tuple[Any, Sequence[PaintingPart]] | None = None  # (painting primitive, parts) of a lit draw
+        self._split: tuple[Any, Sequence[PaintingPart], pyrender.Scene] | None = None  # (painting primitive, parts, scene) of a lit draw
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
         self._lit_programs: set[ShaderProgram] = set()
         self.painting: PaintingMirror | None = None
@@ -434,38 +435,60 @@ class GLRenderer(pyrender.Renderer):
                 program.set_uniform("material_ior", primitive.material.ior)
                 program.set_uniform("object_from_world", np.linalg.inv(pose))
         if self._split is not None and primitive is self._split[0]:
-            self._draw_parts(primitive, pose, program, flags, self._split[1])
+            self._draw_parts(primitive, pose, program, flags, *self._split[1:])
         else:
             super()._bind_and_draw_primitive(primitive, pose, program, flags)
 
-    def _draw_parts(self, primitive, pose, program, flags, parts: Sequence[PaintingPart]) -> None:
+    def _draw_parts(self, primitive, pose, program, flags, parts: Sequence[PaintingPart], scene: pyrender.Scene) -> None:
         """Draw ``primitive`` once per part, under the part's scissor with its lookup range.
 
-        The first draw is pyrender's (it binds the material); the others draw the same bound
-        primitive again. The parts tile the image, so each pixel is drawn once. The program's
-        lookup range is put back to every shadowed light for the next primitives.
+        Parts with a lookup are drawn with ``program``; parts without one with the program pyrender
+        gives the painting without spot-light shadows, which adds the same lights in the same order
+        in one loop instead of three around an empty range (a loop costs every fragment it runs
+        for, even with no trip: quirk 6). The parts tile the image, so each pixel is drawn once.
         """
+        looked_up = [part for part in parts if part.begin < part.end]
+        free = [part for part in parts if part.begin == part.end]
         GL.glEnable(GL.GL_SCISSOR_TEST)
         try:
-            for k, part in enumerate(parts):
-                # Window rows: drawn upside down (FLIP_Y), image row r is window row r; upright, H - 1 - r.
-                y = part.y if FLIP_Y[1, 1] < 0 else self.viewport_height - part.y - part.height
-                GL.glScissor(part.x, y, part.width, part.height)
-                program.set_uniform("lookup_begin", part.begin)
-                program.set_uniform("lookup_end", part.end)
-                if k == 0:
-                    super()._bind_and_draw_primitive(primitive, pose, program, flags)
-                    continue
-                primitive._bind()
-                if primitive.indices is not None:
-                    GL.glDrawElements(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0))
-                else:
-                    GL.glDrawArrays(primitive.mode, 0, len(primitive.positions))
-                primitive._unbind()
+            if looked_up:
+                self._draw_under_scissors(primitive, pose, program, flags, looked_up)
+            if free:
+                self._reset_active_textures()  # the units go to the other program's textures, in the same order
+                free_program = self._get_primitive_program(primitive, flags & ~RenderFlags.SHADOWS_SPOT,
+                                                           ProgramFlags.USE_MATERIAL)
+                free_program._bind()
+                V, P = self._get_camera_matrices(scene)
+                free_program.set_uniform("V", V)
+                free_program.set_uniform("P", P)
+                free_program.set_uniform("cam_pos", scene.get_pose(scene.main_camera_node)[:3, 3])
+                self._bind_lighting(scene, free_program, None, flags)
+                self._draw_under_scissors(primitive, pose, free_program, flags, free)
         finally:
             GL.glDisable(GL.GL_SCISSOR_TEST)
+            program._bind()  # its lookup range back to every shadowed light, for the next primitives
             program.set_uniform("lookup_begin", 0)
             program.set_uniform("lookup_end", self._n_shadowed)
+
+    def _draw_under_scissors(self, primitive, pose, program, flags, parts: Sequence[PaintingPart]) -> None:
+        """Draw ``primitive`` with ``program`` once per part, under the part's scissor with its lookup
+        range: the first draw is pyrender's (it binds the material), the others draw the same bound
+        primitive again."""
+        for k, part in enumerate(parts):
+            # Window rows: drawn upside down (FLIP_Y), image row r is window row r; upright, H - 1 - r.
+            y = part.y if FLIP_Y[1, 1] < 0 else self.viewport_height - part.y - part.height
+            GL.glScissor(part.x, y, part.width, part.height)
+            program.set_uniform("lookup_begin", part.begin)
+            program.set_uniform("lookup_end", part.end)
+            if k == 0:
+                super()._bind_and_draw_primitive(primitive, pose, program, flags)
+                continue
+            primitive._bind()
+            if primitive.indices is not None:
+                GL.glDrawElements(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0))
+            else:
+                GL.glDrawArrays(primitive.mode, 0, len(primitive.positions))
+            primitive._unbind()
 
     def _reset_active_textures(self) -> None:
         """pyrender's reset after each primitive, and the painting's and the depth sampler unbound
@@ -642,7 +665,7 @@ class GLRenderer(pyrender.Renderer):
         self._program_cache.shadow_free = shadow_free
         self._outputs = 2 if shadow_free else 1
         split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
-        self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1]) if split else None
+        self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1], scene) if split else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen

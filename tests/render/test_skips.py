@@ -81,10 +81,11 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
     (``render.footprints``) gives the same bytes as one draw with every lookup, with tent and
     bilinear filters, soft shadows (whose lookups read farther), transparent casters (transmittance
     lookups) and antialiasing (paper preset). So does the shadow-free view, drawn in the same pass
-    (each part with its lookups, all of its light unshadowed)."""
+    (each part with its lookups, all of its light unshadowed). Parts without a lookup are drawn by
+    the program without lookups (one light loop instead of three)."""
     cfg = small_config(preset, image_size=(160, 224), n_views=3, n_occluders=(2, 4), shadow_free_output=True)
     painting = textured_painting((160, 224))
-    left_out = softened = 0
+    left_out = softened = lookup_free = 0
     lookups = [dict(shadow_filter="tent"), dict(shadow_filter="bilinear"), dict(light_radius=SOFT)] * 2
     for seed, lookup in zip(range(6), lookups):
         settings = RenderSettings.from_config(cfg.replace(**lookup))
@@ -92,6 +93,7 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
         for plan in plan_views(seq, settings):
             left_out += sum(part.width * part.height * (plan.n_shadowed - part.end + part.begin)
                             for part in plan.painting_parts)
+            lookup_free += sum(part.width * part.height for part in plan.painting_parts if part.begin == part.end)
         split, whole = render_both(settings, seq, painting, "split_shadow_lookups")
         assert_same_pixels(split, whole)
         if settings.light_radius:
@@ -99,6 +101,12 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
             softened += int((hard.views != split.views).any(axis=-1).sum())
     assert left_out > 0  # lookups were left out
     assert softened > 100  # and the soft shadows differ from hard ones
+    assert lookup_free > 0
+    # Only the parts without a lookup draw with a program that has no spot-light shadows yet outputs
+    # the shadow-free view (views without a shadowed light output one colour).
+    programs = [dict(item for item in key if isinstance(item, tuple))
+                for key in shared_renderer(settings)._gl._program_cache._program_cache]
+    assert any("SHADOW_FREE" in defines and "SPOT_LIGHT_SHADOWS" not in defines for defines in programs)
 
 
 @pytest.mark.parametrize("preset, light_radius", [("shadows_only", 0.0), ("misaligned", 0.0), ("shadows_only", SOFT)])

@@ -7,6 +7,8 @@
 #endif
     // Quirk 13: spot lights g .. g + group_size - 1 are shaded once (spot_light(g), from the group's
     // centre) and each adds that shade, darkened by its own lookup; a group of one is a light as before.
+    // A program with lookups runs three loops; one without runs one (#else, after pyrender's text).
+#ifdef SPOT_LIGHT_SHADOWS
     for (int g = 0; g < lookup_begin; g += spot_lights[g].group_size) {  // lights before the lookup range: no lookup
 #include "light_without_lookup.glsl"
     }
