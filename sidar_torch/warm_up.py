@@ -16,7 +16,10 @@ its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
    mirror variant),
 2. a view with the occluders whose shadows are opaque (shadowed lights without transmittance),
 3. the first view without its lights (every occluder drawn with the unshadowed programs),
-4. a view without occluders (the painting's unshadowed program).
+4. a view without occluders (the painting's unshadowed program),
+5. for every number of light groups a view of the config can have (:func:`light_group_counts`), the
+   first view with that many lights, once with every occluder and once without (the painting's
+   program for that count, drawn beside the shadow maps and without them).
 
 :func:`warm_renderer`, which every sample is rendered through (``sample.render_arrays``), renders
 it once per renderer before the renderer's first sample (``SceneRenderer.warm_up``): it hands out no
@@ -29,11 +32,13 @@ from __future__ import annotations
 
 import functools
 from dataclasses import replace
+from itertools import cycle, islice
 from typing import TYPE_CHECKING, Hashable
 
 import numpy as np
 
 from .config import SidarConfig
+from .config.memory import shadowed_emitters
 from .render import shared_renderer
 from .render.settings import RenderSettings
 from .scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
@@ -41,7 +46,7 @@ from .scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_seq
 if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
     from .render import SceneRenderer
 
-__all__ = ["WARM_UP_SEED", "variant_signature", "warm_renderer", "warm_up_sequence"]
+__all__ = ["WARM_UP_SEED", "light_group_counts", "variant_signature", "warm_renderer", "warm_up_sequence"]
 
 WARM_UP_SEED = 0x5EED
 """Seed of the generator that draws the warm-up scene (any fixed value: the scene is never handed out)."""
@@ -63,6 +68,19 @@ def variant_signature(material: Material) -> tuple[str | None, bool, bool]:
     from .render.mirror import mirror_define  # imports pyrender: at the first warm-up, not with the package
 
     return mirror_define(material), material.transparent, not material.transparent or material.opaque_shadow
+
+
+def light_group_counts(config: SidarConfig) -> tuple[int, ...]:
+    """The numbers of light groups (``render.pyrender_overrides.light_group_count``) whose painting
+    programs the warm-up draws: each count from one to ``pyrender_overrides.UNROLLED_LIGHT_GROUPS``
+    that a view of ``config`` may have (a program each), then one above if a view may have more (the
+    program with the loop). A light is one group with ``area_light_shading: per_light``, each of its
+    emitters one with ``per_emitter``."""
+    from .render.pyrender_overrides import UNROLLED_LIGHT_GROUPS  # imports pyrender: at the first warm-up
+
+    most = config.n_lights[1] if config.area_light_shading == "per_light" else shadowed_emitters(config)
+    counts = tuple(range(max(config.n_lights[0], 1), min(most, UNROLLED_LIGHT_GROUPS) + 1))
+    return counts + (UNROLLED_LIGHT_GROUPS + 1,) if most > UNROLLED_LIGHT_GROUPS else counts
 
 
 def _variant_materials(config: SidarConfig, rng: np.random.Generator) -> list[Material]:
@@ -95,16 +113,22 @@ def warm_up_sequence(config: SidarConfig) -> SceneSequence:
     opaque = tuple(o for o in spheres if variant_signature(o.material)[2])
     views = (replace(first, occluders=spheres), replace(first, occluders=opaque),
              replace(first, occluders=spheres, lights=()), replace(first, occluders=()))
+    for count in light_group_counts(config) if first.lights else ():
+        # One-emitter lights (a group each, whatever area_light_shading says), copied from the first's.
+        lights = tuple(replace(light, emitters=light.emitters[:1]) for light in islice(cycle(first.lights), count))
+        views += (replace(first, occluders=spheres, lights=lights), replace(first, occluders=(), lights=lights))
     return SceneSequence(tuple(config.image_size), views)
 
 
 @functools.lru_cache(maxsize=32)
 def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
-    """:func:`warm_up_sequence` of ``config`` and what it warms up: whether it has lights, and the
-    :func:`variant_signature` s of its occluders (configs that agree on these need one warm-up)."""
+    """:func:`warm_up_sequence` of ``config`` and what it warms up: whether it has lights, the numbers
+    of light groups of its views and the :func:`variant_signature` s of its occluders (configs that
+    agree on these need one warm-up)."""
     sequence = warm_up_sequence(config)
     signatures = sorted({variant_signature(o.material) for v in sequence.views for o in v.occluders}, key=repr)
-    return sequence, (bool(sequence.views[0].lights), *signatures)
+    counts = tuple(sorted({len(v.lights) for v in sequence.views[4:]}))
+    return sequence, (bool(sequence.views[0].lights), counts, *signatures)
 
 
 def warm_renderer(config: SidarConfig) -> SceneRenderer:

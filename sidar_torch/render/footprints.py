@@ -6,15 +6,17 @@ two thirds of them cannot find a caster). So the painting's colour draw is split
 rectangles (:class:`PaintingPart`), each drawn under a scissor with only the lookups it needs; the
 occluders keep all of them.
 
-Why a part's pixels are the same as with every lookup. The shader adds the spot lights in their
-order in three loops (``shader_patches`` quirk 6): lights ``[0, begin)`` without a lookup,
-``[begin, end)`` with one, ``[end, n)`` without. A lookup that reads no caster's texel returns
-"lit": a shadow factor of exactly ``1 - 0.25 * 4 = 0`` and a transmittance of exactly 1, so
-``res * (1 - 0) * 1 == res``, and the sum is the same float sum in the same order whichever loop a
-light is in. A part's range ``[begin, end)`` holds every shadowed emitter (the first ones of
+Why a part's pixels are the same as with every lookup. The shader adds the spot lights' groups in
+their order in three loops (``shader_patches`` quirks 6 and 13): groups in ``[0, begin)`` without a
+lookup, ``[begin, end)`` with one, ``[end, n)`` without. A group adds its shade times its emitters'
+summed visibility with a lookup, times its number of emitters without. A lookup that reads no
+caster's texel returns "lit": a shadow factor of exactly ``1 - 0.25 * 4 = 0`` and a transmittance
+of exactly 1, so the visibility ``(1 - 0) * 1`` is exactly 1, the sum of a group's is exactly its
+number of emitters, and the sum is the same float sum in the same order whichever loop a light is
+in. A part's range ``[begin, end)`` holds every shadowed emitter (the first ones of
 ``ViewPlan.order``) whose lookups may read a caster at one of its pixels; the emitters it leaves out
 would all return "lit" there. A part with an empty range is drawn by the program without lookups,
-which adds the same lights in one loop, in the same order.
+which adds the same groups in the same order, written out (up to 4) or in one loop.
 
 Where a lookup may read a caster: what ``plan`` tests for a drawn occluder
 (:func:`~.visibility.shadow_may_fall_on_ball`), with every caster's ball, the emitter's lookup

@@ -37,7 +37,8 @@ from .transmittance import TransmittanceMaps, vertex_defines
 from .uniforms import set_uniform_array
 from .visibility import bounds_corners, map_texel_box
 
-__all__ = ["GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection", "ranked"]
+__all__ = ["UNROLLED_LIGHT_GROUPS", "GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection",
+           "light_group_count", "ranked"]
 
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
@@ -58,6 +59,11 @@ def frustum_projection(frustum: np.ndarray) -> np.ndarray:
 
 _BOTTOM_ROW = (0.0, 0.0, 0.0, 1.0)
 """The bottom row of a pose."""
+
+UNROLLED_LIGHT_GROUPS = 4
+"""The most light groups the painting's program without lookups adds written out rather than in a loop
+(the copies in ``shaders/unshadowed_spot_loop.glsl``); a view with more gets the loop. A renderer takes
+it at construction (``GLRenderer.unrolled_light_groups``)."""
 
 
 class RankedNode(pyrender.Node):
@@ -125,6 +131,17 @@ def ranked(nodes: set[pyrender.Node]) -> list[pyrender.Node]:
     order: a set of small-integer hashes iterates in hash-table order, which wraps around when
     ranks reach the table's size (ranks 5..8 in a table of 8 iterate as 8, 5, 6, 7)."""
     return sorted(nodes, key=hash)
+
+
+def light_group_count(scene: pyrender.Scene) -> int:
+    """How many light groups the shader adds for ``scene``'s spot lights: in their order, each
+    group's first light says how many lights it spans (``ShadowedSpotLight.group_size``, quirk 13)."""
+    lights = [node.light for node in ranked(scene.spot_light_nodes)]
+    count = k = 0
+    while k < len(lights):
+        count += 1
+        k += lights[k].group_size
+    return count
 
 
 def add_node(scene: pyrender.Scene, pose: np.ndarray | None = None, **obj: Any) -> pyrender.Node:
@@ -219,7 +236,10 @@ class ProgramCache(ShaderProgramCache):
     occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9). While
     :attr:`shadow_free` is true, lit programs also output the colour with no light blocked (define
     ``SHADOW_FREE``, quirk 10). Both are set only for draws with spot-light shadows, whose painting
-    parts without a lookup use the program without them (``GLRenderer._draw_parts``).
+    parts without a lookup use the program without them (``GLRenderer._draw_parts``). While
+    :attr:`light_groups` is set (the painting's draws, with at most :data:`UNROLLED_LIGHT_GROUPS` light
+    groups), lit programs without spot-light shadows add that many groups written out instead of in
+    a loop (define ``LIGHT_GROUPS``; quirk 6): a variant per count, for the painting only.
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
@@ -232,6 +252,7 @@ class ProgramCache(ShaderProgramCache):
         self.mirror: str | None = None
         self.shadow_fraction = False
         self.shadow_free = False
+        self.light_groups: int | None = None
 
     def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
         defines = {**(defines or {}), **self._extra_defines}
@@ -243,6 +264,8 @@ class ProgramCache(ShaderProgramCache):
             defines["SHADOW_FRACTION"] = 1
         if self.shadow_free and fragment_shader == "mesh.frag":
             defines["SHADOW_FREE"] = 1
+        if self.light_groups is not None and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" not in defines:
+            defines["LIGHT_GROUPS"] = self.light_groups
         names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
         key = names + tuple(sorted(defines.items()))
         if key not in self._program_cache:
@@ -309,6 +332,9 @@ class GLRenderer(pyrender.Renderer):
         self._filtered = False  # whether the current draw's lights have transmittance maps
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._split: tuple[Any, Sequence[PaintingPart], pyrender.Scene] | None = None  # (painting primitive, parts, scene) of a lit draw
+        self._painting_primitive: pyrender.Primitive | None = None  # of the current draw
+        self._light_groups: int | None = None  # the current draw's, if at most unrolled_light_groups
+        self.unrolled_light_groups = UNROLLED_LIGHT_GROUPS  # 0: the painting's program keeps the loop
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
         self._lit_programs: set[ShaderProgram] = set()
         self.painting: PaintingMirror | None = None
@@ -413,12 +439,14 @@ class GLRenderer(pyrender.Renderer):
         return uniforms, textures
 
     def _get_primitive_program(self, primitive, flags, program_flags):
-        """pyrender's program choice; a lit occluder with a ``mirror`` material gets that variant."""
+        """pyrender's program choice; a lit occluder with a ``mirror`` material gets that variant, and
+        the painting the variant for the draw's number of light groups (``ProgramCache.light_groups``)."""
         self._program_cache.mirror = getattr(primitive.material, "mirror", None) if self.painting else None
+        self._program_cache.light_groups = self._light_groups if primitive is self._painting_primitive else None
         try:
             return super()._get_primitive_program(primitive, flags, program_flags)
         finally:
-            self._program_cache.mirror = None
+            self._program_cache.mirror = self._program_cache.light_groups = None
 
     def _bind_and_draw_primitive(self, primitive, pose, program, flags) -> None:
         """pyrender's draw, split into the painting's parts for the painting of a lit draw that has
@@ -666,13 +694,16 @@ class GLRenderer(pyrender.Renderer):
         self._outputs = 2 if shadow_free else 1
         split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
         self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1], scene) if split else None
+        self._painting_primitive = painting_parts[0].mesh.primitives[0] if painting_parts is not None else None
+        groups = light_group_count(scene)
+        self._light_groups = groups if groups <= self.unrolled_light_groups else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
             try:
                 self._forward_pass(scene, flags, seg_node_map=seg_node_map)
             finally:
-                self._split = None
+                self._split = self._painting_primitive = self._light_groups = None
                 self._program_cache.shadow_fraction = self._program_cache.shadow_free = False
                 self._outputs = 1
         with timed(timings, "readback"):

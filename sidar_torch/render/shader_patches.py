@@ -56,10 +56,17 @@ pyrender override.
    (``render.footprints``).
    A loop that runs no trip is not free either: on a painting with no light, each loop left in the
    shader costs about 2 ms per 384 x 512 view, and the lookup loop about 4 ms in lit views, paid by
-   every fragment the program draws. So a program without spot-light shadows (pyrender's define
-   ``SPOT_LIGHT_SHADOWS`` absent) adds every light in one loop instead of three around an empty range:
-   the same additions in the same order. It draws the views without a shadowed light, and the
-   painting's parts whose range is empty (most of its pixels; ``GLRenderer._draw_parts``).
+   every fragment the program draws (measured by editing the shader). So:
+
+   * a program without spot-light shadows (pyrender's define ``SPOT_LIGHT_SHADOWS`` absent) adds
+     every light in one loop instead of three around an empty range: the same additions in the same
+     order. It draws the views without a shadowed light, and the painting's parts whose range is
+     empty (most of its pixels; ``GLRenderer._draw_parts``);
+   * the painting's program without lookups is a variant per number of light groups up to 4 (define
+     ``LIGHT_GROUPS``, ``pyrender_overrides.UNROLLED_LIGHT_GROUPS``), which writes the groups out, one
+     after the other, with no loop left (left to the compiler's own unrolling, the loop's cost went at 2 and 3 groups but not at 4 or 8); warm-up compiles
+     every count a config can draw (``sidar_torch.warm_up``);
+   * a group's emitters are counted by products, not loops (quirk 13).
 
 7. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
    transmittance map per shadowed spot light instead of its depth map (model and limits in
@@ -151,10 +158,11 @@ pyrender override.
     ``RenderSettings.group_emitters`` (config ``area_light_shading: per_light``) the emitters of a light
     are adjacent in the shader's order and form a group: each spot light has ``group_size``,
     ``group_position`` and ``group_direction`` members, the first of a group is shaded once from the
-    group's centre (``spot_light``; ``spot_irradiance`` alike) and every emitter adds that shade, darkened
-    by its own lookup (``shaders/group_shade.glsl``, in all three loops). A group of one is shaded from
-    the light's own pose with the additions of before, so lights of one emitter give the same bytes
-    either way. ``render.plan`` shadows a light's emitters all or none and widens the footprints'
+    group's centre (``spot_light``; ``spot_irradiance`` alike), and the group adds that shade times the
+    sum of its emitters' visibilities, each its own lookup times its transmittance (exactly 1 where
+    lit), or times its number of emitters where it has no lookup (``shaders/group_shade.glsl``, in
+    every loop). A group of one is shaded from the light's own pose, so lights of one emitter give the
+    same bytes either way. ``render.plan`` shadows a light's emitters all or none and widens the footprints'
     lookup ranges to whole lights (``plan.whole_lights``).
 
 Shader sources stay pyrender's own; each patch names the exact text it replaces and fails
@@ -194,9 +202,10 @@ def _after(anchor: str, text: str) -> tuple[str, str]:
 
 
 PATCH_DEFINES = ("TRANSMITTANCE_SHADOWS", "PAINTING_REFLECTION", "PAINTING_REFRACTION", "SHADOW_FRACTION",
-                 "SHADOW_FREE", "SPOT_LIGHT_SHADOWS")
-"""Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` (passed to GLSL as ``#define``;
-``SPOT_LIGHT_SHADOWS`` is pyrender's, whose own ``#ifdef`` lines it resolves itself)."""
+                 "SHADOW_FREE", "SPOT_LIGHT_SHADOWS", "LIGHT_GROUPS")
+"""Program defines that :data:`SHADER_PATCHES` test with ``#ifdef`` or ``#if`` (passed to GLSL as
+``#define NAME value``; ``SPOT_LIGHT_SHADOWS`` is pyrender's, whose own ``#ifdef`` lines it resolves
+itself)."""
 
 SHADER_SOURCES = ("transmittance.frag",)
 """Shaders of our own in ``shaders/`` (pair them with pyrender's ``mesh.vert``); no ``#ifdef``."""
@@ -274,7 +283,7 @@ def patch_source(filename: str, text: str, defines: dict[str, int]) -> str:
             text = text.replace(name, str(value))
     # pyrender resolved its own #ifdef lines before the patches went in; GLSL resolves ours.
     version, rest = text.split("\n", 1)
-    declared = "".join(f"#define {name} 1\n" for name in PATCH_DEFINES if name in defines)
+    declared = "".join(f"#define {name} {int(defines[name])}\n" for name in PATCH_DEFINES if name in defines)
     return f"{version}\n{declared}{rest}"
 
 

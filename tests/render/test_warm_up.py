@@ -7,7 +7,7 @@ import pytest
 from sidar_torch import SidarDataset, available_presets, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.scene import sample_sequence
-from sidar_torch.warm_up import variant_signature, warm_up_sequence
+from sidar_torch.warm_up import light_group_counts, variant_signature, warm_up_sequence
 
 from conftest import small_config, textured_painting
 
@@ -39,7 +39,7 @@ def test_the_warm_up_meets_every_variant_of_the_configs_materials():
     config = small_config("paper_misaligned")
     sequence = warm_up_sequence(config)
     assert sequence.image_size == config.image_size
-    everything, opaque, unlit, empty = sequence.views
+    everything, opaque, unlit, empty = sequence.views[:4]
     drawn = {variant_signature(o.material) for o in everything.occluders}
     rng = np.random.default_rng(1)
     for _ in range(20):  # what samples draw is among the warm-up's variants
@@ -49,6 +49,11 @@ def test_the_warm_up_meets_every_variant_of_the_configs_materials():
     assert all(variant_signature(o.material)[2] for o in opaque.occluders) and len(opaque.occluders) < len(drawn)
     assert everything.lights and not unlit.lights and unlit.occluders == everything.occluders
     assert not empty.occluders
+    # Then, per number of light groups, a view with every occluder and one without.
+    counts = light_group_counts(config)
+    assert [len(v.lights) for v in sequence.views[4:]] == [n for n in counts for _ in range(2)]
+    assert [len(v.occluders) for v in sequence.views[4:]] == [len(everything.occluders), 0] * len(counts)
+    assert all(len(light.emitters) == 1 for v in sequence.views[4:] for light in v.lights)
 
 
 def test_the_warm_up_hands_out_nothing_and_changes_no_pixel():

@@ -6,7 +6,7 @@
     vec3 shadow_free = color.xyz;  // quirk 10: the colour with every light unblocked
 #endif
     // Quirk 13: spot lights g .. g + group_size - 1 are shaded once (spot_light(g), from the group's
-    // centre) and each adds that shade, darkened by its own lookup; a group of one is a light as before.
+    // centre), and the group adds that shade times the sum of its emitters' lookups (each 1 if lit).
     // A program with lookups runs three loops; one without runs one (#else, after pyrender's text).
 #ifdef SPOT_LIGHT_SHADOWS
     for (int g = 0; g < lookup_begin; g += spot_lights[g].group_size) {  // lights before the lookup range: no lookup
@@ -14,9 +14,10 @@
     }
     for (int g = lookup_begin; g < lookup_end; g += spot_lights[g].group_size) {  // lights with a shadow lookup
 #include "group_shade.glsl"
-      for (int i = g; i < g + spot_lights[g].group_size; i++) {  // each emitter's lookup
-        vec3 res = shade;
-        l = normalize(spot_lights[i].position - frag_position);  // this emitter's: its lookup's slope bias
 #ifdef SHADOW_FREE
-        shadow_free += res;  // before the lookup darkens it
+        shadow_free += shade * emitters;  // before the lookups darken it
 #endif
+        vec3 visibility = vec3(0.0);  // the group's emitters' light that passes the occluders, summed
+      for (int i = g; i < g + spot_lights[g].group_size; i++) {  // each emitter's lookup
+        vec3 res = vec3(1.0);  // what of emitter i's light passes the occluders (1: all)
+        l = normalize(spot_lights[i].position - frag_position);  // this emitter's: its lookup's slope bias

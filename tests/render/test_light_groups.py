@@ -1,0 +1,56 @@
+"""The painting's program without lookups, written out per number of light groups (quirk 6): the same
+bytes as the loop, a variant per count, and the count the shader adds."""
+
+import numpy as np
+import pytest
+
+from sidar_torch.render import RenderSettings, SceneRenderer, shared_renderer
+from sidar_torch.render.pyrender_overrides import ShadowedSpotLight, add_node, light_group_count
+from sidar_torch.scene import sample_sequence
+
+from conftest import small_config, textured_painting
+
+pytestmark = pytest.mark.gl  # renders
+
+
+def program_defines(renderer):
+    """The defines of every program ``renderer`` has built, as dicts."""
+    return [dict(item for item in key if isinstance(item, tuple)) for key in renderer._gl._program_cache._program_cache]
+
+
+@pytest.mark.parametrize("shading", ["per_light", "per_emitter"])
+def test_groups_written_out_give_the_bytes_of_the_loop(shading):
+    """Views of 1 to 5 lights (area lights of 3 emitters among them), with and without casters and the
+    shadow-free output: the written-out groups give the same bytes as the loop (a renderer whose
+    unrolling limit is 0), and each count up to the limit has its program."""
+    painting = textured_painting((64, 80))
+    cfg = small_config(image_size=(64, 80), n_views=3, n_occluders=(0, 2), area_light_samples=3,
+                       light_types=("spot", "point", "area"), area_light_shading=shading, shadow_free_output=True)
+    settings = RenderSettings.from_config(cfg)
+    unrolled = shared_renderer(settings)
+    looped = SceneRenderer(settings)  # its own renderer: a program cache of its own
+    looped._gl.unrolled_light_groups = 0
+    try:
+        for n in range(1, 6):
+            for seed in range(2):
+                seq = sample_sequence(cfg.replace(n_lights=(n, n)), np.random.default_rng(100 * n + seed))
+                a, b = unrolled.render(seq, painting), looped.render(seq, painting)
+                for name in ("views", "shadow_free"):
+                    assert np.array_equal(getattr(a, name), getattr(b, name)), (n, seed, name)
+    finally:
+        looped.close()
+    counts = {defines.get("LIGHT_GROUPS") for defines in program_defines(unrolled)}
+    assert {1, 2, 3, 4} <= counts  # the painting's variants (per_emitter: 3 emitters of an area light are 3 groups)
+    assert not any("LIGHT_GROUPS" in defines for defines in program_defines(looped))
+
+
+def test_a_light_group_count_steps_over_each_group():
+    import pyrender
+
+    scene = pyrender.Scene()
+    # Groups of 3, 1 and 2 emitters: only a group's first light's size counts.
+    for rank, size in enumerate([3, 0, 0, 1, 2, 0]):
+        light = ShadowedSpotLight(rank)
+        light.group_size = size
+        add_node(scene, np.eye(4), light=light)
+    assert light_group_count(scene) == 3
