@@ -1,6 +1,6 @@
 """What a rendering setting costs: median time per view of the same scenes rendered with two values
 of one config field that changes how they are drawn, not what they hold (e.g. ``shadow_map_size``),
-same run. ``python -m benchmarks.setting_cost --field NAME --values A B [--config P] [--set K=V]``
+or of a ``RenderSettings`` field that no config field sets (e.g. ``footprint_tile``), same run. ``python -m benchmarks.setting_cost --field NAME --values A B [--config P] [--set K=V]``
 from the repository root.
 
 Renders each sequence with the renderer settings of ``A`` and of ``B`` (``benchmarks.paired``) and
@@ -8,11 +8,14 @@ prints what each value gives the renderer, then per view the medians and the med
 difference (``B`` minus ``A``) in wall-clock and this process's CPU time.
 
     python -m benchmarks.setting_cost --field shadow_map_size --values 1024 auto --size 384x512 --samples 40
+    python -m benchmarks.setting_cost --field footprint_tile --values 32 16 --size 192x256 --samples 40
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import fields, replace
+from typing import Any
 
 import numpy as np
 
@@ -23,22 +26,20 @@ from .paired import paired_config, paired_parser, paired_settings_times, print_p
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m benchmarks.setting_cost``; parsing it runs nothing."""
     parser = paired_parser("setting_cost", __doc__.splitlines()[0], samples=40, set_example="n_occluders=[1,3]")
-    parser.add_argument("--field", required=True, help="the config field compared, e.g. shadow_map_size")
+    parser.add_argument("--field", required=True, help="the config field compared, e.g. shadow_map_size, or a RenderSettings field no config field "
+                        "sets, e.g. footprint_tile")
     parser.add_argument("--values", nargs=2, required=True, metavar=("A", "B"),
                         help="its two values (read as YAML), e.g. 1024 auto")
     return parser
 
 
 def main(argv: list[str] | None = None) -> None:
-    from sidar_torch.render import RenderSettings  # imports pyrender: here, so parsing loads no GL
-
     args = build_parser().parse_args(argv)
     config = paired_config("setting_cost", args)
     try:
-        configs = [config.replace(**parse_set([f"{args.field}={value}"])) for value in args.values]
+        settings = [value_settings(config, args.field, value) for value in args.values]
     except ValueError as error:
         raise SystemExit(f"setting_cost: {error}") from error
-    settings = [RenderSettings.from_config(c) for c in configs]
     changed = {name for name in settings[0].__dataclass_fields__ if getattr(settings[0], name) != getattr(settings[1], name)}
     if not changed:
         raise SystemExit(f"setting_cost: {args.field} = {args.values[0]} and {args.values[1]} give the renderer the "
@@ -51,6 +52,26 @@ def main(argv: list[str] | None = None) -> None:
           f"x {config.n_views} views; renderer: {given}")
     print_paired(ms_per_view, tuple(args.values))
     print(differences.line(tuple(args.values)))
+
+
+def value_settings(config: Any, field: str, value: str) -> Any:
+    """The ``RenderSettings`` that ``config`` with ``field`` set to ``value`` (read as YAML) gives the
+    renderer: a config field through the config, a renderer field that no config field sets (e.g.
+    ``footprint_tile``) on the config's settings.
+
+    Raises:
+        ValueError: an unknown field, or a value out of the field's range, naming the field.
+    """
+    from sidar_torch.render import RenderSettings  # imports pyrender: here, so parsing loads no GL
+
+    parsed = parse_set([f"{field}={value}"])
+    if field in _field_names(config) or field not in _field_names(RenderSettings):
+        return RenderSettings.from_config(config.replace(**parsed))  # an unknown field: the config names it
+    return replace(RenderSettings.from_config(config), **parsed)
+
+
+def _field_names(dataclass_or_instance: Any) -> set[str]:
+    return {f.name for f in fields(dataclass_or_instance)}
 
 
 class ViewDifference:

@@ -21,7 +21,7 @@ which adds the same groups in the same order, written out (up to 4) or in one lo
 Where a lookup may read a caster: what ``plan`` tests for a drawn occluder
 (:func:`~.visibility.shadow_may_fall_on_ball`), with every caster's ball, the emitter's lookup
 margin (:func:`~.plan.shadow_margin`) and, as the target, a ball holding the part of the plane a
-tile of :data:`TILE` x :data:`TILE` pixels sees (the tile's corners, at the outer pixel borders,
+tile of ``RenderSettings.footprint_tile`` pixels square sees (the tile's corners, at the outer pixel borders,
 cast onto ``z = 0``): every fragment shaded in the tile, at its pixel centre or at a sample point
 inside the pixel (``antialias``), lies in that ball. A tile reaching the camera's horizon needs
 every lookup. ``tests/render/test_skips.py`` renders with and without the split and compares bit for bit.
@@ -36,12 +36,7 @@ import numpy as np
 from ..scene import ViewScene
 from .visibility import shadow_may_fall_on_ball
 
-__all__ = ["TILE", "PaintingPart", "lookup_ranges", "painting_parts"]
-
-TILE = 32
-"""Side of the square pixel tiles that footprints are resolved to. Smaller tiles keep fewer lookups
-but cost more draws (about ``TILE = 16``: 26 % of the lookups kept, 71 draws per view; 32: 32 %, 34
-draws; 64: 43 %, 15 draws, in ``misaligned`` views at 384 x 512)."""
+__all__ = ["PaintingPart", "lookup_ranges", "painting_parts"]
 
 
 @dataclass(frozen=True)
@@ -64,14 +59,14 @@ class PaintingPart:
     end: int
 
 
-def _tile_balls(view: ViewScene, image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Balls holding what each tile sees of the plane ``z = 0``: centres ``(ny, nx, 3)`` and radii
-    ``(ny, nx)`` (world, painting units; ``inf`` for a tile whose corners are not all in front of
-    the camera)."""
+def _tile_balls(view: ViewScene, image_size: tuple[int, int], tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Balls holding what each ``tile`` x ``tile`` pixel tile sees of the plane ``z = 0``: centres
+    ``(ny, nx, 3)`` and radii ``(ny, nx)`` (world, painting units; ``inf`` for a tile whose corners are
+    not all in front of the camera)."""
     h, w = image_size
     cam = view.camera
-    us = np.minimum(np.arange(0, w + TILE, TILE), w) - 0.5  # outer pixel borders (Kornia pixels)
-    vs = np.minimum(np.arange(0, h + TILE, TILE), h) - 0.5
+    us = np.minimum(np.arange(0, w + tile, tile), w) - 0.5  # outer pixel borders (Kornia pixels)
+    vs = np.minimum(np.arange(0, h + tile, tile), h) - 0.5
     to_plane = np.linalg.inv(cam.K @ np.column_stack([cam.R[:, 0], cam.R[:, 1], cam.t]))
     u, v = np.meshgrid(us, vs)
     p = np.einsum("ij,jyx->iyx", to_plane, np.stack([u, v, np.ones_like(u)]))  # homogeneous plane points
@@ -85,7 +80,7 @@ def _tile_balls(view: ViewScene, image_size: tuple[int, int]) -> tuple[np.ndarra
 
 
 def lookup_ranges(view: ViewScene, emitters: list[tuple[int, int]], casters: list[int], margins: np.ndarray,
-                  image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+                  image_size: tuple[int, int], tile: int) -> tuple[np.ndarray, np.ndarray]:
     """Per tile, the range of shadowed emitters whose lookups may read a caster there.
 
     Args:
@@ -94,12 +89,13 @@ def lookup_ranges(view: ViewScene, emitters: list[tuple[int, int]], casters: lis
         casters: indices of ``view.occluders`` in the shadow and transmittance maps.
         margins: ``(E,)`` each emitter's lookup margin, radians (:func:`~.plan.shadow_margin`).
         image_size: ``(H, W)``, pixels.
+        tile: side of the square tiles, pixels (``RenderSettings.footprint_tile``).
 
     Returns:
         ``begin, end``: ``(ny, nx)`` int arrays over the tiles (row-major from the top-left tile);
         ``begin == end`` where no lookup is needed.
     """
-    centres, radii = _tile_balls(view, image_size)
+    centres, radii = _tile_balls(view, image_size, tile)
     positions = np.array([view.lights[a].emitters[b] for a, b in emitters], np.float64).reshape(-1, 3)
     balls = np.array([[*view.occluders[i].position, np.linalg.norm(view.occluders[i].scale)] for i in casters],
                      np.float64).reshape(-1, 4)
@@ -113,7 +109,7 @@ def lookup_ranges(view: ViewScene, emitters: list[tuple[int, int]], casters: lis
     return begin.reshape(radii.shape), end.reshape(radii.shape)
 
 
-def painting_parts(begin: np.ndarray, end: np.ndarray, image_size: tuple[int, int]) -> list[PaintingPart]:
+def painting_parts(begin: np.ndarray, end: np.ndarray, image_size: tuple[int, int], tile: int) -> list[PaintingPart]:
     """Screen rectangles tiling the image, each with the lookup range its tiles need.
 
     Tiles of a row with the same range are merged into runs; a run the same as one of the row above
@@ -122,6 +118,7 @@ def painting_parts(begin: np.ndarray, end: np.ndarray, image_size: tuple[int, in
     Args:
         begin, end: ``(ny, nx)`` per-tile lookup ranges (:func:`lookup_ranges`).
         image_size: ``(H, W)``, pixels.
+        tile: side of the tiles, pixels, as given to :func:`lookup_ranges`.
 
     Returns:
         The parts, covering every pixel once.
@@ -132,14 +129,14 @@ def painting_parts(begin: np.ndarray, end: np.ndarray, image_size: tuple[int, in
     parts: list[PaintingPart] = []
     above: dict[tuple[int, int, int, int], PaintingPart] = {}
     for row in range(begin.shape[0]):
-        y, height = row * TILE, min(TILE, h - row * TILE)
+        y, height = row * tile, min(tile, h - row * tile)
         cuts = np.flatnonzero((np.diff(begin[row]) != 0) | (np.diff(end[row]) != 0)) + 1
         runs = {}
         for first, stop in zip([0, *cuts], [*cuts, begin.shape[1]]):
             key = (first, stop, int(begin[row, first]), int(end[row, first]))
             top = above[key].y if key in above else y
-            x = first * TILE
-            runs[key] = PaintingPart(x, top, min(stop * TILE, w) - x, y + height - top, key[2], key[3])
+            x = first * tile
+            runs[key] = PaintingPart(x, top, min(stop * tile, w) - x, y + height - top, key[2], key[3])
         parts += [part for key, part in above.items() if key not in runs]
         above = runs
     return parts + list(above.values())

@@ -204,12 +204,12 @@ def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int],
         return plan
     emitters = list(plan.order[:plan.n_shadowed])
     margins = lookup_margins(view, emitters, settings.shadow_map_size, settings.light_radius)
-    begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size)
+    begin, end = lookup_ranges(view, emitters, sorted(plan.casters), margins, size, settings.footprint_tile)
     if settings.group_emitters:
         begin, end = whole_lights(begin, end, [a for a, _ in emitters])
     if (begin == 0).all() and (end == plan.n_shadowed).all():
         return plan
-    return replace(plan, painting_parts=tuple(painting_parts(begin, end, size)))
+    return replace(plan, painting_parts=tuple(painting_parts(begin, end, size, settings.footprint_tile)))
 
 
 class _ViewFacts:

@@ -63,6 +63,9 @@ class RenderSettings:
             split_shadow_lookups, clear_written_texels, label_from_painting: the skips of work that
             cannot change a pixel (``render.plan``, ``render.footprints``, ``render.shadow_array`` and
             ``SceneRenderer``), all on; tests turn each off to compare. No config field sets them.
+        footprint_tile: side of the square pixel tiles the painting's shadow lookups are resolved to
+            (``render.footprints``): any side gives the same pixels; smaller tiles keep fewer
+            lookups for more draws. No config field sets it.
 
     Raises:
         ValueError: a field out of its range, naming the field.
@@ -92,6 +95,7 @@ class RenderSettings:
     split_shadow_lookups: bool = True
     clear_written_texels: bool = True
     label_from_painting: bool = True
+    footprint_tile: int = 16
 
     def __post_init__(self) -> None:
         try:
@@ -112,6 +116,8 @@ class RenderSettings:
             raise ValueError(f"mesh_error_px: expected None or a number >= 0, got {self.mesh_error_px!r}")
         if self.antialias not in ANTIALIAS_SAMPLES or isinstance(self.antialias, bool):
             raise ValueError(f"antialias: expected one of {ANTIALIAS_SAMPLES} samples per pixel, got {self.antialias!r}")
+        if not isinstance(self.footprint_tile, int) or isinstance(self.footprint_tile, bool) or self.footprint_tile < 1:
+            raise ValueError(f"footprint_tile: expected an integer >= 1 (pixels), got {self.footprint_tile!r}")
         if not 0 <= self.light_radius < math.inf:
             raise ValueError(f"light_radius: expected a finite value >= 0, got {self.light_radius!r}")
         if not 0 <= self.mask_min_opacity <= 1:

@@ -47,6 +47,18 @@ def test_setting_cost_prints_what_each_value_gives_the_renderer(capsys):
         setting_cost.main(["--field", "n_lights", "--values", "[1,2]", "[2,3]", "--samples", "1"])
 
 
+def test_setting_cost_compares_a_renderer_field_that_no_config_field_sets(capsys):
+    setting_cost.main(["--field", "footprint_tile", "--values", "32", "8", "--size", "96x128", "--samples", "2",
+                       "--set", "n_views=2", "--set", "n_occluders=[2,2]"])
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].endswith("renderer: 32: footprint_tile=32; 8: footprint_tile=8")
+    assert out[3].startswith("views: 8 against 32: PSNR inf (the same bytes); 4 of 4 views the same bytes")
+    with pytest.raises(SystemExit, match="footprint_tile: expected an integer"):
+        setting_cost.main(["--field", "footprint_tile", "--values", "16", "0", "--samples", "1"])
+    with pytest.raises(SystemExit, match="tile_size"):
+        setting_cost.main(["--field", "tile_size", "--values", "16", "8", "--samples", "1"])
+
+
 def test_the_view_difference_line_tells_the_same_bytes_from_a_difference():
     same = [np.zeros((2, 4, 4, 3), np.int16)]
     assert setting_cost.view_difference(same, ("a", "b")) == (

@@ -241,7 +241,8 @@ def test_render_settings_come_from_the_config_and_key_the_shared_renderer():
     ("image_size", (9.5, 5), "image_size"), ("shadow_map_size", 1000, "shadow_map_size: expected a power of two"),
     ("shadow_map_size", 8, "shadow_map_size"), ("shadow_frustum", "tight", "shadow_frustum"),
     ("texture_filter", "nearest", "texture_filter"), ("mesh_error_px", -1.0, "mesh_error_px"),
-    ("mask_min_opacity", 2.0, "mask_min_opacity"),
+    ("mask_min_opacity", 2.0, "mask_min_opacity"), ("footprint_tile", 0, "footprint_tile: expected an integer"),
+    ("footprint_tile", 16.0, "footprint_tile"),
 ])
 def test_wrong_render_settings_name_the_field(field, value, expected):
     with pytest.raises(ValueError, match=expected.replace("(", r"\(").replace(")", r"\)")):

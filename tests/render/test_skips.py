@@ -109,6 +109,24 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
     assert any("SHADOW_FREE" in defines and "SPOT_LIGHT_SHADOWS" not in defines for defines in programs)
 
 
+def test_any_footprint_tile_gives_the_same_pixels():
+    """Tiles of 7 pixels (not a divisor of the image's sides) and of 64 split the painting's draw
+    otherwise than the default 16, into more or fewer parts, for the same bytes."""
+    cfg = small_config("misaligned", image_size=(160, 224), n_views=3, n_occluders=(2, 4))
+    painting = textured_painting((160, 224))
+    base = RenderSettings.from_config(cfg)
+    for seed in range(3):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        outputs = {}
+        for tile in (16, 7, 64):
+            settings = replace(base, footprint_tile=tile)
+            parts = sum(len(plan.painting_parts) for plan in plan_views(seq, settings))
+            outputs[tile] = parts, shared_renderer(settings).render(seq, painting)
+        assert outputs[7][0] > outputs[16][0] > outputs[64][0] > 0  # the tiles split the draws otherwise
+        for tile in (7, 64):
+            assert_same_pixels(outputs[tile][1], outputs[16][1])
+
+
 @pytest.mark.parametrize("preset, light_radius", [("shadows_only", 0.0), ("misaligned", 0.0), ("shadows_only", SOFT)])
 def test_culling_hidden_occluders_changes_no_pixel(preset, light_radius):
     # Transparent and opaque occluders, visible or only casting shadows, in narrow and wide views.
