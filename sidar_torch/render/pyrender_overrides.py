@@ -37,8 +37,8 @@ from .transmittance import TransmittanceMaps, vertex_defines
 from .uniforms import set_uniform_array
 from .visibility import bounds_corners, map_texel_box
 
-__all__ = ["UNROLLED_LIGHT_GROUPS", "GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node", "frustum_projection",
-           "light_group_count", "ranked"]
+__all__ = ["UNROLLED_LIGHT_GROUPS", "GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node",
+           "frustum_projection", "light_group_count", "ranked"]
 
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:

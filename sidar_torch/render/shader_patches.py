@@ -64,8 +64,9 @@ pyrender override.
      empty (most of its pixels; ``GLRenderer._draw_parts``);
    * the painting's program without lookups is a variant per number of light groups up to 4 (define
      ``LIGHT_GROUPS``, ``pyrender_overrides.UNROLLED_LIGHT_GROUPS``), which writes the groups out, one
-     after the other, with no loop left (left to the compiler's own unrolling, the loop's cost went at 2 and 3 groups but not at 4 or 8); warm-up compiles
-     every count a config can draw (``sidar_torch.warm_up``);
+     after the other, with no loop left (left to the compiler's own unrolling, the loop's cost went
+     at 2 and 3 groups but not at 4 or 8); warm-up compiles every count a config can draw
+     (``sidar_torch.warm_up``);
    * a group's emitters are counted by products, not loops (quirk 13).
 
 7. **Transparent occluders cast shadows as dark as opaque ones** in pyrender. Here they go into a
