@@ -19,6 +19,8 @@ from __future__ import annotations
 import argparse
 import statistics
 
+import numpy as np
+
 from sidar_torch import SidarDataset
 
 from .common import size_label
@@ -61,22 +63,23 @@ def lookups_kept(config, samples: int) -> tuple[float, float]:
     return kept / max(full, 1), statistics.median(draws) if draws else 0.0
 
 
-def texels_cleared(config) -> tuple[float, float]:
-    """``(depth, transmittance)``: the share of their maps' texels the renderers of ``config`` with
-    ``clear_written_texels`` cleared, against those without, so far in this process."""
+def cleared_texels(config) -> tuple[np.ndarray, np.ndarray]:
+    """The depth and transmittance map texels that the renderers of ``config`` with
+    ``clear_written_texels`` on and off have cleared so far in this process (shared renderers: other
+    work in the process counts too, so take differences): ``(on, off)``, each ``[depth, transmittance]``."""
     from dataclasses import replace
 
     from sidar_torch.render import RenderSettings, shared_renderer
 
     settings = RenderSettings.from_config(config)
     on, off = (shared_renderer(replace(settings, clear_written_texels=flag))._gl for flag in (True, False))
-    return (on.shadow_maps.cleared_texels / max(off.shadow_maps.cleared_texels, 1),
-            on.transmittance.cleared_texels / max(off.transmittance.cleared_texels, 1))
+    return tuple(np.array([gl.shadow_maps.cleared_texels, gl.transmittance.cleared_texels]) for gl in (on, off))
 
 
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     config = paired_config("skip_cost", args)
+    before = cleared_texels(config) if args.skip == "clear_written_texels" else None
     ms_per_view, _ = paired_view_times(config, args.skip, args.samples)
     left_out = ""
     if args.skip == "split_shadow_lookups":
@@ -84,7 +87,8 @@ def main(argv: list[str] | None = None) -> None:
         left_out = (f"; the split keeps {100 * share:.0f} % of the painting's shadow lookups, in {draws:g} draws "
                     f"per view (median)")
     elif args.skip == "clear_written_texels":
-        depth, tints = texels_cleared(config)
+        (on, off), (on_before, off_before) = cleared_texels(config), before  # this run's clears only
+        depth, tints = (on - on_before) / np.maximum(off - off_before, 1)
         left_out = (f"; {100 * depth:.0f} % of the depth maps' texels cleared, {100 * tints:.0f} % of the "
                     f"transmittance maps'")
     print(f"{args.skip}: {args.config} {' '.join(args.set)} {size_label(args.size)} (H x W), {args.samples} "
