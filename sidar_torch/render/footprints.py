@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene import ViewScene
+from ..scene import ViewScene, occluder_radius
 from .visibility import shadow_may_fall_on_ball
 
 __all__ = ["PaintingPart", "lookup_ranges", "painting_parts"]
@@ -97,7 +97,7 @@ def lookup_ranges(view: ViewScene, emitters: list[tuple[int, int]], casters: lis
     """
     centres, radii = _tile_balls(view, image_size, tile)
     positions = np.array([view.lights[a].emitters[b] for a, b in emitters], np.float64).reshape(-1, 3)
-    balls = np.array([[*view.occluders[i].position, np.linalg.norm(view.occluders[i].scale)] for i in casters],
+    balls = np.array([[*view.occluders[i].position, occluder_radius(view.occluders[i])] for i in casters],
                      np.float64).reshape(-1, 4)
     with np.errstate(invalid="ignore"):  # tiles of infinite radius: inside, results unused
         may = shadow_may_fall_on_ball(positions, balls[:, :3], balls[:, 3], centres.reshape(-1, 3), radii.ravel(),

@@ -41,7 +41,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import clip_polygon, plane_corners, visible_halfplanes
-from ..scene import SceneSequence, ViewScene
+from ..scene import SceneSequence, ViewScene, occluder_radius
 from .footprints import PaintingPart, lookup_ranges, painting_parts
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
@@ -104,7 +104,8 @@ def soft_reach(emitter: np.ndarray, centres: np.ndarray, radii: np.ndarray, ligh
 def lookup_margins(view: ViewScene, emitters: list[tuple[int, int]], map_size: int, light_radius: float) -> np.ndarray:
     """``(E,)`` angles (rad) around which each emitter's lookups read its map: the filter's
     (:func:`shadow_margin`) plus the soft reach (:func:`soft_reach`; a tangent offset spans at most
-    that angle)."""
+    that angle), with the occluders' balls of radius ``|scale|``, as the shader's reach has them
+    (``ShadowMaps.add_lights``)."""
     centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
     radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
     return np.array([shadow_margin(view.lights[a].outer_cone, map_size)
@@ -221,7 +222,7 @@ class _ViewFacts:
         cam, map_size = view.camera, settings.shadow_map_size
         self.emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
         centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
-        radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+        radii = np.array([occluder_radius(occ) for occ in view.occluders])
         self.drawn = frozenset(i for i, (c, r) in enumerate(zip(centres, radii))
                                if settings.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, size, c, r))
         self.hits: dict[tuple[int, int], frozenset[int]] = {e: frozenset() for e in self.emitters}

@@ -2,7 +2,10 @@
 
 Float64 numpy, no GL, in ``sidar_torch.geometry``'s frames and pixel conventions (world: the
 painting in z = 0 facing +z; cameras: OpenCV frame, ``K (R X + t)``; Kornia pixels). Occluders
-are bounded by balls ``|X - centre| <= radius`` (an occluder's ``position`` and ``|scale|``).
+are bounded by balls ``|X - centre| <= radius`` about an occluder's ``position``: of radius
+``scene.occluder_radius`` (its shape's tightest bound) where the ball only decides what is skipped
+(culling, casters, footprints), and ``|scale|`` where it sets what is drawn (shadow frusta, soft
+reach, mesh levels), which a tighter ball would change.
 
 * culling: :func:`ball_may_be_seen`, :func:`shadow_may_reach`, :func:`shadow_may_fall_on_ball`
   (``render.plan`` decides with them what each view draws);

@@ -19,11 +19,11 @@ import numpy as np
 
 from .. import geometry
 from ..config import SidarConfig
-from .description import Material
+from .description import Material, Occluder
 
 __all__ = ["CONE_MARGIN", "LIGHT_KINDS", "MATERIAL_KINDS", "MAX_EMITTER_CONE", "PAPER_TORUS_SCALE", "ROUGHNESS_RANGES",
            "SHAPES",
-           "Beam", "LightKind", "Shape", "SimpleMaterial", "spread_beam"]
+           "Beam", "LightKind", "Shape", "SimpleMaterial", "occluder_radius", "spread_beam"]
 
 MAX_EMITTER_CONE = 1.0
 """Largest outer half-angle (rad) of an emitter's cone: wider shadow frusta give shadow acne."""
@@ -237,15 +237,40 @@ class Shape:
     Attributes:
         variants: how many fixed meshes it comes in (random hulls and prisms: 8; else 1).
         paper_scale: the fixed scale it takes with ``SidarConfig.paper_torus`` (the torus), else None.
+        box: ``(3,)`` half-extents of a box about the origin holding every mesh of the shape (unit
+            primitive frame; every level and variant).
+        disc: radius in the xy plane, and ``box[2]`` the half-height, of a cylinder about z holding them.
+        ball: radius of a ball about the origin holding them. ``tests/render/test_meshes.py`` checks
+            all three against the meshes' vertices (each region is convex, so a mesh's faces are
+            inside too).
     """
 
     variants: int = 1
     paper_scale: np.ndarray | None = None
+    box: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    disc: float = 1.0
+    ball: float = math.sqrt(2.0)
+
+    def radius(self, scale: np.ndarray) -> float:
+        """Radius of a ball about the origin holding the shape scaled by ``scale`` ``(3,)`` (before
+        its rotation, which the ball ignores): the least of its box's, cylinder's and ball's, scaled;
+        at most ``|scale|``, the unit box's."""
+        sx, sy, sz = (float(v) for v in scale)
+        return min(math.hypot(sx * self.box[0], sy * self.box[1], sz * self.box[2]),
+                   math.hypot(max(sx, sy) * self.disc, sz * self.box[2]), max(sx, sy, sz) * self.ball)
 
 
 SHAPES: dict[str, Shape] = {
-    "sphere": Shape(), "cube": Shape(), "cylinder": Shape(), "cone": Shape(),
-    "torus": Shape(paper_scale=PAPER_TORUS_SCALE), "capsule": Shape(), "icosahedron": Shape(),
-    "hull": Shape(variants=8), "prism": Shape(variants=8),
+    "sphere": Shape(ball=1.0), "cube": Shape(disc=math.sqrt(2.0), ball=math.sqrt(3.0)), "cylinder": Shape(),
+    "cone": Shape(), "torus": Shape(paper_scale=PAPER_TORUS_SCALE, box=(1.0, 1.0, 0.3), ball=1.0),
+    "capsule": Shape(box=(0.5, 0.5, 1.0), disc=0.5, ball=1.0), "icosahedron": Shape(box=(0.851, 0.851, 0.851), ball=1.0),
+    "hull": Shape(variants=8, ball=1.0), "prism": Shape(variants=8),
 }
 """``SidarConfig.occluder_shapes`` name -> its scene facts."""
+
+
+def occluder_radius(occluder: Occluder) -> float:
+    """Radius of a ball about ``occluder.position`` holding the occluder (painting units):
+    ``SHAPES[occluder.shape].radius(occluder.scale)``, e.g. the largest scale of a sphere where
+    ``|scale|`` would be about 1.7 times that."""
+    return SHAPES[occluder.shape].radius(occluder.scale)

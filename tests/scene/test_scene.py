@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from sidar_torch import geometry
+from sidar_torch.config import OCCLUDER_SHAPES as SHAPE_NAMES
 from sidar_torch.scene import sample_sequence
 
 from conftest import small_config
@@ -124,6 +125,32 @@ def test_the_kind_tables_of_config_scene_and_renderer_name_the_same_kinds():
     assert set(MATERIAL_KINDS) == set(OCCLUDER_MATERIALS)
     assert set(SHAPES) == set(MESHES) == set(OCCLUDER_SHAPES)
     assert all(spec.levels or spec.polyhedron for spec in MESHES.values())  # each shape can be built
+
+
+@pytest.mark.parametrize("name", sorted(SHAPE_NAMES))
+def test_a_shapes_bounds_hold_every_mesh_of_it_and_its_radius_every_scaled_vertex(name):
+    """``Shape.box``, ``disc`` and ``ball`` hold every vertex of every level and variant (each region
+    is convex, so the faces too), and ``Shape.radius`` the scaled vertices, never above ``|scale|``."""
+    from sidar_torch.render.meshes import MESHES, unit_primitive
+    from sidar_torch.scene import SHAPES, occluder_radius
+
+    shape = SHAPES[name]
+    vertices = np.vstack([unit_primitive(name, variant, level).vertices for variant in range(shape.variants)
+                          for level in range(max(len(MESHES[name].levels), 1))])
+    assert (np.abs(vertices) <= np.array(shape.box) + 1e-12).all()
+    assert (np.hypot(vertices[:, 0], vertices[:, 1]) <= shape.disc + 1e-12).all()
+    assert (np.linalg.norm(vertices, axis=1) <= shape.ball + 1e-12).all()
+    rng = np.random.default_rng(0)
+    slack = []
+    for scale in rng.uniform(0.01, 0.3, (200, 3)):
+        farthest = np.linalg.norm(vertices * scale, axis=1).max()
+        radius = shape.radius(scale)
+        assert farthest <= radius * (1 + 1e-12) and radius <= np.linalg.norm(scale) * (1 + 1e-12)
+        slack.append(radius / farthest)
+    assert max(slack) < 1.5  # a bound, not a loose one
+    cfg = small_config(occluder_shapes=(name,), n_occluders=(2, 2))
+    occluder = sample_sequence(cfg, np.random.default_rng(1)).views[0].occluders[0]
+    assert occluder_radius(occluder) == shape.radius(occluder.scale)
 
 
 @pytest.mark.parametrize("kind", ["spot", "point", "area"])
