@@ -1,7 +1,8 @@
 """What a rendering setting costs: median time per view of the same scenes rendered with two values
 of one config field that changes how they are drawn, not what they hold (e.g. ``shadow_map_size``),
-or of a ``RenderSettings`` field that no config field sets (e.g. ``footprint_tile``), same run. ``python -m benchmarks.setting_cost --field NAME --values A B [--config P] [--set K=V]``
-from the repository root.
+or of a ``RenderSettings`` field that no config field sets (e.g. ``footprint_tile``), same run.
+``python -m benchmarks.setting_cost --field NAME --values A B [--config P] [--set K=V]`` from the
+repository root.
 
 Renders each sequence with the renderer settings of ``A`` and of ``B`` (``benchmarks.paired``) and
 prints what each value gives the renderer, then per view the medians and the median paired
@@ -26,8 +27,8 @@ from .paired import paired_config, paired_parser, paired_settings_times, print_p
 def build_parser() -> argparse.ArgumentParser:
     """The command line of ``python -m benchmarks.setting_cost``; parsing it runs nothing."""
     parser = paired_parser("setting_cost", __doc__.splitlines()[0], samples=40, set_example="n_occluders=[1,3]")
-    parser.add_argument("--field", required=True, help="the config field compared, e.g. shadow_map_size, or a RenderSettings field no config field "
-                        "sets, e.g. footprint_tile")
+    parser.add_argument("--field", required=True, help="the config field compared, e.g. shadow_map_size, "
+                        "or a RenderSettings field no config field sets, e.g. footprint_tile")
     parser.add_argument("--values", nargs=2, required=True, metavar=("A", "B"),
                         help="its two values (read as YAML), e.g. 1024 auto")
     return parser

@@ -127,8 +127,8 @@ def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
     agree on these need one warm-up)."""
     sequence = warm_up_sequence(config)
     signatures = sorted({variant_signature(o.material) for v in sequence.views for o in v.occluders}, key=repr)
-    counts = tuple(sorted({len(v.lights) for v in sequence.views[4:]}))
-    return sequence, (bool(sequence.views[0].lights), counts, *signatures)
+    lit = bool(sequence.views[0].lights)
+    return sequence, (lit, light_group_counts(config) if lit else (), *signatures)
 
 
 def warm_renderer(config: SidarConfig) -> SceneRenderer:

@@ -695,8 +695,8 @@ class GLRenderer(pyrender.Renderer):
         split = painting_parts is not None and bool(painting_parts[1]) and bool(flags & RenderFlags.SHADOWS_SPOT)
         self._split = (painting_parts[0].mesh.primitives[0], painting_parts[1], scene) if split else None
         self._painting_primitive = painting_parts[0].mesh.primitives[0] if painting_parts is not None else None
-        groups = light_group_count(scene)
-        self._light_groups = groups if groups <= self.unrolled_light_groups else None
+        groups = light_group_count(scene) if painting_parts is not None else None  # only the painting's program uses it
+        self._light_groups = groups if groups is not None and groups <= self.unrolled_light_groups else None
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen

@@ -240,7 +240,7 @@ class Shape:
         box: ``(3,)`` half-extents of a box about the origin holding every mesh of the shape (unit
             primitive frame; every level and variant).
         disc: radius in the xy plane, and ``box[2]`` the half-height, of a cylinder about z holding them.
-        ball: radius of a ball about the origin holding them. ``tests/render/test_meshes.py`` checks
+        ball: radius of a ball about the origin holding them. ``tests/scene/test_scene.py`` checks
             all three against the meshes' vertices (each region is convex, so a mesh's faces are
             inside too).
     """
@@ -263,7 +263,8 @@ class Shape:
 SHAPES: dict[str, Shape] = {
     "sphere": Shape(ball=1.0), "cube": Shape(disc=math.sqrt(2.0), ball=math.sqrt(3.0)), "cylinder": Shape(),
     "cone": Shape(), "torus": Shape(paper_scale=PAPER_TORUS_SCALE, box=(1.0, 1.0, 0.3), ball=1.0),
-    "capsule": Shape(box=(0.5, 0.5, 1.0), disc=0.5, ball=1.0), "icosahedron": Shape(box=(0.851, 0.851, 0.851), ball=1.0),
+    "capsule": Shape(box=(0.5, 0.5, 1.0), disc=0.5, ball=1.0),
+    "icosahedron": Shape(box=(0.851, 0.851, 0.851), ball=1.0),
     "hull": Shape(variants=8, ball=1.0), "prism": Shape(variants=8),
 }
 """``SidarConfig.occluder_shapes`` name -> its scene facts."""
