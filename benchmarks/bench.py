@@ -73,7 +73,8 @@ class BenchSettings:
         augment_batch, augment_views, augment_size: the ``SidarAugment`` batch, views and ``(H, W)``.
         augment_calls: measured ``SidarAugment`` calls, after one warm-up call.
         loader_size: ``(H, W)`` of the DataLoader rows.
-        loader_samples: measured samples per worker of a DataLoader row.
+        loader_samples: measured samples of each DataLoader row: samples ``0 .. loader_samples - 1``
+            with 1 worker and with 2 (even, at least 2), so that the rows' ratio compares the same work.
         views: views per sequence (``None``: each preset's own).
         seed: dataset and module seed.
         heap: ``"warm"`` (:func:`~benchmarks.common.warm_heap` before measuring: no side pays page
@@ -90,7 +91,7 @@ class BenchSettings:
     augment_size: tuple[int, int] = TARGET_SIZES["small"]
     augment_calls: int = 5
     loader_size: tuple[int, int] = TARGET_SIZES["default"]
-    loader_samples: int = 6
+    loader_samples: int = 12
     views: int | None = None
     seed: int = 0
     heap: str = "warm"
@@ -107,6 +108,9 @@ class BenchSettings:
         bad = {k: v for k, v in counts.items() if v < 1}
         if bad or (self.views is not None and self.views < 1):
             raise ValueError(f"{', '.join(bad) or 'views'}: expected >= 1, got {bad or self.views}")
+        if self.loader_samples % 2:
+            raise ValueError(f"loader_samples: expected an even number (the same samples for 1 and 2 workers), "
+                             f"got {self.loader_samples}")
         if self.heap not in HEAPS:
             raise ValueError(f"heap: expected one of {HEAPS}, got {self.heap!r}")
         for preset in self.presets:  # unknown presets fail before measuring anything
@@ -117,7 +121,7 @@ class BenchSettings:
         """Seconds, for tests: one 48x64 size, 2 views, 2 samples, a batch of 2, 2 loader samples."""
         tiny = (48, 64)
         return cls(**{"sizes": (tiny,), "samples": 2, "kornia_calls": 1, "augment_batch": 2, "augment_size": tiny,
-                      "augment_calls": 1, "loader_size": tiny, "loader_samples": 2, "views": 2, "heap": "cold",
+                      "augment_calls": 1, "loader_size": tiny, "loader_samples": 4, "views": 2, "heap": "cold",
                       **changes})
 
 
@@ -203,18 +207,23 @@ class _Stamped(IterableDataset):
                    "warmed": warmed}
 
 
-def loader_rate(config: Any, workers: int, per_worker: int, seed: int) -> tuple[float, dict[str, float]]:
+def loader_rate(config: Any, workers: int, samples: int, seed: int) -> tuple[float, dict[str, float]]:
     """Steady-state sequences/s through a DataLoader with ``workers`` (default start method) workers,
     and where the first sample's wall time went, from creating the loader's iterator (which starts
     the workers): ``{"total", "start", "warm_up", "sample", "handover"}`` seconds (the first worker
     starts iterating, its warm-up, its warm-up sample, the sample's way back to this process).
 
-    Each worker warms up and makes a warm-up sample, then ``per_worker`` measured samples
-    (samples ``0 .. workers * per_worker - 1`` in all, round robin), stamping each with its clock.
+    Each worker warms up and makes a warm-up sample, then its share of the measured samples
+    ``0 .. samples - 1`` (round robin: ``samples / workers`` each), stamping each with its clock.
     The rate is ``workers`` times the measured samples over the summed time each worker spent on
     its share (warm-up sample's stamp to last stamp: making, handing over, any wait for this
-    process), so a worker that drew cheaper samples does not inflate it.
+    process), so a worker that drew cheaper samples does not inflate it. Rates of runs with other
+    ``workers`` but the same ``samples`` compare the same work (one scene may cost twice another, so
+    two sets of samples differ in their mean cost).
     """
+    if samples < workers or samples % workers:
+        raise ValueError(f"samples: expected a positive multiple of workers ({workers}), got {samples}")
+    per_worker = samples // workers
     begin = time.perf_counter()
     loader = iter(DataLoader(_Stamped(SidarDataset(config=config, seed=seed)), batch_size=None,
                              num_workers=workers))
@@ -256,7 +265,7 @@ def run_bench(settings: BenchSettings, log: Callable[[str], None] = print) -> di
         rates = {w: rate for w, (rate, _) in measured.items()}
         log(f"DataLoader 1 and 2 workers: done ({time.perf_counter() - start:.0f} s)")
     loaders = {"preset": settings.presets[0], "size": size_label(settings.loader_size), "views": config.n_views,
-               "samples_per_worker": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
+               "samples": settings.loader_samples, "sequences_per_s": {str(w): r for w, r in rates.items()},
                "scaling": rates[2] / rates[1], "first_sample_s": measured[1][1]["total"],
                "first_sample": measured[1][1]}
     report = {"settings": asdict(settings), "heap": heap, "machine": {"before": before, "after": machine()}, "views": rows,

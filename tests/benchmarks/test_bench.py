@@ -29,6 +29,7 @@ def test_report_structure_and_consistency(report):
     assert a["ms_per_image"] > 0 and a["kornia_ratio"] == pytest.approx(a["ms_per_image"] / a["kornia_ms_per_image"])
     w = report["loaders"]
     assert w["scaling"] == pytest.approx(w["sequences_per_s"]["2"] / w["sequences_per_s"]["1"]) and w["scaling"] > 0
+    assert w["samples"] == 4  # samples 0..3 with 1 worker and with 2 (loader_rate checks the indices it got)
     assert 0 < w["first_sample_s"] < report["seconds"]
     first = w["first_sample"]  # where the first sample went adds up to it
     assert first["total"] == w["first_sample_s"] and min(first.values()) >= 0
@@ -44,6 +45,13 @@ def test_quick_run_measures_no_target_size_and_says_so(report):
         assert t["met"] is None and t["measured"] == "not measured in this run", t
     assert all(t["met"] in (True, False) for t in report["targets"][5:])
     assert "2 DataLoader workers >= 1.8x one worker (on an idle machine)" in verdicts
+
+
+def test_loader_rows_measure_the_same_samples_whatever_the_workers():
+    with pytest.raises(ValueError, match="loader_samples: expected an even number"):
+        bench.BenchSettings(loader_samples=5)
+    with pytest.raises(ValueError, match=r"samples: expected a positive multiple of workers \(2\), got 3"):
+        bench.loader_rate(None, 2, 3, 0)  # raises before it builds a loader
 
 
 def fake_report(ms_per_view, kornia_ms, s_per_sequence, augment_ratio, pool, scaling, first=0.5):
