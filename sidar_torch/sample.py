@@ -27,8 +27,8 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import warm_renderer
 
-__all__ = ["KEYS", "SampleArrays", "SampleKey", "render_arrays", "render_sample", "sequence_homographies",
-           "stack_samples"]
+__all__ = ["KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+           "sequence_homographies", "stack_samples"]
 
 
 @dataclass(frozen=True)
@@ -220,16 +220,31 @@ def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]
         both views of a pair see (a 17 x 17 lattice, :func:`sidar_torch.geometry.visible_plane_points`):
         the DLT is exact at its own four points, so the error shows elsewhere.
     """
-    K, R, t = sequence.cameras()
-    centres = np.stack([view.camera.position for view in sequence.views])
-    H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.fit_points(centres)))
-    pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
-    truth = geometry.plane_induced_homographies(K, R, t)
-    return H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))
+    return batch_homographies([sequence])[0]
+
+
+def batch_homographies(sequences: Sequence[SceneSequence]) -> list[tuple[torch.Tensor, float]]:
+    """:func:`sequence_homographies` of each of ``sequences`` (at least one, all with the same number
+    of views), with one Kornia DLT call for all their pairs: the values each would get alone."""
+    views = {len(sequence.views) for sequence in sequences}
+    if len(views) != 1:
+        raise ValueError(f"sequences: expected at least one, all with the same number of views, got "
+                         f"{[len(sequence.views) for sequence in sequences]} views")
+    cameras = [sequence.cameras() for sequence in sequences]
+    centres = [np.stack([view.camera.position for view in sequence.views]) for sequence in sequences]
+    points = [geometry.project(K, R, t, geometry.fit_points(c)) for (K, R, t), c in zip(cameras, centres)]
+    fits = geometry.homographies_from_points(np.stack(points))
+    results = []
+    for sequence, (K, R, t), H in zip(sequences, cameras, fits):
+        pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
+        truth = geometry.plane_induced_homographies(K, R, t)
+        results.append((H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))))
+    return results
 
 
 def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> SampleArrays:
+                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None,
+                  homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
     """Render ``sequence`` with ``painting`` and assemble one sample's arrays: the one place a sample is made.
 
     Args:
@@ -245,6 +260,8 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             any is on) and ``"homographies"``.
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
+        homographies: ``sequence_homographies(sequence)``, when computed already (with other
+            sequences', :func:`batch_homographies`); default: computed here.
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     rendered = warm_renderer(config).render(sequence, painting, timings)
@@ -254,8 +271,10 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             views = apply_effects(views, rendered.background, effects)
             if shadow_free is not None:  # the same draws: the same exposure, noise and JPEG
                 shadow_free = apply_effects(shadow_free, rendered.background, effects)
-    with timed(timings, "homographies"):
-        homographies, homography_error = sequence_homographies(sequence)
+    if homographies is None:
+        with timed(timings, "homographies"):
+            homographies = sequence_homographies(sequence)
+    homographies, homography_error = homographies
     K, R, t = sequence.cameras()
     return SampleArrays(views, rendered.masks.astype(np.uint8) * np.uint8(255), rendered.label,
                         homographies.numpy(), homography_error, K, R, t, index, rendered.opacities,

@@ -37,6 +37,17 @@ def test_kornia_dlt_agrees_with_plane_induced_homography(rng):
     assert 0.005 < geometry.point_disagreement(wrong, H_true, corners) < 0.05
 
 
+def test_a_batch_of_sequences_is_fitted_as_each_alone(rng):
+    # SidarAugment fits a batch's homographies in one call: each sequence's, bit for bit.
+    for views in (2, 6):
+        points = np.stack([geometry.project(*random_cameras(rng, views), geometry.plane_corners(SIZE))
+                           for _ in range(8)])
+        batched = geometry.homographies_from_points(points)
+        assert batched.shape == (8, views, views, 3, 3)
+        for alone, fitted in zip(points, batched):
+            assert torch.equal(geometry.homographies_from_points(alone), fitted)
+
+
 def test_homography_identities(rng):
     K, R, t = random_cameras(rng, 5)
     H = geometry.homographies_from_points(geometry.project(K, R, t, geometry.plane_corners(SIZE)))

@@ -12,7 +12,8 @@ from torch.utils.data import DataLoader
 
 import sidar_torch
 from sidar_torch import SidarAugment, SidarDataset, load_config
-from sidar_torch.sample import KEYS, SampleArrays, present_keys, render_sample, sequence_homographies, stack_samples
+from sidar_torch.sample import (KEYS, SampleArrays, batch_homographies, present_keys, render_sample,
+                                sequence_homographies, stack_samples)
 
 import test_hard_cases as hard_cases
 from conftest import small_config
@@ -153,3 +154,17 @@ def test_float64_geometry_through_the_dataloader_and_augment():
 def test_geometry_dtype_is_validated():
     with pytest.raises(ValueError, match=r"config field 'geometry_dtype': expected one of \('float32', 'float64'\)"):
         load_config("misaligned", geometry_dtype="float16")
+
+
+def test_batch_homographies_are_each_sequences_own():
+    ds = SidarDataset(config=small_config(n_views=3), seed=4)
+    sequences = [ds.scene(k) for k in range(5)]
+    for sequence, (H, error) in zip(sequences, batch_homographies(sequences)):
+        alone, alone_error = sequence_homographies(sequence)
+        assert torch.equal(H, alone) and error == alone_error and error < 1e-6
+    other = SidarDataset(config=small_config(n_views=2), seed=4).scene(0)
+    with pytest.raises(ValueError, match=r"sequences: expected at least one, all with the same number of views, "
+                                         r"got \[3, 2\] views"):
+        batch_homographies([sequences[0], other])
+    with pytest.raises(ValueError, match="sequences: expected at least one"):
+        batch_homographies([])
