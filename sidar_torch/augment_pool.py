@@ -1,9 +1,10 @@
 """Rendering one :class:`sidar_torch.SidarAugment` image, in this process or in a pool of render processes.
 
-A *task* is everything image ``b`` of a call needs: its position, the entropy of its generator
-(``numpy.random.default_rng(entropy)`` draws the scene, then the view effects) and its pixels,
-``(3, h, w)`` uint8. :func:`render_task` turns a task into :class:`~sidar_torch.sample.SampleArrays`;
-it is the only rendering path, whichever process runs it, so the pixels do not depend on the pool.
+A *task* is everything image ``b`` of a call needs: its position, its scene (drawn by the caller,
+:func:`draw_tasks`), the generator that drew it (the view effects draw from it next), its pixels
+``(3, h, w)`` uint8 and its homographies (fitted for the whole batch in one call).
+:func:`render_task` turns a task into :class:`~sidar_torch.sample.SampleArrays`; it is the only
+rendering path, whichever process runs it, so the pixels do not depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
 parent's, or one created and warmed up at its first task, ``sidar_torch.warm_up``; then reused),
@@ -43,23 +44,37 @@ from .config import SidarConfig
 from .orphans import exit_with_parent, open_descriptors, release_inherited_descriptors
 from .render import preload
 from .render.context import forks_nothing
-from .sample import SampleArrays, render_arrays
-from .scene import sample_sequence
+from .sample import SampleArrays, batch_homographies, render_arrays
+from .scene import SceneSequence, sample_sequence
 from .paintings import TensorPaintings
 
-__all__ = ["RenderPool", "RenderTask", "render_task"]
+__all__ = ["RenderPool", "RenderTask", "draw_tasks", "render_task"]
 
-RenderTask = tuple[int, Sequence[int], np.ndarray]
-"""``(position, entropy, image)``: image ``position`` of the batch, the entropy of its generator
-(a list of non-negative integers) and its pixels ``(3, h, w)`` uint8."""
+RenderTask = tuple[int, SceneSequence, np.random.Generator, np.ndarray, tuple[torch.Tensor, float]]
+"""``(position, sequence, rng, image, homographies)``: image ``position`` of the batch, its scene, the
+generator that drew it, its pixels ``(3, h, w)`` uint8 and ``sequence_homographies(sequence)``."""
+
+
+def draw_tasks(config: SidarConfig, entropies: Sequence[Sequence[int]], images: np.ndarray) -> list[RenderTask]:
+    """The tasks of a batch: image ``b``'s scene drawn by ``numpy.random.default_rng(entropies[b])``
+    (a list of non-negative integers each), and every scene's homographies fitted in one call
+    (:func:`~sidar_torch.sample.batch_homographies`).
+
+    Args:
+        config: what the scenes are drawn with.
+        entropies: per image, the entropy of its generator.
+        images: ``(B, 3, h, w)`` uint8, as many as ``entropies``.
+    """
+    rngs = [np.random.default_rng(list(entropy)) for entropy in entropies]
+    sequences = [sample_sequence(config, rng) for rng in rngs]
+    return list(zip(range(len(images)), sequences, rngs, images, batch_homographies(sequences)))
+
 
 def render_task(config: SidarConfig, crop: str, task: RenderTask) -> SampleArrays:
-    """Draw the scene of ``task`` and render it with the task's image fitted to ``config.image_size``."""
-    position, entropy, image = task
-    rng = np.random.default_rng(list(entropy))
-    sequence = sample_sequence(config, rng)
+    """Render the scene of ``task`` with the task's image fitted to ``config.image_size``."""
+    position, sequence, rng, image, homographies = task
     painting = TensorPaintings(torch.from_numpy(image), crop=crop).painting(0, config.image_size)
-    return render_arrays(sequence, painting, config, position, rng=rng)
+    return render_arrays(sequence, painting, config, position, rng=rng, homographies=homographies)
 
 
 class RenderPool:
