@@ -596,23 +596,32 @@ class GLRenderer(pyrender.Renderer):
         GL.glDisable(GL.GL_CULL_FACE)
         GL.glDisable(GL.GL_BLEND)
 
+    def _caster_corners(self, casters: Sequence[tuple[pyrender.Primitive, np.ndarray]]) -> np.ndarray | None:
+        """``(8 N, 3)`` world corners of the boxes of ``casters`` (``(primitive, pose)`` pairs), the same
+        for every light of a view; ``None`` (not bounded: every texel may be written) for instanced
+        primitives or without ``clear_written_texels``."""
+        if not self.clear_written_texels or any(p.poses is not None for p, _ in casters):
+            return None
+        corners = [bounds_corners(primitive.bounds, pose) for primitive, pose in casters]
+        return np.concatenate(corners) if corners else np.zeros((0, 3))
+
     def _caster_texels(self, scene: pyrender.Scene, light_node: pyrender.Node, flags: int,
-                       casters: Sequence[tuple[pyrender.Primitive, np.ndarray]], size: int) -> TexelBox:
-        """The texels of a ``size``-texel map from ``light_node`` that drawing ``casters``
-        (``(primitive, pose)`` pairs) may write: the whole map unless ``clear_written_texels``."""
-        if not self.clear_written_texels or any(p.poses is not None for p, _ in casters):  # instanced: not bounded here
+                       corners: np.ndarray | None, size: int) -> TexelBox:
+        """The texels of a ``size``-texel map from ``light_node`` that drawing casters with the box
+        ``corners`` of :meth:`_caster_corners` may write (``None``: the whole map)."""
+        if corners is None:
             return 0, 0, size, size
         V, P = self._get_light_cam_matrices(scene, light_node, flags)
-        corners = [bounds_corners(primitive.bounds, pose) for primitive, pose in casters]
-        return map_texel_box(np.concatenate(corners) if corners else np.zeros((0, 3)), P @ V, size)
+        return map_texel_box(corners, P @ V, size)
 
     def _transmittance_pass(self, scene: pyrender.Scene, light_node: pyrender.Node, k: int,
-                            filters: list[pyrender.Node], flags: int) -> None:
-        """Draw the transparent casters ``filters`` into tile ``k`` of the transmittance maps, from
-        ``light_node`` with the light matrix of its depth map."""
+                            casters: list[tuple[pyrender.Primitive, np.ndarray]], corners: np.ndarray | None,
+                            flags: int) -> None:
+        """Draw the transparent ``casters`` (``(primitive, pose)`` pairs, box ``corners`` of
+        :meth:`_caster_corners`) into tile ``k`` of the transmittance maps, from ``light_node`` with
+        the light matrix of its depth map."""
         V, P = self._get_light_cam_matrices(scene, light_node, flags)
-        casters = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
-        writes = self._caster_texels(scene, light_node, flags, casters, self.transmittance.tile)
+        writes = self._caster_texels(scene, light_node, flags, corners, self.transmittance.tile)
         self.transmittance.draw_tile(k, V, P, scene.get_pose(light_node)[:3, 3], casters,
                                      self._transmittance_program, writes)
 
@@ -672,10 +681,11 @@ class GLRenderer(pyrender.Renderer):
             with timed(timings, "shadow", GL.glFinish):
                 opaque = [(p, scene.get_pose(node)) for node in scene.mesh_nodes
                           if node in casters and node not in filters for p in node.mesh.primitives]
+                corners = self._caster_corners(opaque)
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters and node not in filters
                 for light_node in scene.light_nodes & (shadowed if stale is None else stale):
-                    self._shadow_writes = self._caster_texels(scene, light_node, flags, opaque, self.shadow_map_size)
+                    self._shadow_writes = self._caster_texels(scene, light_node, flags, corners, self.shadow_map_size)
                     if opaque:
                         self._shadow_mapping_pass(scene, light_node, flags)
                     else:  # only clear the map (pyrender's pass fails with nothing to draw)
@@ -685,8 +695,10 @@ class GLRenderer(pyrender.Renderer):
                     spots = [n for n in ranked(scene.light_nodes) if isinstance(n.light, pyrender.SpotLight)]
                     tiles = [(k, n) for k, n in enumerate(spots) if n in shadowed]
                     self.transmittance.reserve(tiles[-1][0] + 1)
+                    tinted = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
+                    tinted_corners = self._caster_corners(tinted)
                     for k, light_node in tiles:
-                        self._transmittance_pass(scene, light_node, k, filters, flags)
+                        self._transmittance_pass(scene, light_node, k, tinted, tinted_corners, flags)
         self._n_shadowed = len(shadowed)
         self._program_cache.transmittance = self._filtered
         self._program_cache.shadow_fraction = shadow_fraction
