@@ -8,6 +8,7 @@ decodes a file within a pixel budget, the EXIF orientation applied.
 
 from __future__ import annotations
 
+import math
 import operator
 import os
 from typing import Any
@@ -175,12 +176,12 @@ def tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image t
         result = tensor.contiguous()
     elif tensor.is_floating_point():
         tensor = tensor.float()
-        if not bool(torch.isfinite(tensor).all()):
+        low, high = (float(value) for value in torch.aminmax(tensor))  # one pass; a NaN makes both NaN
+        if not (math.isfinite(low) and math.isfinite(high)):
             raise ValueError(f"{name} values must be finite, got NaN or infinite values")
-        low, high = float(tensor.min()), float(tensor.max())
         if low < 0.0 or high > 1.0:
             raise ValueError(f"{name} float values must be in [0, 1], got range [{low}, {high}]")
-        result = (tensor * 255).round().to(torch.uint8)
+        result = tensor.mul(255).round_().to(torch.uint8)
     else:
         raise ValueError(f"{name} dtype must be a float type or torch.uint8, got {tensor.dtype}")
     result = result.unsqueeze(0) if batched and result.ndim == 3 else result

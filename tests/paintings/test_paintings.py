@@ -796,6 +796,15 @@ def test_invalid_tensors_raise_value_error(tensor, message):
         make_source(tensor)
 
 
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), float("-inf")])
+def test_one_non_finite_value_anywhere_raises(bad):
+    for position in (0, 8, 5000, 3 * 64 * 64 - 1):  # the one-pass check meets it in any lane of its loop
+        tensor = torch.rand(3, 64, 64)
+        tensor.view(-1)[position] = bad
+        with pytest.raises(ValueError, match="must be finite, got NaN or infinite"):
+            make_source(tensor)
+
+
 def test_half_precision_tensor_is_accepted():
     out = make_source(torch.ones(3, 4, 4, dtype=torch.float16)).painting(0, (4, 4))
     assert (out == 255).all()
