@@ -30,7 +30,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from .augment_pool import RenderPool, RenderTask, draw_tasks, render_task
+from .augment_pool import RenderPool, RenderTask, render_tasks
 from .config import SidarConfig, as_float, as_int, load_config
 from .sample import KEYS, stack_samples
 from .scene import SceneSequence, sample_sequence
@@ -116,9 +116,9 @@ class SidarAugment(nn.Module):
     processes, each with its own renderer; the pool starts at the first call, is reused by the
     next ones and stops at :meth:`close`, at the end of a ``with`` block, when the module is
     garbage-collected or at interpreter exit; its processes exit by themselves if this one dies.
-    The scenes are drawn and their homographies fitted in this process (one Kornia call for the
-    batch), and image ``b`` of call ``c`` is rendered by the same code whichever process renders
-    it, so the outputs are ``torch.equal`` whatever ``num_workers`` is. An exception raised in a
+    Image ``b`` of call ``c`` is drawn and rendered by the same code whichever process renders it
+    (which fits the homographies of all the images it renders in one call: a sequence's are the
+    same in any batch), so the outputs are ``torch.equal`` whatever ``num_workers`` is. An exception raised in a
     worker is raised again by :meth:`forward`, with the worker's traceback in its notes; a worker
     that dies raises ``RuntimeError`` and the pool restarts at the next call. A pickled or
     deep-copied module (and a module used in another process than the one that started its pool)
@@ -208,14 +208,16 @@ class SidarAugment(nn.Module):
             ValueError: wrong shape or dtype, empty batch, NaN/infinite values or float values outside [0, 1].
         """
         pixels = _check_images(images)
-        arrays = self._render(draw_tasks(self.config, self._scene_entropy(len(pixels), generator), pixels))
+        tasks: list[RenderTask] = [(b, entropy, pixels[b]) for b, entropy in
+                                   enumerate(self._scene_entropy(len(pixels), generator))]
+        arrays = self._render(tasks)
         batch = stack_samples([a.to_tensors(self.config.geometry_dtype) for a in arrays])
         return {key: _to_device(_in_dtype(value, images.dtype if key in PIXEL_KEYS else value.dtype), key,
                                 images.device) for key, value in batch.items()}
 
     def _render(self, tasks: list[RenderTask]):
         if self.num_workers == 0:
-            return [render_task(self.config, self.crop, task) for task in tasks]
+            return render_tasks(self.config, self.crop, tasks)
         if self._pool is None or not self._pool.usable:
             self._pool = RenderPool(self.config, self.crop, self.num_workers)
         return self._pool.run(tasks, self.timeout)

@@ -1,10 +1,12 @@
 """Rendering one :class:`sidar_torch.SidarAugment` image, in this process or in a pool of render processes.
 
-A *task* is everything image ``b`` of a call needs: its position, its scene (drawn by the caller,
-:func:`draw_tasks`), the generator that drew it (the view effects draw from it next), its pixels
-``(3, h, w)`` uint8 and its homographies (fitted for the whole batch in one call).
-:func:`render_task` turns a task into :class:`~sidar_torch.sample.SampleArrays`; it is the only
-rendering path, whichever process runs it, so the pixels do not depend on the pool.
+A *task* is everything image ``b`` of a call needs: its position, the entropy of its generator
+(``numpy.random.default_rng(entropy)`` draws the scene, then the view effects) and its pixels,
+``(3, h, w)`` uint8. :func:`render_tasks` turns tasks into :class:`~sidar_torch.sample.SampleArrays`;
+it is the only rendering path, whichever process runs it: all of a batch without a pool, one task at
+a time in a pool worker. It fits the homographies of the tasks it is given in one Kornia call, which
+gives each sequence the values it gets alone (``sample.batch_homographies``), so neither the pixels
+nor the geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
 parent's, or one created and warmed up at its first task, ``sidar_torch.warm_up``; then reused),
@@ -45,36 +47,26 @@ from .orphans import exit_with_parent, open_descriptors, release_inherited_descr
 from .render import preload
 from .render.context import forks_nothing
 from .sample import SampleArrays, batch_homographies, render_arrays
-from .scene import SceneSequence, sample_sequence
+from .scene import sample_sequence
 from .paintings import TensorPaintings
 
-__all__ = ["RenderPool", "RenderTask", "draw_tasks", "render_task"]
+__all__ = ["RenderPool", "RenderTask", "render_tasks"]
 
-RenderTask = tuple[int, SceneSequence, np.random.Generator, np.ndarray, tuple[torch.Tensor, float]]
-"""``(position, sequence, rng, image, homographies)``: image ``position`` of the batch, its scene, the
-generator that drew it, its pixels ``(3, h, w)`` uint8 and ``sequence_homographies(sequence)``."""
+RenderTask = tuple[int, Sequence[int], np.ndarray]
+"""``(position, entropy, image)``: image ``position`` of the batch, the entropy of its generator
+(a list of non-negative integers) and its pixels ``(3, h, w)`` uint8."""
 
 
-def draw_tasks(config: SidarConfig, entropies: Sequence[Sequence[int]], images: np.ndarray) -> list[RenderTask]:
-    """The tasks of a batch: image ``b``'s scene drawn by ``numpy.random.default_rng(entropies[b])``
-    (a list of non-negative integers each), and every scene's homographies fitted in one call
-    (:func:`~sidar_torch.sample.batch_homographies`).
-
-    Args:
-        config: what the scenes are drawn with.
-        entropies: per image, the entropy of its generator.
-        images: ``(B, 3, h, w)`` uint8, as many as ``entropies``.
-    """
-    rngs = [np.random.default_rng(list(entropy)) for entropy in entropies]
+def render_tasks(config: SidarConfig, crop: str, tasks: Sequence[RenderTask]) -> list[SampleArrays]:
+    """Draw the scene of each task, fit all their homographies in one call, and render each scene
+    with its task's image fitted to ``config.image_size``."""
+    rngs = [np.random.default_rng(list(entropy)) for _, entropy, _ in tasks]
     sequences = [sample_sequence(config, rng) for rng in rngs]
-    return list(zip(range(len(images)), sequences, rngs, images, batch_homographies(sequences)))
-
-
-def render_task(config: SidarConfig, crop: str, task: RenderTask) -> SampleArrays:
-    """Render the scene of ``task`` with the task's image fitted to ``config.image_size``."""
-    position, sequence, rng, image, homographies = task
-    painting = TensorPaintings(torch.from_numpy(image), crop=crop).painting(0, config.image_size)
-    return render_arrays(sequence, painting, config, position, rng=rng, homographies=homographies)
+    arrays = []
+    for (position, _, image), rng, sequence, homographies in zip(tasks, rngs, sequences, batch_homographies(sequences)):
+        painting = TensorPaintings(torch.from_numpy(image), crop=crop).painting(0, config.image_size)
+        arrays.append(render_arrays(sequence, painting, config, position, rng=rng, homographies=homographies))
+    return arrays
 
 
 class RenderPool:
@@ -230,7 +222,7 @@ def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_
         except (EOFError, OSError):  # the pool closed this pipe, or the parent died
             return
         try:
-            reply = ("ok", render_task(config, crop, task))
+            reply = ("ok", render_tasks(config, crop, [task])[0])
         except Exception as exc:  # sent to the caller, which raises it
             reply = ("error", _portable(exc))
         try:

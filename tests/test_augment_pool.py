@@ -73,14 +73,14 @@ def test_pickled_and_copied_modules_start_their_own_pool_and_continue_the_sequen
 
 
 def test_an_error_in_a_worker_is_raised_by_forward_with_the_workers_message(monkeypatch):
-    original = sidar_torch.augment_pool.render_arrays
+    original = sidar_torch.augment_pool.sample_sequence
 
-    def failing(sequence, painting, config, index, **kwargs):
-        if index % 3 == 0:  # some images of the batch
+    def failing(config, rng):
+        if rng.integers(0, 3) == 0:  # some images of the batch
             raise ValueError("scene refused in the worker")
-        return original(sequence, painting, config, index, **kwargs)
+        return original(config, rng)
 
-    monkeypatch.setattr(sidar_torch.augment_pool, "render_arrays", failing)  # before the fork: workers have it
+    monkeypatch.setattr(sidar_torch.augment_pool, "sample_sequence", failing)  # before the fork: workers have it
     module = augment(2)
     with module, pytest.raises(ValueError, match="scene refused in the worker") as raised:
         module(torch.rand(8, 3, *TINY))
@@ -170,12 +170,12 @@ def test_a_stopped_worker_makes_the_call_raise_within_the_timeout_naming_it():
 ORPHAN_PARENT = """
 import fcntl, struct, termios, time, numpy as np
 from sidar_torch import load_config
-from sidar_torch.augment_pool import RenderPool, draw_tasks
+from sidar_torch.augment_pool import RenderPool
 config = load_config("misaligned", image_size=(256, 384), n_views=3)
 pool = RenderPool(config, "center", 2)
-images = np.random.default_rng(0).integers(0, 256, (2, 3, 64, 96), dtype=np.uint8)
-for task, connection in zip(draw_tasks(config, [[0, 0], [0, 1]], images), pool._connections):
-    connection.send(task)  # replies of about 1.3 MB each, never read
+image = np.random.default_rng(0).integers(0, 256, (3, 64, 96), dtype=np.uint8)
+for position, connection in enumerate(pool._connections):
+    connection.send((position, [0, position], image))  # replies of about 1.3 MB each, never read
 
 def queued(connection):  # bytes waiting in this end: a full socket buffer means the worker is blocked sending
     return struct.unpack("i", fcntl.ioctl(connection.fileno(), termios.FIONREAD, bytes(4)))[0]
