@@ -68,7 +68,9 @@ class BenchSettings:
     Attributes:
         presets: preset names or YAML paths for the per-view rows (targets: :data:`DEFAULT_PRESET`).
         sizes: output sizes ``(H, W)`` of the per-view rows.
-        samples: measured samples per per-view row, after one warm-up sample.
+        samples: measured samples per per-view row, after one warm-up sample (samples
+            ``0 .. samples - 1``). One scene may cost three times another, so a median needs many:
+            samples 0-11 happen to be cheap ones (docs/speed.md).
         kornia_calls: kornia calls timed after each measured sample (and each ``SidarAugment`` call).
         augment_batch, augment_views, augment_size: the ``SidarAugment`` batch, views and ``(H, W)``.
         augment_calls: measured ``SidarAugment`` calls, after one warm-up call.
@@ -84,14 +86,14 @@ class BenchSettings:
 
     presets: tuple[str, ...] = (DEFAULT_PRESET,)
     sizes: tuple[tuple[int, int], ...] = tuple(TARGET_SIZES.values())
-    samples: int = 12
+    samples: int = 48
     kornia_calls: int = 3
     augment_batch: int = 8
     augment_views: int = 2
     augment_size: tuple[int, int] = TARGET_SIZES["small"]
     augment_calls: int = 5
     loader_size: tuple[int, int] = TARGET_SIZES["default"]
-    loader_samples: int = 12
+    loader_samples: int = 24
     views: int | None = None
     seed: int = 0
     heap: str = "warm"
@@ -366,7 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
                              f"the DataLoader rows (default {DEFAULT_PRESET})")
     parser.add_argument("--sizes", nargs="+", type=parse_size, default=None, metavar="HxW",
                         help="per-view sizes, height x width (default 192x256 384x512 768x1024)")
-    parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 12)")
+    parser.add_argument("--samples", type=int, default=None, help="measured samples per per-view row (default 48)")
     parser.add_argument("--heap", choices=HEAPS, default=None,
                         help="warm: no page faults for fresh memory on either side, as in a long run (default); "
                              "cold: glibc's defaults, as in a fresh process")
