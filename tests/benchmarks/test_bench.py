@@ -141,7 +141,8 @@ def test_a_warm_heap_is_asked_for_or_refused_by_name(monkeypatch):
 def test_a_warm_heap_hands_out_touched_pages():
     # Blocks of 2, 4, ..., 30 MiB, each freed before the next: under glibc's defaults a block that
     # outgrows the mmap threshold the last free set is a fresh mapping (about 7800 page faults in
-    # all here); from a warm heap, pages already touched (0 here).
+    # all here, or about 650 when the kernel backs the mappings with 2 MiB pages); from a warm heap,
+    # pages already touched (0 here).
     import subprocess
     import sys
     from pathlib import Path
@@ -157,4 +158,4 @@ def test_a_warm_heap_hands_out_touched_pages():
                                   check=True).stdout)
 
     cold, warm = faults(False), faults(True)
-    assert cold > 2000 and warm < cold / 10, (cold, warm)
+    assert cold > 300 and warm < cold / 10, (cold, warm)
