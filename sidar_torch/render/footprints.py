@@ -126,14 +126,16 @@ def painting_parts(begin: np.ndarray, end: np.ndarray, image_size: tuple[int, in
     h, w = image_size
     same = (begin == end)
     begin, end = np.where(same, 0, begin), np.where(same, 0, end)  # one key for "no lookup"
+    changes = (begin[:, 1:] != begin[:, :-1]) | (end[:, 1:] != end[:, :-1])  # a run ends left of the change
+    begins, ends = begin.tolist(), end.tolist()
     parts: list[PaintingPart] = []
     above: dict[tuple[int, int, int, int], PaintingPart] = {}
     for row in range(begin.shape[0]):
         y, height = row * tile, min(tile, h - row * tile)
-        cuts = np.flatnonzero((np.diff(begin[row]) != 0) | (np.diff(end[row]) != 0)) + 1
+        cuts = (np.flatnonzero(changes[row]) + 1).tolist()
         runs = {}
         for first, stop in zip([0, *cuts], [*cuts, begin.shape[1]]):
-            key = (first, stop, int(begin[row, first]), int(end[row, first]))
+            key = (first, stop, begins[row][first], ends[row][first])
             top = above[key].y if key in above else y
             x = first * tile
             runs[key] = PaintingPart(x, top, min(stop * tile, w) - x, y + height - top, key[2], key[3])
