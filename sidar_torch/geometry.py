@@ -181,15 +181,16 @@ def project(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> 
 
 
 def normalize_det(H: torch.Tensor) -> torch.Tensor:
-    """Scale homographies ``(..., 3, 3)`` (float64, CPU) to det = 1 (never by ``H[2, 2]``, which may be 0).
+    """Scale homographies ``(..., 3, 3)`` to det = 1 (never by ``H[2, 2]``, which may be 0).
 
-    The scale is the signed cube root of the determinant by NumPy's ``cbrt``, the same function for
-    every element: ``torch.pow(|det|, 1 / 3)`` rounds otherwise in its vectorised loop than in its
-    scalar one (1 ulp, in about 1 pair in 40 sequences), so a homography's value would depend on how
-    many were normalised together (``tests/test_geometry.py``).
+    The scale is the signed cube root of the determinant by NumPy's ``cbrt`` (on the CPU; no gradient
+    flows through it), the same function for every element: ``torch.pow(|det|, 1 / 3)`` rounds
+    otherwise in its vectorised loop than in its scalar one (1 ulp, in about 1 pair in 40 sequences),
+    so a homography's value would depend on how many were normalised together
+    (``tests/test_geometry.py``).
     """
     det = torch.linalg.det(H)
-    scale = torch.as_tensor(np.cbrt(det.numpy()), dtype=H.dtype)
+    scale = torch.as_tensor(np.cbrt(det.detach().cpu().numpy()), dtype=H.dtype, device=H.device)
     return H / scale[..., None, None]
 
 
