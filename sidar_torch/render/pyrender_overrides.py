@@ -171,6 +171,12 @@ class ShadowedSpotLight(pyrender.SpotLight):
         the light's own."""
 
 
+def _posed_primitives(scene: pyrender.Scene,
+                      nodes: Sequence[pyrender.Node]) -> list[tuple[pyrender.Primitive, np.ndarray]]:
+    """``(primitive, pose)`` for every primitive of ``nodes`` (mesh nodes of ``scene``), in their order."""
+    return [(primitive, scene.get_pose(node)) for node in nodes for primitive in node.mesh.primitives]
+
+
 class _PatchedProgram(ShaderProgram):
     """A pyrender shader program built from patched sources and linked without validation."""
 
@@ -679,8 +685,7 @@ class GLRenderer(pyrender.Renderer):
         self._filtered = bool(filters) and bool(flags & RenderFlags.SHADOWS_SPOT)
         if flags & RenderFlags.SHADOWS_SPOT and not shadow_fraction:  # else the colour pass drew them
             with timed(timings, "shadow", GL.glFinish):
-                opaque = [(p, scene.get_pose(node)) for node in scene.mesh_nodes
-                          if node in casters and node not in filters for p in node.mesh.primitives]
+                opaque = _posed_primitives(scene, [n for n in scene.mesh_nodes if n in casters and n not in filters])
                 corners = self._caster_corners(opaque)
                 for node in scene.mesh_nodes:
                     node.mesh.is_visible = node in casters and node not in filters
@@ -695,7 +700,7 @@ class GLRenderer(pyrender.Renderer):
                     spots = [n for n in ranked(scene.light_nodes) if isinstance(n.light, pyrender.SpotLight)]
                     tiles = [(k, n) for k, n in enumerate(spots) if n in shadowed]
                     self.transmittance.reserve(tiles[-1][0] + 1)
-                    tinted = [(p, scene.get_pose(node)) for node in filters for p in node.mesh.primitives]
+                    tinted = _posed_primitives(scene, filters)
                     tinted_corners = self._caster_corners(tinted)
                     for k, light_node in tiles:
                         self._transmittance_pass(scene, light_node, k, tinted, tinted_corners, flags)
