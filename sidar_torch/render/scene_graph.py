@@ -61,7 +61,11 @@ class FlatScene(pyrender.Scene):
         """``(4, 4)`` float64 world pose of ``node`` (read-only; pyrender's value)."""
         matrix, pose = self._poses.get(node, (None, None))
         if matrix is None or matrix is not node._matrix:  # pyrender's _matrix: None until derived
-            pose = super().get_pose(node)
+            if node not in self.nodes:
+                raise ValueError("Node must already be in scene")  # pyrender's check
+            # pyrender's product along the node's path to the root, which is the node alone here
+            # (no search of the scene graph for it).
+            pose = np.dot(node.matrix, np.eye(4))
             pose.flags.writeable = False
             self._poses[node] = (node._matrix, pose)
         return pose
