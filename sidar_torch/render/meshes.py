@@ -26,7 +26,7 @@ import trimesh
 from .. import geometry
 from ..scene import Occluder, ViewScene
 from .settings import RenderSettings
-from .visibility import ball_pixel_radius, ball_shadow_pixel_radius
+from .visibility import ball_pixel_radius, ball_shadow_pixel_radii
 
 __all__ = ["FIXED_LEVEL", "MESHES", "MeshPool", "ShapeMesh", "detail_level", "level_gap", "mesh_level", "plane_mesh",
            "unit_primitive"]
@@ -244,7 +244,7 @@ def mesh_level(occ: Occluder, view: ViewScene, settings: RenderSettings) -> int:
 
     One unit of the unit primitive is ``max(scale)`` world units at most; on screen a world
     unit near the occluder spans about ``ball_pixel_radius / r`` pixels, ``r`` its bounding
-    ball's radius, and on the painting under its shadow ``ball_shadow_pixel_radius / r``
+    ball's radius, and on the painting under its shadow ``ball_shadow_pixel_radii / r``
     (the shadow may be the larger: an occluder near a light casts a magnified shadow). The
     larger of the two, over every emitter, sets the level: a silhouette gap of ``g`` units
     moves the outline and the shadow's edge by at most ``g`` times it, in pixels.
@@ -254,9 +254,9 @@ def mesh_level(occ: Occluder, view: ViewScene, settings: RenderSettings) -> int:
         return FIXED_LEVEL
     cam, radius = view.camera, float(np.linalg.norm(occ.scale))
     spans = [ball_pixel_radius(cam.K, cam.R, cam.t, occ.position, radius)] if settings.occluders_visible else []
-    if settings.shadows:
-        spans += [ball_shadow_pixel_radius(cam.K, cam.R, cam.t, e, occ.position, radius)
-                  for light in view.lights for e in light.emitters]
+    if settings.shadows and view.lights:
+        emitters = np.concatenate([light.emitters for light in view.lights])
+        spans.append(float(ball_shadow_pixel_radii(cam.K, cam.R, cam.t, emitters, occ.position, radius).max(initial=0.0)))
     return detail_level(occ.shape, max(spans, default=0.0) * float(occ.scale.max()) / radius, error_px)
 
 

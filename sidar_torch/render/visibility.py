@@ -9,7 +9,7 @@ reach, mesh levels), which a tighter ball would change.
 
 * culling: :func:`ball_may_be_seen`, :func:`shadow_may_reach`, :func:`shadow_may_fall_on_ball`
   (``render.plan`` decides with them what each view draws);
-* mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radius` (how large an occluder
+* mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radii` (how large an occluder
   and its shadow show, in pixels);
 * shadow maps: :func:`light_frustum`, :func:`cube_corners`; which texels a draw into a map may
   write: :func:`map_texel_box` of :func:`bounds_corners`;
@@ -30,7 +30,7 @@ __all__ = [
     "ball_may_be_seen",
     "ball_pixel_radius",
     "ball_shadow_corners",
-    "ball_shadow_pixel_radius",
+    "ball_shadow_pixel_radii",
     "bounds_corners",
     "cube_corners",
     "light_frustum",
@@ -215,28 +215,29 @@ def map_texel_box(points: np.ndarray, clip_from_world: np.ndarray, size: int) ->
     return int(x0), int(y0), int(max(x0, x1)), int(max(y0, y1))
 
 
-def ball_shadow_corners(emitter: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray | None:
-    """The ball's bounding-cube corners projected from a point light onto the plane ``z = 0``,
-    ``(8, 2)`` plane points whose convex hull holds the ball's shadow; ``None`` when the ball
-    reaches the light's height (its shadow is then unbounded).
+def ball_shadow_corners(emitters: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+    """The ball's bounding-cube corners projected from point lights onto the plane ``z = 0``:
+    ``(E, 8, 2)`` plane points, whose convex hull for each light holds the ball's shadow from it.
 
     Args:
-        emitter: ``(3,)`` light position, ``z > 0``; centre, radius: the ball (world, painting units).
+        emitters: ``(E, 3)`` light positions, each above the ball (``emitters[:, 2] > centre[2] +
+            radius``: a light at or below its top throws an unbounded shadow); centre, radius: the
+            ball (world, painting units).
     """
-    if centre[2] + radius >= emitter[2]:
-        return None
     corners = cube_corners(centre, radius)
-    scale = emitter[2] / (emitter[2] - corners[:, 2])
-    return emitter[:2] + scale[:, None] * (corners[:, :2] - emitter[:2])
+    height = emitters[:, 2:]
+    scale = height / (height - corners[:, 2])
+    return emitters[:, None, :2] + scale[..., None] * (corners[:, :2] - emitters[:, None, :2])
 
 
-def _pixel_spread(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> float:
-    """Half the longer side of the image bounding box of world points ``(N, 3)``, pixels; ``inf``
-    when a point is not in front of the camera."""
-    if ((points @ R.T + t)[:, 2] <= 0).any():
-        return math.inf
-    pixels = project(K, R, t, points)
-    return float((pixels.max(axis=0) - pixels.min(axis=0)).max()) / 2
+def _pixel_spread(K: np.ndarray, R: np.ndarray, t: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``(...)`` half the longer side of the image bounding box of each set of world points
+    ``(..., N, 3)``, pixels; ``inf`` for a set with a point not in front of the camera."""
+    flat = points.reshape(-1, 3)
+    behind = ((flat @ R.T + t)[:, 2] <= 0).reshape(points.shape[:-1]).any(axis=-1)
+    pixels = project(K, R, t, flat).reshape(*points.shape[:-1], 2)
+    spread = (pixels.max(axis=-2) - pixels.min(axis=-2)).max(axis=-1) / 2
+    return np.where(behind, math.inf, spread)
 
 
 def ball_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, centre: np.ndarray, radius: float) -> float:
@@ -249,18 +250,20 @@ def ball_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, centre: np.nd
     Args:
         K, R: ``(3, 3)``; t: ``(3,)`` float64 camera (module conventions).
     """
-    return _pixel_spread(K, R, t, cube_corners(centre, radius))
+    return float(_pixel_spread(K, R, t, cube_corners(centre, radius)))
 
 
-def ball_shadow_pixel_radius(K: np.ndarray, R: np.ndarray, t: np.ndarray, emitter: np.ndarray,
-                             centre: np.ndarray, radius: float) -> float:
-    """Like :func:`ball_pixel_radius` for the ball's shadow on the painting's plane, cast from a
-    point light at ``emitter (3,)``: the projected radius of its :func:`ball_shadow_corners`
-    (``inf`` when the shadow is unbounded)."""
-    shadow = ball_shadow_corners(emitter, centre, radius)
-    if shadow is None:
-        return math.inf
-    return _pixel_spread(K, R, t, np.column_stack([shadow, np.zeros(len(shadow))]))
+def ball_shadow_pixel_radii(K: np.ndarray, R: np.ndarray, t: np.ndarray, emitters: np.ndarray,
+                            centre: np.ndarray, radius: float) -> np.ndarray:
+    """Like :func:`ball_pixel_radius` for the ball's shadows on the painting's plane, cast from
+    point lights at ``emitters (E, 3)``: ``(E,)`` float64, the projected radius of each light's
+    :func:`ball_shadow_corners` (``inf`` where the shadow is unbounded)."""
+    emitters = np.asarray(emitters, dtype=np.float64).reshape(-1, 3)
+    bounded = emitters[:, 2] > centre[2] + radius
+    shadows = ball_shadow_corners(emitters[bounded], centre, radius)
+    radii = np.full(len(emitters), math.inf)
+    radii[bounded] = _pixel_spread(K, R, t, np.concatenate([shadows, np.zeros((*shadows.shape[:2], 1))], axis=2))
+    return radii
 
 
 def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray, casters: np.ndarray,

@@ -216,6 +216,19 @@ def test_shadow_sets_the_level_of_an_invisible_occluder():
     assert mesh_level(view.occluders[0], view, replace(settings, shadows=False)) == 0
 
 
+def test_shadow_radii_of_many_lights_are_each_lights_own():
+    """Batched over lights, each light's shadow radius is the one it has alone, bit for bit (a mesh
+    level must not depend on the other lights), and a light not above the ball gets inf."""
+    view = shadow_scene().views[0]
+    cam, occ = view.camera, view.occluders[0]
+    rng = np.random.default_rng(0)
+    emitters = np.vstack([rng.uniform([-1, -1, 0.5], [1, 1, 3], (7, 3)), [[*occ.position[:2], occ.position[2] + 0.05]]])
+    radii = visibility.ball_shadow_pixel_radii(cam.K, cam.R, cam.t, emitters, occ.position, 0.1)
+    alone = [visibility.ball_shadow_pixel_radii(cam.K, cam.R, cam.t, e, occ.position, 0.1)[0] for e in emitters]
+    assert radii.shape == (8,) and radii.tolist() == alone
+    assert np.isfinite(radii[:7]).all() and radii[7] == math.inf  # the last light sits inside the ball's cube
+
+
 @pytest.mark.parametrize("shape", ["sphere", "cylinder", "cone", "torus", "capsule"])
 def test_levels_get_finer_and_the_fixed_level_is_the_old_mesh(shape):
     gaps = [level_gap(shape, k) for k in range(4)]
