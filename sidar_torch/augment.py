@@ -32,7 +32,7 @@ from torch import nn
 
 from .augment_pool import RenderPool, RenderTask, render_tasks
 from .config import SidarConfig, as_float, as_int, load_config
-from .sample import KEYS, stack_samples
+from .sample import stack_arrays
 from .scene import SceneSequence, sample_sequence
 from .paintings import CROP_MODES, tensor_to_uint8
 
@@ -40,9 +40,6 @@ __all__ = ["SidarAugment"]
 
 Generator = torch.Generator | np.random.Generator
 
-PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
-"""The 8-bit pixel keys of the sample table (those with an export entry: ``images``, ``masks``, ``label``
-and the optional ``opacities`` and ``shadow_masks``): handed out in the input's dtype."""
 
 FLOAT64_FREE_DEVICES = frozenset({"mps"})
 """Device types that hold no float64: ``homography_error`` (float64) arrives there as float32."""
@@ -98,14 +95,16 @@ class SidarAugment(nn.Module):
     ``images``.
 
     Output. A dict with the keys of a :class:`sidar_torch.SidarDataset` sample (the table
-    :data:`sidar_torch.sample.KEYS`), batched by :func:`sidar_torch.sample.stack_samples`, on the
+    :data:`sidar_torch.sample.KEYS`), batched as :func:`sidar_torch.sample.stack_samples` batches
+    them (by :func:`sidar_torch.sample.stack_arrays`, which converts each key once per batch), on the
     input's device: every tensor with a leading ``B`` (``images`` ``(B, V, 3, H, W)``, ...),
     ``homography_error`` ``(B,)`` float64 (as a DataLoader collates the dataset's Python floats;
     float32 on a device that holds no float64, Apple's MPS) and ``index`` ``(B,)`` int64, each
     image's position in the batch.
 
     Output dtypes. As in ``kornia.augmentation`` and ``torchvision.transforms.v2``, the pixel keys
-    (``images``, ``masks``, ``label``, ``opacities``, ``shadow_masks``: :data:`PIXEL_KEYS`) keep the input's dtype and
+    (``images``, ``masks``, ``label``, ``opacities``, ``shadow_masks``, ``shadow_free``:
+    :data:`sidar_torch.sample.PIXEL_KEYS`) keep the input's dtype and
     its scale: uint8 in gives uint8 ``0..255`` out (masks ``0`` or ``255``, the values export
     writes), a float dtype in gives that dtype out, in [0, 1] (``k / 255`` for the rendered 8-bit
     value ``k``, exact to that dtype's precision: float32 values equal a dataset sample's). The
@@ -211,9 +210,8 @@ class SidarAugment(nn.Module):
         tasks: list[RenderTask] = [(b, entropy, pixels[b]) for b, entropy in
                                    enumerate(self._scene_entropy(len(pixels), generator))]
         arrays = self._render(tasks)
-        batch = stack_samples([a.to_tensors(self.config.geometry_dtype) for a in arrays])
-        return {key: _to_device(_in_dtype(value, images.dtype if key in PIXEL_KEYS else value.dtype), key,
-                                images.device) for key, value in batch.items()}
+        batch = stack_arrays(arrays, self.config.geometry_dtype, pixel_dtype=images.dtype)
+        return {key: _to_device(value, key, images.device) for key, value in batch.items()}
 
     def _render(self, tasks: list[RenderTask]):
         if self.num_workers == 0:
@@ -229,14 +227,6 @@ class SidarAugment(nn.Module):
             self.calls += 1
             return [[self.seed, call, b] for b in range(batch_size)]
         return _draw_words(batch_size, generator)
-
-
-def _in_dtype(values: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-    """Float32 pixel values ``k / 255`` as ``dtype``: uint8 ``k``, or ``k / 255`` computed in ``dtype``."""
-    if dtype == values.dtype:
-        return values
-    levels = values.mul(255).round_().to(torch.uint8)
-    return levels if dtype == torch.uint8 else levels.to(dtype).div_(255)
 
 
 def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]:

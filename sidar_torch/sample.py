@@ -27,8 +27,8 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import warm_renderer
 
-__all__ = ["KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
-           "sequence_homographies", "stack_samples"]
+__all__ = ["KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+           "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
 @dataclass(frozen=True)
@@ -94,6 +94,10 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey("index", "()", "int (Python)", "the sample's dataset index (SidarAugment: its position in the batch)"),
 )
 """The sample's keys, in the order of a sample dict."""
+
+PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
+"""The 8-bit pixel keys of the table (those with an export entry: ``images``, ``masks``, ``label`` and
+the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
 GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
 """``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
@@ -161,35 +165,69 @@ class SampleArrays:
         object.__setattr__(self, "homography_error", float(self.homography_error))
         object.__setattr__(self, "index", int(self.index))
 
-    def to_tensors(self, geometry_dtype: str = "float32") -> dict[str, Any]:
+    def to_tensors(self, geometry_dtype: str = "float32", pixel_dtype: torch.dtype = torch.float32) -> dict[str, Any]:
         """The sample dict (keys, shapes and dtypes of :data:`KEYS`), CPU tensors.
 
         Args:
             geometry_dtype: ``"float32"`` or ``"float64"``, the dtype of ``homographies``, ``K``,
                 ``R`` and ``t`` (the config field of that name).
+            pixel_dtype: the dtype of the pixel keys (:data:`PIXEL_KEYS`): a float dtype (float32, as
+                :data:`KEYS` says, unless asked otherwise) holds ``k / 255`` for the 8-bit value
+                ``k``; uint8 holds ``k``.
         """
         if geometry_dtype not in GEOMETRY_DTYPES:
             raise ValueError(f"geometry_dtype: expected one of {tuple(GEOMETRY_DTYPES)}, got {geometry_dtype!r}")
-        dtype = GEOMETRY_DTYPES[geometry_dtype]
-        return {
-            "images": _unit(self.images).permute(0, 3, 1, 2),
-            "masks": _unit(self.masks).unsqueeze(1),
-            **({} if self.opacities is None else {"opacities": _unit(self.opacities).unsqueeze(1)}),
-            **({} if self.shadow_masks is None else {"shadow_masks": _unit(self.shadow_masks).unsqueeze(1)}),
-            **({} if self.shadow_free is None else {"shadow_free": _unit(self.shadow_free).permute(0, 3, 1, 2)}),
-            "label": _unit(self.label).permute(2, 0, 1),
-            "homographies": torch.from_numpy(self.homographies).to(dtype),
-            "homography_error": self.homography_error,
-            "K": torch.from_numpy(self.K).to(dtype),
-            "R": torch.from_numpy(self.R).to(dtype),
-            "t": torch.from_numpy(self.t).to(dtype),
-            "index": self.index,
-        }
+        _check_pixel_dtype(pixel_dtype)
+        tensors = {}
+        for name in _FIELDS:
+            value = getattr(self, name)
+            if name in PIXEL_KEYS and value is not None:
+                levels = torch.from_numpy(value)
+                levels = levels.movedim(-1, -3) if name in _COLOUR_KEYS else levels.unsqueeze(-3)
+                tensors[name] = _levels_as(levels, pixel_dtype)
+            elif isinstance(value, np.ndarray):
+                tensors[name] = torch.from_numpy(value).to(GEOMETRY_DTYPES[geometry_dtype])
+            elif value is not None:
+                tensors[name] = value
+        return tensors
 
 
-def _unit(values: np.ndarray) -> torch.Tensor:
-    """uint8 ``k`` -> float32 ``k / 255`` (exact for 0 and 255)."""
-    return torch.from_numpy(values).float().div_(255)
+_FIELDS = tuple(key.name for key in KEYS)
+
+_COLOUR_KEYS = frozenset(key.name for key in KEYS if key.name in PIXEL_KEYS and key.shape.endswith("3, H, W)"))
+"""The pixel keys of 3 channels, whose arrays end in that axis (moved before the rows in the tensors);
+the others' tensors get an axis of one channel there."""
+
+
+def _check_pixel_dtype(dtype: torch.dtype) -> None:
+    if not (dtype == torch.uint8 or dtype.is_floating_point):
+        raise ValueError(f"pixel_dtype: expected torch.uint8 or a float dtype, got {dtype}")
+
+
+def _levels_as(levels: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """uint8 levels ``k`` as ``dtype``: themselves for uint8, else ``k / 255`` computed in ``dtype``
+    (exact for 0 and 255), with the levels' strides."""
+    return levels if dtype == torch.uint8 else levels.to(dtype).div_(255)
+
+
+def stack_arrays(samples: Sequence[SampleArrays], geometry_dtype: str = "float32",
+                 pixel_dtype: torch.dtype = torch.float32) -> dict[str, torch.Tensor]:
+    """The batch of ``samples``, ``stack_samples([s.to_tensors(geometry_dtype, pixel_dtype) for s in
+    samples])`` value for value and stride for stride, with the pixels stacked as 8-bit levels and
+    converted to ``pixel_dtype`` once for the whole batch (uint8: not at all).
+
+    Raises:
+        ValueError: no samples, or samples that differ in which keys they hold.
+    """
+    if not samples:
+        raise ValueError("stack_arrays: expected at least one sample, got none")
+    _check_pixel_dtype(pixel_dtype)
+    tensors = [s.to_tensors(geometry_dtype, torch.uint8) for s in samples]
+    for name in _FIELDS:
+        if len({name in t for t in tensors}) > 1:
+            raise ValueError(f"stack_arrays: {name} is present in some samples and not in others")
+    return {name: _levels_as(value, pixel_dtype) if name in PIXEL_KEYS else value
+            for name, value in stack_samples(tensors).items()}
 
 
 def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, torch.Tensor]:

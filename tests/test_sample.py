@@ -13,7 +13,7 @@ from torch.utils.data import DataLoader
 import sidar_torch
 from sidar_torch import SidarAugment, SidarDataset, load_config
 from sidar_torch.sample import (KEYS, SampleArrays, batch_homographies, present_keys, render_sample,
-                                sequence_homographies, stack_samples)
+                                sequence_homographies, stack_arrays, stack_samples)
 
 import test_hard_cases as hard_cases
 from conftest import small_config
@@ -81,6 +81,40 @@ def test_stack_samples_batches_every_key():
     assert batch["images"].shape == (3, 2, 3, 8, 12) and torch.equal(batch["K"][1], samples[1]["K"])
     assert batch["homography_error"].dtype == torch.float64 and batch["homography_error"].shape == (3,)
     assert batch["index"].tolist() == [0, 1, 2] and batch["index"].dtype == torch.int64
+
+
+@pytest.mark.parametrize("pixel_dtype", [torch.float32, torch.float64, torch.uint8])
+def test_stack_arrays_is_stack_samples_of_each_samples_tensors(pixel_dtype):
+    """Values, dtypes, shapes and strides: a batch converted at once is the batch of the samples'
+    own tensors, whatever the pixels' dtype, the optional pixel keys included."""
+    config = small_config(n_views=2, image_size=(8, 12), opacity_output=True, shadow_mask_output=True,
+                          shadow_free_output=True)
+    ds = SidarDataset(config=config, seed=0)
+    arrays = [ds.sample_arrays(i) for i in range(3)]
+    batch = stack_arrays(arrays, "float64", pixel_dtype)
+    expected = stack_samples([a.to_tensors("float64", pixel_dtype) for a in arrays])
+    assert list(batch) == list(expected) == [key.name for key in present_keys(config)]
+    for key, value in expected.items():
+        assert value.dtype == batch[key].dtype and value.shape == batch[key].shape, key
+        assert torch.equal(value, batch[key]), key
+        assert value.stride() == batch[key].stride(), key
+    assert batch["images"].dtype == pixel_dtype and batch["homographies"].dtype == torch.float64
+    if pixel_dtype == torch.uint8:  # the stored 8-bit values themselves
+        assert torch.equal(batch["images"][1], torch.from_numpy(arrays[1].images).permute(0, 3, 1, 2))
+    else:  # k / 255 in that dtype
+        assert torch.equal(batch["masks"][2, :, 0], torch.from_numpy(arrays[2].masks).to(pixel_dtype) / 255)
+
+
+def test_stack_arrays_refuses_what_it_cannot_batch():
+    ds = SidarDataset(config=small_config(n_views=2, image_size=(8, 12), opacity_output=True), seed=0)
+    arrays = ds.sample_arrays(0)
+    with pytest.raises(ValueError, match="stack_arrays: expected at least one sample"):
+        stack_arrays([])
+    without = SampleArrays(**{**vars(arrays), "opacities": None})
+    with pytest.raises(ValueError, match="stack_arrays: opacities is present in some samples and not in others"):
+        stack_arrays([arrays, without])
+    with pytest.raises(ValueError, match="pixel_dtype: expected torch.uint8 or a float dtype, got torch.int32"):
+        stack_arrays([arrays], pixel_dtype=torch.int32)
 
 
 def test_no_other_module_of_the_package_keeps_a_list_of_sample_keys():
