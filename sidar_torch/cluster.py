@@ -42,7 +42,7 @@ from .config import as_int
 from .dataset import SidarDataset
 from .io import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
 from .orphans import ProcessStamp, exit_with_process
-from .sample import KEYS, SampleArrays, stack_samples
+from .sample import KEYS, SampleArrays, stack_arrays
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
 
@@ -160,14 +160,15 @@ def ray_dataset(dataset: SidarDataset, count: int, start: int = 0, actors: int =
 
 def torch_batch(batch: dict[str, np.ndarray], geometry_dtype: str = "float32") -> dict[str, torch.Tensor]:
     """A batch of :func:`ray_dataset` rows (a dict of NumPy columns) -> the batch of their samples as
-    :class:`SidarDataset` makes them: :meth:`SampleArrays.to_tensors` of each row, stacked by
-    :func:`~sidar_torch.sample.stack_samples` (``images`` ``(B, V, 3, H, W)`` float32 in [0, 1], ...,
+    :class:`SidarDataset` makes them: :meth:`SampleArrays.to_tensors` of each row, stacked as
+    :func:`~sidar_torch.sample.stack_samples` stacks them (by :func:`~sidar_torch.sample.stack_arrays`;
+    ``images`` ``(B, V, 3, H, W)`` float32 in [0, 1], ...,
     homographies and cameras in ``geometry_dtype``, ``homography_error`` ``(B,)`` float64,
     ``index`` ``(B,)`` int64)."""
     # Copies: Ray hands out read-only arrays, which torch.from_numpy would wrap as they are.
     rows = [SampleArrays(**{name: np.array(column[b]) for name, column in batch.items()})
             for b in range(len(batch["index"]))]
-    return stack_samples([row.to_tensors(geometry_dtype) for row in rows])
+    return stack_arrays(rows, geometry_dtype)
 
 
 def torch_batches(rows: Any, batch_size: int, geometry_dtype: str = "float32",
