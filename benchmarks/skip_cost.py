@@ -28,7 +28,7 @@ from .paired import paired_config, paired_parser, paired_view_times, print_paire
 
 
 SKIPS = ("split_shadow_lookups", "clear_written_texels", "skip_idle_shadows", "cull_occluders", "reuse_shadow_maps",
-         "masks_from_outline", "label_from_painting")
+         "masks_from_outline", "masks_from_stencil", "label_from_painting")
 """The ``RenderSettings`` switches of work that cannot change a pixel."""
 
 

@@ -23,6 +23,9 @@ With ``outputs = 2`` (``shadow_free``) each buffer has a second colour attachmen
 two outputs writes its fragment shader's ``location = 1`` output there (the shadow-free colour,
 ``shader_patches`` quirk 10), and :meth:`Framebuffer.end_drawing` resolves and reads both.
 
+The single-sampled buffers have a stencil: the lit colour pass can leave in it which pixels show
+the painting (:meth:`Framebuffer.read_stencil`), from which the renderer takes the mask.
+
 Like every other GL object of a renderer, it is freed with its context (framebuffers and
 renderbuffers belong to that context alone); it issues no GL call when collected.
 """
@@ -62,12 +65,13 @@ _COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
 
 
 def _new_framebuffer(width: int, height: int, samples: int, outputs: int) -> int:
-    """A framebuffer with ``outputs`` RGBA8 colour renderbuffers and a 24-bit depth renderbuffer,
-    ``samples`` per pixel (1: single-sampled). Raises RuntimeError if the driver reports it incomplete."""
+    """A framebuffer with ``outputs`` RGBA8 colour renderbuffers and a 24-bit depth, 8-bit stencil
+    renderbuffer, ``samples`` per pixel (1: single-sampled). Raises RuntimeError if the driver reports
+    it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
     for attachment, storage in ((*((c, GL.GL_RGBA8) for c in _COLOURS[:outputs]),
-                                 (GL.GL_DEPTH_ATTACHMENT, GL.GL_DEPTH_COMPONENT24))):
+                                 (GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_DEPTH24_STENCIL8))):
         renderbuffer = GL.glGenRenderbuffers(1)
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
         if samples > 1:
@@ -85,7 +89,7 @@ def _new_framebuffer(width: int, height: int, samples: int, outputs: int) -> int
 
 
 class Framebuffer:
-    """An RGBA8 colour renderbuffer (two with ``outputs = 2``) and a 24-bit depth renderbuffer of
+    """An RGBA8 colour renderbuffer (two with ``outputs = 2``) and a depth and stencil renderbuffer of
     ``width`` x ``height`` pixels, single-sampled, in the current context; with ``samples > 1``
     also a multisampled set for the passes drawn inside :meth:`multisampled`.
 
@@ -149,3 +153,11 @@ class Framebuffer:
             pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE)
             images[k] = np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width, 4)
         return images
+
+    def read_stencil(self) -> np.ndarray:
+        """``(height, width)`` uint8: the single-sampled stencil buffer, top row first, as the last
+        pass drawn into it left it."""
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_STENCIL_INDEX, GL.GL_UNSIGNED_BYTE)
+        return np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width)

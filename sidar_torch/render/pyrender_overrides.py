@@ -339,6 +339,7 @@ class GLRenderer(pyrender.Renderer):
         self._n_shadowed = 0  # shadow-casting spot lights of the current draw (see draw)
         self._split: tuple[Any, Sequence[PaintingPart], pyrender.Scene] | None = None  # (painting primitive, parts, scene) of a lit draw
         self._painting_primitive: pyrender.Primitive | None = None  # of the current draw
+        self._stencil = False  # whether the current draw writes the stencil (see draw's stencil)
         self._light_groups: int | None = None  # the current draw's, if at most unrolled_light_groups
         self.unrolled_light_groups = UNROLLED_LIGHT_GROUPS  # 0: the painting's program keeps the loop
         self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
@@ -468,6 +469,8 @@ class GLRenderer(pyrender.Renderer):
             if REFRACTION in program.defines:
                 program.set_uniform("material_ior", primitive.material.ior)
                 program.set_uniform("object_from_world", np.linalg.inv(pose))
+        if self._stencil:
+            GL.glStencilFunc(GL.GL_ALWAYS, int(primitive is self._painting_primitive), 0xFF)
         if self._split is not None and primitive is self._split[0]:
             self._draw_parts(primitive, pose, program, flags, *self._split[1:])
         else:
@@ -541,6 +544,12 @@ class GLRenderer(pyrender.Renderer):
         the pass's lighting is not computed yet."""
         super()._configure_forward_pass_viewport(flags)
         self._target.begin_drawing(self._outputs)
+        if self._stencil:  # cleared to 0; each fragment that passes the depth test writes its draw's value
+            GL.glStencilMask(0xFF)
+            GL.glClearStencil(0)
+            GL.glClear(GL.GL_STENCIL_BUFFER_BIT)
+            GL.glEnable(GL.GL_STENCIL_TEST)
+            GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
         self._pass_lighting = None  # computed at the pass's first lit draw (_bind_lighting)
         self._lit_programs = set()  # programs holding the pass's lighting uniforms
 
@@ -642,7 +651,7 @@ class GLRenderer(pyrender.Renderer):
              transmitting: set = frozenset(), shadowed: set = frozenset(), seg_node_map: dict | None = None,
              timings: dict[str, float] | None = None, step: str = "colour", stale: set | None = None,
              painting_parts: tuple[pyrender.Node, Sequence[PaintingPart]] | None = None,
-             shadow_fraction: bool = False, shadow_free: bool = False) -> np.ndarray:
+             shadow_fraction: bool = False, shadow_free: bool = False, stencil: bool = False) -> np.ndarray:
         """Draw ``scene`` into the renderer's framebuffer and read it back as ``(H, W, 4)`` uint8
         (with ``shadow_free``, ``(2, H, W, 4)``: the colour, then the colour with no light blocked).
 
@@ -672,6 +681,10 @@ class GLRenderer(pyrender.Renderer):
             shadow_free: with ``SHADOWS_SPOT``, lit draws also output the colour with every
                 light unblocked (``SHADOW_FREE``, quirk 10); the renderer's framebuffer must
                 have been made with two outputs.
+            stencil: the pass also leaves in the stencil buffer, per pixel, 1 where the nearest
+                surface it drew (the first to pass the depth test at the pixel's final depth) is the
+                painting and 0 elsewhere (:meth:`.framebuffer.Framebuffer.read_stencil`): a
+                single-sampled pass only (no antialiasing).
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -679,6 +692,9 @@ class GLRenderer(pyrender.Renderer):
         here, but it keeps asynchronous drivers, e.g. a GPU under EGL, from billing the draws
         to ``readback``); it does not change a pixel.
         """
+        if stencil and self._target.samples > 1:
+            raise ValueError("stencil: needs a single-sampled colour pass; this renderer draws it with "
+                             f"{self._target.samples} samples per pixel (antialias)")
         with timed(timings, "upload", GL.glFinish):
             self._update_context(scene, flags)
         filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene
@@ -714,15 +730,19 @@ class GLRenderer(pyrender.Renderer):
         self._painting_primitive = painting_parts[0].mesh.primitives[0] if painting_parts is not None else None
         groups = light_group_count(scene) if painting_parts is not None else None  # only the painting's program uses it
         self._light_groups = groups if groups is not None and groups <= self.unrolled_light_groups else None
+        self._stencil = stencil
         with timed(timings, step, GL.glFinish):
             for node in scene.mesh_nodes:
                 node.mesh.is_visible = node in seen
             try:
                 self._forward_pass(scene, flags, seg_node_map=seg_node_map)
             finally:
+                if self._stencil:
+                    GL.glDisable(GL.GL_STENCIL_TEST)
                 self._split = self._painting_primitive = self._light_groups = None
                 self._program_cache.shadow_fraction = self._program_cache.shadow_free = False
                 self._outputs = 1
+                self._stencil = False
         with timed(timings, "readback"):
             images = self._target.end_drawing()
         return images if shadow_free else images[0]

@@ -16,7 +16,10 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   and occluders are 1. Occluders less opaque than ``settings.mask_min_opacity`` are left out
   of this draw, so the painting seen through them counts as visible. With no such occluder in
   view the mask is the painting's outline, computed without a draw
-  (:func:`~.visibility.painting_mask`);
+  (:func:`~.visibility.painting_mask`). When every camera-visible occluder is masked and the
+  colour pass is single-sampled, that pass drew what this draw would, in the same order with the
+  same depth test: it marks in the stencil the pixels whose depth the painting's fragments kept,
+  and the mask is read from there, without its own draw (``tests/render/test_skips.py``);
 * the **opacity** (only with ``settings.opacities``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -114,8 +117,8 @@ class SceneRenderer:
     Attributes:
         settings: as given.
         skipped: counts of skipped work since creation: ``"occluders_culled"`` (per view),
-            ``"masks_from_outline"`` (mask draws), ``"shadow_maps_reused"`` (shadow passes),
-            ``"label_from_painting"`` (label draws).
+            ``"masks_from_outline"`` and ``"masks_from_stencil"`` (mask draws), ``"shadow_maps_reused"``
+            (shadow passes), ``"label_from_painting"`` (label draws).
 
     Raises:
         ValueError: ``settings.image_size`` or ``shadow_map_size`` exceeds a limit of the GL context
@@ -294,10 +297,13 @@ class SceneRenderer:
         # The shadow-free view comes from the same draw (a second output, quirk 10); without a
         # shadowed light the view is its own shadow-free view.
         both = self.settings.shadow_free and bool(shadowed)
+        # The colour pass leaves the mask's answer in the stencil whenever it can (single-sampled):
+        # always, so that its programs meet the same GL state in every view (one llvmpipe variant each).
+        stencil = self.settings.masks_from_stencil and self.settings.antialias == 1
         with self._gl._target.multisampled():  # settings.antialias samples; the other passes single-sampled
             image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
                                   shadowed=shadowed, timings=timings, step="colour", stale=stale,
-                                  painting_parts=(plane, plan.painting_parts), shadow_free=both)
+                                  painting_parts=(plane, plan.painting_parts), shadow_free=both, stencil=stencil)
         if both:
             image, unshadowed = image[0], image[1, ..., :3]
         else:
@@ -311,6 +317,13 @@ class SceneRenderer:
             self.skipped["masks_from_outline"] += 1
             with timed(timings, "mask"):
                 mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
+        elif stencil and masked == drawn:
+            # The mask's draw would draw what the colour pass drew, in the same order with the same
+            # depth test: the painting is visible where its fragment kept the depth, which the colour
+            # pass marked in the stencil.
+            self.skipped["masks_from_stencil"] += 1
+            with timed(timings, "mask"):
+                mask = self._gl._target.read_stencil() != 1
         else:
             seg_map = {plane: 255, **{node: 0 for node in masked}}
             seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,

@@ -59,7 +59,7 @@ class RenderSettings:
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks
             compare). No config field sets it.
-        skip_idle_shadows, cull_occluders, masks_from_outline, reuse_shadow_maps,
+        skip_idle_shadows, cull_occluders, masks_from_outline, masks_from_stencil, reuse_shadow_maps,
             split_shadow_lookups, clear_written_texels, label_from_painting: the skips of work that
             cannot change a pixel (``render.plan``, ``render.footprints``, ``render.shadow_array`` and
             ``SceneRenderer``), all on; tests turn each off to compare. No config field sets them.
@@ -91,6 +91,7 @@ class RenderSettings:
     skip_idle_shadows: bool = True
     cull_occluders: bool = True
     masks_from_outline: bool = True
+    masks_from_stencil: bool = True
     reuse_shadow_maps: bool = True
     split_shadow_lookups: bool = True
     clear_written_texels: bool = True

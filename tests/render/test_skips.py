@@ -278,6 +278,41 @@ def test_views_without_occluders_in_sight_take_the_outline_mask():
     assert skipped(settings, "masks_from_outline") - before >= 4
 
 
+def unmasked_views(seq, settings):
+    """How many views of ``seq`` draw an occluder below ``settings.mask_min_opacity`` (whose mask
+    therefore takes the mask's own draw, not the colour pass's stencil)."""
+    return sum(any(view.occluders[i].material.base_color[3] < settings.mask_min_opacity for i in plan.drawn)
+               for view, plan in zip(seq.views, plan_views(seq, settings)))
+
+
+@pytest.mark.parametrize("preset, overrides", [
+    ("misaligned", {}),
+    ("occlusions_only", {"occluder_materials": ["transparent", "glass", "diffuse"], "mask_min_opacity": 0.5}),
+    ("misaligned", {"opacity_output": True, "shadow_mask_output": True, "shadow_free_output": True}),
+])
+def test_masks_from_the_colour_pass_stencil_are_the_drawn_masks(preset, overrides):
+    cfg = small_config(preset, n_views=4, n_occluders=(2, 4), **overrides)
+    settings = RenderSettings.from_config(cfg)
+    before = skipped(settings, "masks_from_stencil")
+    painting = textured_painting(SMALL)
+    unmasked = 0
+    for seed in range(5):
+        seq = sample_sequence(cfg, np.random.default_rng(seed))
+        on, off = render_both(settings, seq, painting, "masks_from_stencil")
+        assert_same_pixels(on, off)
+        for name in ("opacities", "shadow_masks", "background"):
+            assert np.array_equal(getattr(on, name), getattr(off, name)), name
+        unmasked += unmasked_views(seq, settings)
+    assert skipped(settings, "masks_from_stencil") - before > 0
+    assert unmasked > 0 if settings.mask_min_opacity > 0 else unmasked == 0  # those views take the draw
+
+
+def test_a_multisampled_colour_pass_leaves_no_mask_in_the_stencil():
+    renderer = shared_renderer(RenderSettings(SMALL, antialias=4))
+    with pytest.raises(ValueError, match="stencil: needs a single-sampled colour pass; .* 4 samples per pixel"):
+        renderer._gl.draw(None, 0, set(), stencil=True)
+
+
 def test_shadow_maps_shared_by_the_views_are_drawn_once():
     cfg = small_config("misaligned", n_views=4, scene_per_view=False, n_occluders=(1, 3), n_lights=(2, 3),
                        light_types=("spot", "point", "area"), mesh_detail="fixed")
