@@ -527,6 +527,21 @@ class GLRenderer(pyrender.Renderer):
                 GL.glDrawArrays(primitive.mode, 0, len(primitive.positions))
             primitive._unbind()
 
+    def _sorted_mesh_nodes(self, scene: pyrender.Scene) -> list[pyrender.Node]:
+        """The draw order of every pass: the opaque meshes nearest first, then the blended ones
+        farthest first (pyrender's order, which draws the opaque ones farthest first too).
+
+        Opaque draws do not blend, so a pixel keeps its nearest fragment's colour in any order; drawn
+        nearest first, the depth test rejects the fragments an occluder hides (the painting's, whose
+        lookups are dearest) before they are shaded. Blended meshes keep pyrender's order, which
+        their blending depends on. Distances are from the camera to each node's origin, as in pyrender.
+        """
+        camera = scene.get_pose(scene.main_camera_node)[:3, 3]
+        distance = {node: np.linalg.norm(scene.get_pose(node)[:3, 3] - camera) for node in scene.mesh_nodes}
+        opaque = sorted((node for node in scene.mesh_nodes if not node.mesh.is_transparent), key=distance.__getitem__)
+        blended = sorted((node for node in scene.mesh_nodes if node.mesh.is_transparent), key=lambda n: -distance[n])
+        return opaque + blended
+
     def _reset_active_textures(self) -> None:
         """pyrender's reset after each primitive, and the painting's and the depth sampler unbound
         (the units go to the next primitive's textures, which keep their own filters)."""
