@@ -696,10 +696,10 @@ class GLRenderer(pyrender.Renderer):
             shadow_free: with ``SHADOWS_SPOT``, lit draws also output the colour with every
                 light unblocked (``SHADOW_FREE``, quirk 10); the renderer's framebuffer must
                 have been made with two outputs.
-            stencil: the pass also leaves in the stencil buffer, per pixel, 1 where the nearest
-                surface it drew (the first to pass the depth test at the pixel's final depth) is the
-                painting and 0 elsewhere (:meth:`.framebuffer.Framebuffer.read_stencil`): a
-                single-sampled pass only (no antialiasing).
+            stencil: the pass also leaves in the stencil buffer, per pixel, 1 where the fragment
+                that kept the pixel's depth is the painting's (the primitive of ``painting_parts``)
+                and 0 elsewhere (:meth:`.framebuffer.Framebuffer.read_stencil`): a single-sampled
+                pass only (no antialiasing).
 
         Where GL time lands: pyrender ends every pass with ``glFlush``, and llvmpipe with
         ``LP_NUM_THREADS=0`` rasterises the queued draws in this thread before a flush returns,
@@ -710,6 +710,8 @@ class GLRenderer(pyrender.Renderer):
         if stencil and self._target.samples > 1:
             raise ValueError("stencil: needs a single-sampled colour pass; this renderer draws it with "
                              f"{self._target.samples} samples per pixel (antialias)")
+        if stencil and painting_parts is None:
+            raise ValueError("stencil: needs painting_parts, whose node is the painting it marks")
         with timed(timings, "upload", GL.glFinish):
             self._update_context(scene, flags)
         filters = sorted(casters & transmitting, key=hash)  # hash: rank in the scene

@@ -307,10 +307,12 @@ def test_masks_from_the_colour_pass_stencil_are_the_drawn_masks(preset, override
     assert unmasked > 0 if settings.mask_min_opacity > 0 else unmasked == 0  # those views take the draw
 
 
-def test_a_multisampled_colour_pass_leaves_no_mask_in_the_stencil():
+def test_a_stencil_mask_needs_a_single_sampled_pass_and_the_painting():
     renderer = shared_renderer(RenderSettings(SMALL, antialias=4))
     with pytest.raises(ValueError, match="stencil: needs a single-sampled colour pass; .* 4 samples per pixel"):
         renderer._gl.draw(None, 0, set(), stencil=True)
+    with pytest.raises(ValueError, match="stencil: needs painting_parts"):
+        shared_renderer(RenderSettings(SMALL))._gl.draw(None, 0, set(), stencil=True)
 
 
 def test_shadow_maps_shared_by_the_views_are_drawn_once():
