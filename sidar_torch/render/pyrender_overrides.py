@@ -509,23 +509,27 @@ class GLRenderer(pyrender.Renderer):
 
     def _draw_under_scissors(self, primitive, pose, program, flags, parts: Sequence[PaintingPart]) -> None:
         """Draw ``primitive`` with ``program`` once per part, under the part's scissor with its lookup
-        range: the first draw is pyrender's (it binds the material), the others draw the same bound
-        primitive again."""
-        for k, part in enumerate(parts):
+        range: the first draw is pyrender's (it binds the material), the others draw the same
+        primitive again, bound once. The parts are drawn by lookup range, so the range's uniforms
+        change only between ranges (each change costs llvmpipe's next draw a constants update); the
+        parts cover disjoint pixels, so their order changes none."""
+        current = None
+        for k, part in enumerate(sorted(parts, key=lambda p: (p.begin, p.end))):
             # Window rows: drawn upside down (FLIP_Y), image row r is window row r; upright, H - 1 - r.
             y = part.y if FLIP_Y[1, 1] < 0 else self.viewport_height - part.y - part.height
             GL.glScissor(part.x, y, part.width, part.height)
-            program.set_uniform("lookup_begin", part.begin)
-            program.set_uniform("lookup_end", part.end)
+            if (part.begin, part.end) != current:
+                current = part.begin, part.end
+                program.set_uniform("lookup_begin", part.begin)
+                program.set_uniform("lookup_end", part.end)
             if k == 0:
-                super()._bind_and_draw_primitive(primitive, pose, program, flags)
-                continue
-            primitive._bind()
-            if primitive.indices is not None:
+                super()._bind_and_draw_primitive(primitive, pose, program, flags)  # unbinds the primitive
+                primitive._bind()
+            elif primitive.indices is not None:
                 GL.glDrawElements(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0))
             else:
                 GL.glDrawArrays(primitive.mode, 0, len(primitive.positions))
-            primitive._unbind()
+        primitive._unbind()
 
     def _sorted_mesh_nodes(self, scene: pyrender.Scene) -> list[pyrender.Node]:
         """The draw order of every pass: the opaque meshes nearest first, then the blended ones
