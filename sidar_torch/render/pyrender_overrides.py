@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+from collections import defaultdict
 from typing import Any, Sequence
 
 import numpy as np
@@ -34,6 +35,7 @@ from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .shader_patches import SHADER_SOURCES, glsl, patch_source
 from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps, vertex_defines
+from .light_block import LightBlocks, bind_program_block
 from .uniforms import set_uniform_array
 from .visibility import bounds_corners, map_texel_box
 
@@ -178,7 +180,8 @@ def _posed_primitives(scene: pyrender.Scene,
 
 
 class _PatchedProgram(ShaderProgram):
-    """A pyrender shader program built from patched sources and linked without validation."""
+    """A pyrender shader program built from patched sources and linked without validation, its
+    lights' uniform block bound to its layout's binding point (``light_block``)."""
 
     def _load(self, shader_filename: str) -> str:
         name = os.path.basename(shader_filename)
@@ -196,6 +199,7 @@ class _PatchedProgram(ShaderProgram):
         GL.glBindVertexArray(self._vao_id)  # a VAO must be bound while linking (PyOpenGL)
         self._program_id = gl_shaders.compileProgram(*shader_ids, validate=False)
         GL.glBindVertexArray(0)
+        bind_program_block(self._program_id, "SPOT_LIGHT_SHADOWS" in self.defines)
         self._locations: dict[str, int] = {}
 
     def set_uniform(self, name: str, value: Any, unsigned: bool = False) -> None:
@@ -292,7 +296,7 @@ class GLRenderer(pyrender.Renderer):
       previous painting, once a draw uses another); pooled meshes and shadow maps stay uploaded
       until :meth:`delete`;
     * every spot light can shade, with or without shadows (pyrender limits unshadowed lights
-      to the 4 nearest);
+      to the 4 nearest); the lights reach the shaders as one uniform block per pass (``light_block``);
     * shadow maps may be any power-of-two size, drawn with the fitted frusta of :attr:`shadow_frusta`;
     * forward passes draw upside down into its own :class:`Framebuffer` (single-sampled unless a pass asks for its multisampled buffers) (EGL
       contexts have no default framebuffer; ``framebuffer`` explains the orientation);
@@ -342,7 +346,9 @@ class GLRenderer(pyrender.Renderer):
         self._stencil = False  # whether the current draw writes the stencil (see draw's stencil)
         self._light_groups: int | None = None  # the current draw's, if at most unrolled_light_groups
         self.unrolled_light_groups = UNROLLED_LIGHT_GROUPS  # 0: the painting's program keeps the loop
-        self._pass_lighting: tuple[list, list] | None = None  # see _bind_lighting
+        self._pass_lighting: tuple[list, list, list] | None = None  # see _bind_lighting
+        self._light_blocks = LightBlocks()
+        self._filled_blocks: set[bool] = set()  # the light block layouts (shadows or not) filled this pass
         self._lit_programs: set[ShaderProgram] = set()
         self.painting: PaintingMirror | None = None
         """The painting that reflective and glass occluders show in the next lit draws."""
@@ -374,16 +380,21 @@ class GLRenderer(pyrender.Renderer):
 
         pyrender computes every light's uniforms and light matrix again for every primitive and
         sets them again, although a program keeps its uniform values: here they are computed
-        once per forward pass (:meth:`_light_uniforms`) and set once per program and pass.
-        Texture units are context state, which each primitive's material binding changes after
-        them, so the lighting textures are bound again for every primitive.
+        once per forward pass (:meth:`_light_uniforms`); the lights go into the uniform block of the
+        program's layout once per pass (``light_block``), the other uniforms are set once per program
+        and pass. Texture units are context state, which each primitive's material binding changes
+        after them, so the lighting textures are bound again for every primitive.
         """
         if self._pass_lighting is None:
             self._pass_lighting = self._light_uniforms(scene, flags)
-        uniforms, textures = self._pass_lighting
+        uniforms, textures, lights = self._pass_lighting
         first = program not in self._lit_programs
         if first:
             self._lit_programs.add(program)
+            shadows = "SPOT_LIGHT_SHADOWS" in program.defines
+            if shadows not in self._filled_blocks:
+                self._light_blocks.upload(lights, len(scene.spot_light_nodes), shadows)
+                self._filled_blocks.add(shadows)
             for name, value in uniforms:
                 program.set_uniform(name, value)
         for texture, name in textures:
@@ -396,9 +407,12 @@ class GLRenderer(pyrender.Renderer):
             if first:
                 program.set_uniform(name, unit)
 
-    def _light_uniforms(self, scene: pyrender.Scene, flags: int) -> tuple[list[tuple[str, Any]], list[tuple[Any, str]]]:
-        """The lighting uniforms of a forward pass, as pyrender's ``_bind_lighting`` sets them, and
-        its textures: ``([(uniform, value)], [(texture, sampler uniform)])``, textures in unit order.
+    def _light_uniforms(self, scene: pyrender.Scene,
+                        flags: int) -> tuple[list[tuple[str, Any]], list[tuple[Any, str]], dict[str, list[Any]]]:
+        """The lighting uniforms of a forward pass, as pyrender's ``_bind_lighting`` sets them, its
+        textures and its lights: ``([(uniform, value)], [(texture, sampler uniform)], {member:
+        [value per light]})``, textures in unit order, the lights in the shader's order, as
+        ``light_block`` packs them.
 
         With spot-light shadows the textures are the shadow maps (one array) and, when the pass
         reads them, the transmittance maps: the same layout in every lit draw whatever the number
@@ -418,23 +432,25 @@ class GLRenderer(pyrender.Renderer):
                                            ("highlight_spill", float(self.highlight_spill)),
                                            ("lookup_begin", 0), ("lookup_end", self._n_shadowed if shadowed else 0)]
         textures: list[tuple[Any, str]] = []
-        for k, light_node in enumerate(ranked(scene.light_nodes)):
-            light, pose, name = light_node.light, scene.get_pose(light_node), f"spot_lights[{k}]."
+        lights: dict[str, list[Any]] = defaultdict(list)
+        for light_node in ranked(scene.light_nodes):
+            light, pose = light_node.light, scene.get_pose(light_node)
             scale = 1.0 / max(0.001, np.cos(light.innerConeAngle) - np.cos(light.outerConeAngle))
             group = pose if light.group_pose is None else light.group_pose
-            uniforms += [(name + "direction", -pose[:3, 2]), (name + "position", pose[:3, 3]),
-                         (name + "group_direction", -group[:3, 2]), (name + "group_position", group[:3, 3]),
-                         (name + "group_size", int(light.group_size)),
-                         (name + "light_angle_scale", scale),
-                         (name + "light_angle_offset", -np.cos(light.outerConeAngle) * scale),
-                         (name + "color", light.color), (name + "intensity", light.intensity),
-                         (name + "smooth_falloff", float(light.smooth_falloff))]
+            members = {"direction": -pose[:3, 2], "position": pose[:3, 3],
+                       "group_direction": -group[:3, 2], "group_position": group[:3, 3],
+                       "group_size": int(light.group_size), "light_angle_scale": scale,
+                       "light_angle_offset": -np.cos(light.outerConeAngle) * scale,
+                       "color": light.color, "intensity": light.intensity,
+                       "smooth_falloff": float(light.smooth_falloff)}
             if shadowed:
                 V, P = self._get_light_cam_matrices(scene, light_node, flags)
-                uniforms += [(name + "light_matrix", P.dot(V)), (name + "shadow_layer", light.shadow_layer)]
+                members.update(light_matrix=P.dot(V), shadow_layer=light.shadow_layer)
                 if self.light_radius > 0:  # window depth back to depth along the axis; uv per tangent
-                    uniforms += [(name + "soft_depth", np.array([P[2, 2], P[2, 3], P[0, 0] / 2, P[1, 1] / 2])),
-                                 (name + "soft_reach", float(light.soft_reach))]
+                    members.update(soft_depth=np.array([P[2, 2], P[2, 3], P[0, 0] / 2, P[1, 1] / 2]),
+                                   soft_reach=float(light.soft_reach))
+            for member, value in members.items():
+                lights[member].append(value)
         if shadowed:
             textures.append((self.shadow_maps, "spot_shadow_maps"))
             if self.light_radius > 0:
@@ -443,7 +459,7 @@ class GLRenderer(pyrender.Renderer):
             if self._filtered:  # the transmittance variant (same layout in every draw that uses it)
                 textures.append((self.transmittance, "transmittance_maps"))
                 uniforms.append(("transmittance_layout", np.array(self.transmittance.layout, np.int32)))
-        return uniforms, textures
+        return uniforms, textures, lights
 
     def _get_primitive_program(self, primitive, flags, program_flags):
         """pyrender's program choice; a lit occluder with a ``mirror`` material gets that variant, and
@@ -571,6 +587,7 @@ class GLRenderer(pyrender.Renderer):
             GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
         self._pass_lighting = None  # computed at the pass's first lit draw (_bind_lighting)
         self._lit_programs = set()  # programs holding the pass's lighting uniforms
+        self._filled_blocks = set()
 
     def _get_camera_matrices(self, scene: pyrender.Scene) -> tuple[np.ndarray, np.ndarray]:
         """pyrender's view and projection matrices, the projection flipped to draw upside down."""
