@@ -26,7 +26,7 @@ from OpenGL import GL
 
 from ..render_choices import MAX_SHADOWED_LIGHTS
 
-__all__ = ["BINDINGS", "BLOCK_NAME", "LightBlocks", "struct_layout"]
+__all__ = ["BINDINGS", "BLOCK_NAME", "LightBlocks", "bind_program_block", "block_size", "struct_layout"]
 
 BLOCK_NAME = "SpotLights"
 """The uniform block's name in the patched ``mesh.frag``."""
@@ -113,7 +113,7 @@ class LightBlocks:
         floats = np.zeros((count, stride // 4), np.float32)
         ints = floats.view(np.int32)
         for name, values in lights.items():
-            if name not in offsets or not count:
+            if name not in offsets:
                 continue
             offset, kind = offsets[name]
             at = offset // 4
