@@ -64,7 +64,7 @@ class ExportInterrupted(KeyboardInterrupt):
 
 def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int = 0,
                    shard_size: int | None = None, workers: int = 0, progress: bool = True, *,
-                   shards: int | None = None) -> ExportSummary:
+                   shards: int | None = None, layout: str | None = None) -> ExportSummary:
     """Write sequences ``start .. start + count - 1`` of ``dataset`` to ``out_dir`` (see :mod:`sidar_torch.io`).
 
     Args:
@@ -79,6 +79,8 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
             while this process writes.
         progress: print a progress line on stderr (redrawn in place on a terminal, else every 10 s).
         shards: the older name of ``shard_size``, still accepted.
+        layout: a name of :data:`.layouts.LAYOUTS` (``"paper"``: the SIDAR paper's files, see
+            :mod:`.paper`); ``None``: folders, or shards with ``shard_size``.
 
     Returns:
         An :class:`ExportSummary`.
@@ -92,7 +94,7 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     """
     begin = time.perf_counter()
     workers = as_int("workers", workers, 0)
-    with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards)) as plan:
+    with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards), layout) as plan:
         with Progress(len(plan.missing), sys.stderr if progress else None) as bar, ctrl_c_between() as check:
             take = _InOrder(_render(dataset, plan.missing, workers))
 
@@ -191,7 +193,7 @@ class _InOrder:
 
 @contextmanager
 def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int, start: int,
-                   shard_size: int | None) -> Iterator[ExportPlan]:
+                   shard_size: int | None, layout_name: str | None = None) -> Iterator[ExportPlan]:
     """The part every export shares, local or distributed: check the arguments, create ``out_dir``,
     hold its lock for the block, write (or check) the manifest, delete stale temporaries and find what
     is missing. The block writes the :class:`ExportPlan`'s units with its layout; a
@@ -203,7 +205,7 @@ def planned_export(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
     if not isinstance(dataset, SidarDataset):
         raise TypeError(f"dataset: expected a SidarDataset, got {type(dataset).__name__}")
     count, start = as_int("count", count, 1), as_int("start", start, 0)
-    layout = layout_for(shard_size)
+    layout = layout_for(shard_size, layout_name)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise NotADirectoryError(f"out_dir: {str(out)!r} exists and is not a folder")

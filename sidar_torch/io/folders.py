@@ -85,8 +85,12 @@ class FolderLayout:
             if path.is_dir():
                 continue
             remove_stale_temporary(path)
-            replace_folder(path, encode(entries(render(index))))
+            replace_folder(path, self.files(render(index)))
             written()
+
+    def files(self, arrays: SampleArrays) -> dict[str, bytes]:
+        """A sequence folder's files by name, their bytes (:func:`entries`, encoded)."""
+        return encode(entries(arrays))
 
     def sequences(self, out: Path) -> list[tuple[int, Path]]:
         """``(index, folder)`` of every sequence folder in ``out``, ascending."""

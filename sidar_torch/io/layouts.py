@@ -13,19 +13,26 @@ from typing import Any
 from ..config import as_int
 from .folders import FolderLayout
 from .layout import Layout
+from .paper import PaperLayout
 from .shards import ShardLayout
 
-LAYOUTS: dict[str, type[Layout]] = {layout.name: layout for layout in (FolderLayout, ShardLayout)}
+LAYOUTS: dict[str, type[Layout]] = {layout.name: layout for layout in (FolderLayout, ShardLayout, PaperLayout)}
 """Manifest ``layout`` name -> the class answering :class:`~.layout.Layout` for it."""
 
 
-def layout_for(shard_size: Any) -> Layout:
-    """The layout :func:`~.export.export_dataset`'s ``shard_size`` argument asks for: ``None`` one
-    folder per sequence, ``N >= 1`` tar shards of ``N`` sequences.
+def layout_for(shard_size: Any, name: str | None = None) -> Layout:
+    """The layout :func:`~.export.export_dataset`'s ``shard_size`` and ``layout`` arguments ask for:
+    ``name`` a row of :data:`LAYOUTS` (``"paper"``: the paper's files); without it, ``shard_size``
+    ``None`` one folder per sequence, ``N >= 1`` tar shards of ``N`` sequences.
 
     Raises:
-        ValueError, TypeError: ``shard_size`` is neither ``None`` nor an integer ``>= 1`` (see :func:`as_int`).
+        ValueError, TypeError: ``shard_size`` is neither ``None`` nor an integer ``>= 1`` (see
+            :func:`as_int`), ``name`` is not a row, or its row takes no such ``shard_size``.
     """
+    if name is not None:
+        if name not in LAYOUTS:
+            raise ValueError(f"layout: expected one of {sorted(LAYOUTS)}, got {name!r}")
+        return LAYOUTS[name].from_record(shard_size if shard_size is None else as_int("shard_size", shard_size, 1))
     if shard_size is None:  # the one place the argument picks a row of the table
         return FolderLayout()
     return ShardLayout(as_int("shard_size", shard_size, 1))

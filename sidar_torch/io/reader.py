@@ -13,7 +13,9 @@ from torch.utils.data import Dataset
 from .codecs import decode, png_size
 from .entries import sample_from_entries
 from .layouts import recorded_layout
+from .layout import MANIFEST
 from .manifest import read_manifest
+from .paper import paper_manifest
 
 
 def entry_size_limit(config: dict[str, Any]) -> int:
@@ -39,6 +41,9 @@ class ExportedDataset(Dataset):
     naming it), each of at most :func:`entry_size_limit` bytes, and a PNG only if its header gives
     the recorded ``image_size``.
 
+    Also reads a folder of the SIDAR paper's own sequences (no ``export.json``; what is inferred:
+    :mod:`.paper`).
+
     Args:
         path: the export folder.
 
@@ -46,8 +51,8 @@ class ExportedDataset(Dataset):
         config: the config fields the set was rendered with, as recorded (a dict, so that sets
             written by other versions of the package load; ``SidarConfig(**config)`` rebuilds it
             when the fields match this version's).
-        seed: its seed.
-        layout: ``"folders"`` or ``"shards"``.
+        seed: its seed (``None`` for the paper's own sequences).
+        layout: a name of :data:`.layouts.LAYOUTS`: ``"folders"``, ``"shards"`` or ``"paper"``.
         indices: dataset index of each item, ascending.
 
     Raises:
@@ -60,7 +65,8 @@ class ExportedDataset(Dataset):
         self.path = Path(path)
         if not self.path.is_dir():
             raise FileNotFoundError(f"path: no export folder at {str(self.path)!r}")
-        manifest = read_manifest(self.path)
+        # No export.json: the SIDAR paper's own sequence folders, if that is what it holds.
+        manifest = read_manifest(self.path) if (self.path / MANIFEST).exists() else paper_manifest(self.path)
         self.config: dict[str, Any] = manifest["config"]
         self.seed: int = manifest["seed"]
         self.layout: str = manifest["layout"]

@@ -17,8 +17,8 @@ from sidar_torch.io.manifest import read_manifest, write_manifest
 from sidar_torch.sample import SampleArrays
 from sidar_torch.paintings import ImageFiles, ProceduralPaintings
 
-SHARD_SIZES = {"folders": None, "shards": 2}
-"""A ``shard_size`` of each layout of the table (``export_dataset``'s argument that picks it)."""
+SHARD_SIZES = {"folders": None, "shards": 2, "paper": None}
+"""A ``shard_size`` of each layout of the table (``export_dataset``'s argument, with ``layout``, that picks it)."""
 
 CONFIG = {"opacity_output": True}
 """The recorded config fields the entries of :func:`sample` need (opacities are written)."""
@@ -49,7 +49,7 @@ def test_every_layout_of_the_table_has_a_shard_size_here():
 
 @pytest.mark.parametrize("name", sorted(SHARD_SIZES))
 def test_a_layout_writes_and_reads_back_samples_through_the_interface_alone(tmp_path, name):
-    layout = layout_for(SHARD_SIZES[name])
+    layout = layout_for(SHARD_SIZES[name], name)
     assert isinstance(layout, Layout) and layout.name == name and layout.shard_size == SHARD_SIZES[name]
     samples = {index: sample(index) for index in (3, 4, 5)}
     wanted = range(3, 6)
@@ -85,7 +85,7 @@ def test_a_layout_writes_and_reads_back_samples_through_the_interface_alone(tmp_
 
 @pytest.mark.parametrize("name", sorted(SHARD_SIZES))
 def test_the_manifest_records_the_tables_name_and_gives_the_layout_back(tmp_path, name):
-    layout = layout_for(SHARD_SIZES[name])
+    layout = layout_for(SHARD_SIZES[name], name)
     write_manifest(tmp_path, 0, ProceduralPaintings(10), small_config().to_dict(), layout)
     manifest = read_manifest(tmp_path)
     assert manifest["layout"] == name and manifest["shard_size"] == SHARD_SIZES[name]
@@ -94,7 +94,7 @@ def test_the_manifest_records_the_tables_name_and_gives_the_layout_back(tmp_path
 
 @pytest.mark.parametrize("name", sorted(SHARD_SIZES))
 def test_a_layout_refuses_another_layouts_shard_size(name):
-    other = next(shard_size for other, shard_size in SHARD_SIZES.items() if other != name)
+    other = next(shard_size for shard_size in SHARD_SIZES.values() if shard_size != SHARD_SIZES[name])
     with pytest.raises(ValueError, match=r"field 'shard_size': expected .*, got "):
         LAYOUTS[name].from_record(other)
 

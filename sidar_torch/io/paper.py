@@ -1,0 +1,216 @@
+"""The SIDAR paper's own layout (``--layout paper``): the files its Blender generator writes, so that
+tools made for the paper's data read ours, and :class:`~sidar_torch.ExportedDataset` reads the
+paper's folders.
+
+::
+
+    000007/              the sequence of dataset index 7 (at least 6 digits)
+      0.png .. <V-1>.png   the views, 8-bit RGB; view 0 is the reference camera
+      0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
+                           (the paper's convention: white on occluders and off the painting)
+      gt.png               the label
+      H_<i>_<j>.mat        for i < j only, as the paper: ``np.savetxt`` text (three lines of three
+                           ``%.18e`` numbers), view-i pixels to view-j pixels in the paper's pixel
+                           convention, det = 1 (see :func:`paper_from_kornia`)
+      homographies.npy     ours, exact: (V, V, 3, 3) float64 in Kornia pixels (the reader's source)
+      cameras.json         ours: index, image size, K, R, t, homography error
+      0-o.png, 0-s.png, 0-f.png ... the optional outputs, when rendered (as the folder layout)
+
+The paper's pixel convention puts the image's outer edges at ``0`` and ``W - 1`` (``x = (W - 1)
+(ndc_x + 1) / 2``); Kornia's puts them at ``-0.5`` and ``W - 0.5`` (pixel centres at integers).
+
+The paper's own folders (no ``export.json``) are read too (:func:`paper_manifest`): every
+sub-folder holding ``gt.png`` is a sequence, in name order, indices ``0 .. N-1``. What is inferred
+there: the image size (from ``gt.png``), the number of views (``0.png``, ``1.png``, ... up to the
+first one missing), the homographies (``H_i_j.mat`` converted to Kornia pixels, det = 1;
+``H[j, i]`` its inverse); RGBA pixels lose their alpha and the masks' antialiased grey edges become
+255 from 128 up. Unknown there: the cameras (``K``, ``R``, ``t`` NaN), ``homography_error`` (NaN)
+and the seed (``None``).
+"""
+
+from __future__ import annotations
+
+import io
+import itertools
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, ClassVar
+
+import numpy as np
+from PIL import Image
+
+from ..sample import SampleArrays
+from .codecs import encode, png_size
+from .entries import CAMERAS, sample_entries
+from .files import read_inside
+from .folders import FolderLayout
+from .layout import MANIFEST
+
+HOMOGRAPHIES = "homographies.npy"
+LABEL = "gt.png"
+
+
+def homography_entry(i: int, j: int) -> str:
+    """The paper's file of the homography from view ``i`` to view ``j`` (``i < j``)."""
+    return f"H_{i}_{j}.mat"
+
+
+def paper_pixels(image_size: tuple[int, int]) -> np.ndarray:
+    """``S`` ``(3, 3)`` float64 taking Kornia pixels to the paper's: ``x_paper = (x + 1/2) (W - 1) / W``,
+    likewise for rows with ``H``; ``image_size = (H, W)``."""
+    h, w = image_size
+    return np.array([[(w - 1) / w, 0, (w - 1) / (2 * w)], [0, (h - 1) / h, (h - 1) / (2 * h)], [0, 0, 1]])
+
+
+def _det_one(H: np.ndarray) -> np.ndarray:
+    """``H`` ``(..., 3, 3)`` scaled to det = 1 by the signed cube root of its determinant."""
+    return H / np.cbrt(np.linalg.det(H))[..., None, None]
+
+
+def paper_from_kornia(H: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """A homography ``(3, 3)`` float64 between Kornia pixels as the paper writes it: ``S H S^-1``, det = 1."""
+    S = paper_pixels(image_size)
+    return _det_one(S @ H @ np.linalg.inv(S))
+
+
+def kornia_from_paper(H: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """The inverse of :func:`paper_from_kornia`: ``S^-1 H S``, det = 1, ``(3, 3)`` float64."""
+    S = paper_pixels(image_size)
+    return _det_one(np.linalg.inv(S) @ H @ S)
+
+
+def homography_text(H: np.ndarray) -> bytes:
+    """``H`` ``(3, 3)`` as ``np.savetxt`` writes it (the paper's ``H_i_j.mat``)."""
+    buffer = io.BytesIO()
+    np.savetxt(buffer, H)
+    return buffer.getvalue()
+
+
+def read_homography_text(data: bytes, where: Path) -> np.ndarray:
+    """The ``(3, 3)`` float64 of an ``H_i_j.mat`` text; ``ValueError`` naming ``where`` otherwise."""
+    try:
+        H = np.loadtxt(io.BytesIO(data), dtype=np.float64, ndmin=2)
+    except ValueError as error:
+        raise ValueError(f"{str(where)!r}: expected 3 lines of 3 numbers (np.savetxt text), got: {error}") from None
+    if H.shape != (3, 3) or not np.isfinite(H).all() or abs(np.linalg.det(H)) < 1e-12:
+        raise ValueError(f"{str(where)!r}: expected a finite invertible 3 x 3 matrix, got shape {H.shape}")
+    return H
+
+
+@dataclass(frozen=True)
+class PaperLayout(FolderLayout):
+    """The paper's layout as a :class:`~.layout.Layout`: one write unit per sequence folder, as
+    :class:`.folders.FolderLayout`, with the paper's files (see the module's docstring)."""
+
+    name: ClassVar[str] = "paper"
+
+    def files(self, arrays: SampleArrays) -> dict[str, bytes]:
+        """A sequence's files by name: the shared entries, ``homographies.npy``, and the paper's
+        ``H_<i>_<j>.mat`` texts (``i < j``)."""
+        files = encode({**sample_entries(arrays), HOMOGRAPHIES: arrays.homographies})
+        size = arrays.label.shape[:2]
+        for i, j in itertools.combinations(range(len(arrays.images)), 2):
+            files[homography_entry(i, j)] = homography_text(paper_from_kornia(arrays.homographies[i, j], size))
+        return files
+
+    def sequences(self, out: Path) -> list[tuple[int, Path]]:
+        """``(index, folder)`` of every sequence: our 6-digit folders, or (none there) every
+        sub-folder holding ``gt.png`` in name order, numbered from 0 (the paper's folders)."""
+        ours = super().sequences(out)
+        if ours or (out / MANIFEST).exists():
+            return ours
+        return list(enumerate(paper_folders(out)))
+
+    def read(self, out: Path, where: Path, name: str, limit: int) -> tuple[Path, bytes]:
+        """``(file, bytes)`` of entry ``name`` in the shared entries' encoding: our files as they
+        are; the paper's converted (RGBA views and label to RGB, masks to 0 / 255 grey, a missing
+        ``cameras.json`` made up of NaN cameras; see the module's docstring); ``H_i_j.mat`` texts
+        as the shared codec's MATLAB file of the same matrix (the paper's pixels).
+
+        Raises:
+            FileNotFoundError: no such entry; ValueError: as :meth:`FolderLayout.read`.
+        """
+        if name == CAMERAS and not (where / CAMERAS).exists():
+            return where / CAMERAS, _unknown_cameras(out, where, limit)
+        path, data = super().read(out, where, name, limit)
+        if name.endswith(".png"):
+            return path, _ours(path, name, data)
+        if name.endswith(".mat"):  # the paper's text, handed on as the shared codec's MATLAB file (same numbers)
+            return path, encode({name: read_homography_text(data, path)})[name]
+        return path, data
+
+    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64: ``homographies.npy`` where there is one (ours), else the
+        paper's ``H_i_j.mat`` texts converted to Kornia pixels, det = 1, ``H[j, i]`` the inverse."""
+        try:
+            return read(HOMOGRAPHIES)
+        except FileNotFoundError:
+            pass
+        size = read(LABEL).shape[:2]
+        homographies = np.zeros((n_views, n_views, 3, 3))
+        homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
+        for i, j in itertools.combinations(range(n_views), 2):
+            H = kornia_from_paper(read(homography_entry(i, j)), size)
+            homographies[i, j], homographies[j, i] = H, _det_one(np.linalg.inv(H))
+        return homographies
+
+
+def _ours(path: Path, name: str, data: bytes) -> bytes:
+    """A PNG in our form: the bytes as they are when grey or RGB (ours), else (the paper's RGBA)
+    converted: a mask ``<v>-m.png`` to grey 0 / 255 (255 from 128 up, its antialiased edges), any
+    other to RGB (the alpha dropped)."""
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            if image.mode in ("L", "RGB"):
+                return data
+            pixels = np.asarray(image.convert("RGB"))
+    except OSError as error:
+        raise ValueError(f"{str(path)!r}: not a readable PNG ({error})") from None
+    if name.endswith("-m.png"):
+        pixels = np.where(pixels[..., 0] >= 128, 255, 0).astype(np.uint8)
+    return encode({name: pixels})[name]
+
+
+def _unknown_cameras(out: Path, where: Path, limit: int) -> bytes:
+    """A ``cameras.json`` for a sequence of the paper's (which has none): NaN cameras for each view."""
+    n_views = 0
+    while (where / f"{n_views}.png").exists():
+        n_views += 1
+    size = png_size(read_inside(where / LABEL, out, limit))
+    nan3 = np.full((n_views, 3, 3), np.nan).tolist()
+    cameras = {"index": None, "image_size": list(size or (0, 0)), "K": nan3, "R": nan3,
+               "t": np.full((n_views, 3), np.nan).tolist(), "homography_error": float("nan")}
+    return json.dumps(cameras).encode()
+
+
+def paper_folders(folder: Path) -> list[Path]:
+    """The sub-folders of ``folder`` that hold ``gt.png`` and ``0.png`` (the paper's sequences), in name order."""
+    return sorted((p for p in folder.iterdir() if p.is_dir() and (p / LABEL).is_file() and (p / "0.png").is_file()),
+                  key=lambda p: p.name)
+
+
+def paper_manifest(folder: Path) -> dict[str, Any]:
+    """The manifest inferred for a folder of the paper's sequences (it has no ``export.json``):
+    layout ``paper``, seed ``None``, config ``image_size`` from the first ``gt.png`` and
+    ``n_views`` from its views ``0.png, 1.png, ...``.
+
+    Raises:
+        ValueError: ``folder`` holds no ``export.json`` and no sequence folder of the paper's
+            layout, or one whose ``gt.png`` is not a PNG (the message names it).
+    """
+    sequences = paper_folders(folder)
+    if not sequences:
+        raise ValueError(f"{str(folder)!r}: not a sidar_torch export (no {MANIFEST}) nor a folder of the SIDAR "
+                         f"paper's sequences (sub-folders with {LABEL}, 0.png, 0-m.png, H_0_1.mat, ...)")
+    first = sequences[0]
+    with open(first / LABEL, "rb") as f:
+        size = png_size(f.read(24))
+    if size is None:
+        raise ValueError(f"{str(first / LABEL)!r}: not a PNG")
+    n_views = 0
+    while (first / f"{n_views}.png").is_file():
+        n_views += 1
+    return {"layout": PaperLayout.name, "shard_size": None, "seed": None,
+            "source": {"kind": "the SIDAR paper's sequences", "folder": str(folder)},
+            "config": {"image_size": list(size), "n_views": n_views}}
