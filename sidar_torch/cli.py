@@ -7,22 +7,24 @@ Measurements (speed, accuracy, the quality sweep) live outside the package, in t
 from __future__ import annotations
 
 import argparse
+import difflib
 import os
 import signal
 import sys
 import time
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, ContextManager, Sequence
 
 import yaml
 from PIL import Image
 
-from .config import available_presets, load_config
+from .config import as_int, available_presets, load_config
 from .config.loader import parse_yaml
 from .dataset import SidarDataset
 from .io import ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
 from .preview import contact_sheet
+from .timing import timed
 
 __all__ = ["main", "parse_overrides"]
 
@@ -42,6 +44,50 @@ names the field or file). Anything else raised while rendering is a bug and keep
 PIPE_CLOSED_EXIT = 128 + signal.SIGPIPE
 """Exit code when the reader of the output has gone (``| head``): a shell's code for a process
 ended by SIGPIPE, as ``cat`` or ``yes`` give."""
+
+
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless ``count`` is 1: ``counted(1, "sample")`` is ``"1 sample"``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def process_age() -> float | None:
+    """Seconds since this process started (the interpreter's start, before any import), from Linux's
+    ``/proc/self/stat`` (10 ms steps); ``None`` where that cannot be read (another system)."""
+    try:
+        with open("/proc/self/stat", "rb") as stat:
+            fields = stat.read().rsplit(b")", 1)[1].split()  # the command name in parentheses may hold spaces
+        started = int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, start time after boot, in clock ticks
+        return max(time.clock_gettime(time.CLOCK_BOOTTIME) - started, 0.0)
+    except (OSError, ValueError, IndexError, AttributeError):
+        return None
+
+
+class WallClock:
+    """The command's wall time, in parts: ``parts[name]`` holds the seconds spent in each
+    ``with clock.part(name):`` block (:func:`sidar_torch.timing.timed`).
+
+    Args:
+        age: seconds between the process's start and now (:func:`process_age`): counted as the part
+            ``start-up`` (the interpreter, its imports and argument parsing); ``None`` counts from now.
+    """
+
+    def __init__(self, age: float | None):
+        self.start = time.perf_counter() - (age or 0.0)
+        self.parts: dict[str, float] = {} if age is None else {"start-up": age}
+
+    def part(self, name: str) -> ContextManager[None]:
+        """A context manager adding its block's seconds to ``parts[name]``."""
+        return timed(self.parts, name)
+
+    def line(self) -> str:
+        """``wall time 82.0 s since the process started: start-up 10.1 s, warm-up 48.0 s, export 19.5 s,
+        other 4.4 s``: every part, and what no part holds as ``other``."""
+        total = time.perf_counter() - self.start
+        since = "since the process started" if "start-up" in self.parts else "since the command started"
+        parts = [f"{name} {seconds:.1f} s" for name, seconds in self.parts.items()]
+        parts.append(f"other {total - sum(self.parts.values()):.1f} s")
+        return f"wall time {total:.1f} s {since}: {', '.join(parts)}"
 
 
 def _yaml_value(text: str) -> str:
@@ -73,60 +119,82 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
     return overrides
 
 
-def _dataset(args: argparse.Namespace) -> SidarDataset:
-    """The dataset ``--config``, ``--set``, ``--source`` and ``--seed`` ask for.
+def _dataset(args: argparse.Namespace, clock: WallClock) -> SidarDataset:
+    """The dataset ``--config``, ``--set``, ``--source`` and ``--seed`` ask for, made in ``clock``'s part
+    ``set-up`` (reading the config and the source, importing the renderer).
 
     Raises:
         UsageError: any of them is wrong (the message says which and why).
     """
     try:
-        config = load_config(args.config, **parse_overrides(args.set))
-        return SidarDataset(source=args.source, config=config, seed=args.seed)
+        with clock.part("set-up"):
+            config = load_config(args.config, **parse_overrides(args.set))
+            return SidarDataset(source=args.source, config=config, seed=args.seed)
     except USER_MISTAKES as error:
         raise UsageError(str(error)) from error
 
 
-def _preview(args: argparse.Namespace) -> None:
+def _warm_up(dataset: SidarDataset, clock: WallClock) -> None:
+    """Compile every shader variant ``dataset``'s samples can need (:meth:`SidarDataset.warm_up`), timed
+    as the part ``warm-up``: forked DataLoader workers take the warm renderer over."""
+    try:
+        with clock.part("warm-up"):
+            dataset.warm_up()
+    except RENDER_MISTAKES as error:
+        raise UsageError(str(error)) from error
+
+
+def _preview(args: argparse.Namespace, clock: WallClock) -> None:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
-    dataset = _dataset(args)
+    dataset = _dataset(args, clock)
     config = dataset.config
     out = Path(args.out)
     try:
         out.parent.mkdir(parents=True, exist_ok=True)  # before rendering, so a wrong --out costs no wait
     except OSError as error:
         raise UsageError(f"--out {args.out!r}: {error}") from error
-    start = time.perf_counter()
+    _warm_up(dataset, clock)
     try:
-        samples = [dataset.sample(i) for i in range(args.samples)]
+        with clock.part("rendering"):
+            samples = [dataset.sample(i) for i in range(args.samples)]
     except RENDER_MISTAKES as error:
         raise UsageError(str(error)) from error
-    elapsed = time.perf_counter() - start
+    elapsed = clock.parts["rendering"]
     try:
-        Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
+        with clock.part("writing"):
+            Image.fromarray(contact_sheet(samples).permute(1, 2, 0).numpy()).save(out)
     except (OSError, ValueError) as error:  # no permission, no such format (Pillow: unknown extension)
         raise UsageError(f"--out {args.out!r}: {error}") from error
     views = args.samples * config.n_views
-    print(f"wrote {out} ({args.samples} samples of {config.n_views} views at "
+    print(f"wrote {out} ({counted(args.samples, 'sample')} of {counted(config.n_views, 'view')} at "
           f"{config.image_size[0]}x{config.image_size[1]} (H x W), config {args.config!r})")
-    print(f"rendered in {elapsed:.2f} s: {elapsed / args.samples:.3f} s per sample, "
-          f"{views / elapsed:.1f} views/s (first sample includes shader compilation)")
+    print(f"rendered in {elapsed:.2f} s after the warm-up: {elapsed / args.samples:.3f} s per sample, "
+          f"{views / elapsed:.1f} views/s")
 
 
-def _export(args: argparse.Namespace) -> None:
+def _export(args: argparse.Namespace, clock: WallClock) -> None:
     if args.ray_address is not None and not args.ray:
         raise UsageError(f"--ray-address {args.ray_address!r}: add --ray to export on a Ray cluster")
     if args.ray and args.workers:
         raise UsageError(f"--workers {args.workers}: renders in DataLoader workers of this process; with --ray "
                          f"Ray's workers render (drop --workers)")
+    try:  # export_dataset checks them too: here before the warm-up, so that a wrong number costs no wait
+        as_int("count", args.count, 1), as_int("start", args.start, 0)
+    except ValueError as error:
+        raise UsageError(str(error)) from error
+    dataset = _dataset(args, clock)
+    if not args.ray:  # Ray's workers are other processes: each warms its own renderer up
+        _warm_up(dataset, clock)
     try:
-        summary = _run_export(args, _dataset(args))
+        with clock.part("export"):
+            summary = _run_export(args, dataset)
     except ExportInterrupted as interrupted:
         raise _interrupted(f"interrupted after {interrupted.done} of {interrupted.requested} sequences") from None
     except KeyboardInterrupt:
         raise _interrupted("interrupted") from None
-    print(f"wrote {len(summary.written)} sequences to {args.out} in {summary.seconds:.1f} s "
-          f"({summary.present} of the {args.count} requested were already there); "
+    print(f"wrote {counted(len(summary.written), 'sequence')} to {args.out} in {summary.seconds:.1f} s "
+          f"({summary.present} of the {counted(args.count, 'requested sequence')} already there); "
           f"read them with sidar_torch.ExportedDataset({args.out!r})")
 
 
@@ -162,7 +230,7 @@ class _Renamed(argparse.Action):
         parser.error(f"{'/'.join(self.option_strings)} was renamed {self.new}")
 
 
-def _schema(args: argparse.Namespace) -> None:
+def _schema(args: argparse.Namespace, clock: WallClock) -> None:
     from .config.schema import schema_markdown
 
     print(schema_markdown())
@@ -221,6 +289,7 @@ def _parser() -> argparse.ArgumentParser:
     schema = commands.add_parser("schema", help="print every config field with its default, allowed values "
                                                  "and meaning (a markdown table)")
     schema.set_defaults(run=_schema)
+    parser.command_names = tuple(commands.choices)  # for _did_you_mean
     return parser
 
 
@@ -232,15 +301,35 @@ def _silence_stdout() -> None:
         pass
 
 
+def _did_you_mean(parser: argparse.ArgumentParser, argv: Sequence[str]) -> None:
+    """Exit through ``parser.error`` (code 2) naming the closest command when the first argument that is
+    not an option is no command (``preveiw``: did you mean 'preview'?); else return."""
+    commands = parser.command_names
+    word = next((arg for arg in argv if not arg.startswith("-")), None)
+    if word is not None and word not in commands:
+        close = difflib.get_close_matches(word, commands, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"expected one of {', '.join(commands)}"
+        parser.error(f"unknown command {word!r} ({hint})")
+
+
 def main(argv: Sequence[str] | None = None) -> None:
-    """Run a command. A user's mistake prints one line, ``sidar_torch <command>: <what is wrong>``, and
+    """Run a command. Called without ``argv`` (``python -m sidar_torch``, the ``sidar-torch`` script) it
+    reads ``sys.argv`` and its last line gives the wall time since the process started, with the
+    start-up (interpreter and imports), the warm-up (shader compilation) and the command's work
+    apart (:class:`WallClock`); with ``argv`` (a call from Python) the time counts from the call.
+    A user's mistake prints one line, ``sidar_torch <command>: <what is wrong>``, and
     exits with code 2 (as argparse does for bad options); anything else is a bug and keeps its traceback.
     When the reader of the output goes away (``python -m sidar_torch schema | head``), the command
     stops quietly with exit code :data:`PIPE_CLOSED_EXIT` (the only pipes a command writes to are
     stdout and stderr, so a ``BrokenPipeError`` means one of them)."""
-    args = _parser().parse_args(argv)
+    clock = WallClock(process_age() if argv is None else None)
+    parser = _parser()
+    _did_you_mean(parser, sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(argv)
     try:
-        args.run(args)
+        args.run(args, clock)
+        if args.command != "schema":  # schema's output is a document, piped into files
+            print(clock.line())
         sys.stdout.flush()  # here, so that a closed pipe raises inside this try rather than at exit
     except UsageError as error:
         print(f"sidar_torch {args.command}: {error}", file=sys.stderr)
