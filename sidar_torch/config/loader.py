@@ -15,7 +15,9 @@ from typing import Any
 import yaml
 
 from .fields import SidarConfig
-from .validation import check_names, did_you_mean
+from .files import read_regular
+from .numbers import long_integer_text
+from .validation import check_field, check_names, did_you_mean
 
 __all__ = ["PRESET_DIR", "available_presets", "load_config", "parse_yaml"]
 
@@ -29,6 +31,21 @@ class _Loader(yaml.SafeLoader):
 
 _Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*(\.[0-9_]*)?[eE][-+]?[0-9]+$"),
                               list("-+0123456789"))
+
+
+def _construct_int(loader: _Loader, node: yaml.ScalarNode) -> int:
+    """PyYAML's integer, or an error marked with the number's line and column where Python will not
+    convert it (:func:`.numbers.long_integer_text`), instead of a ``ValueError`` that names nothing."""
+    problem = long_integer_text(str(node.value))
+    if problem:
+        raise yaml.constructor.ConstructorError(None, None, problem, node.start_mark)
+    return loader.construct_yaml_int(node)
+
+
+_Loader.add_constructor("tag:yaml.org,2002:int", _construct_int)
+
+CONFIG_FILE_LIMIT = 2**20
+"""Most bytes a config file is read to (a config of every field takes about 2 kB)."""
 
 
 def parse_yaml(text: str) -> Any:
@@ -51,11 +68,15 @@ def _parse(path: Path) -> dict[str, Any]:
     """The mapping a YAML file holds.
 
     Raises:
-        ValueError: not UTF-8 text (a binary file), malformed YAML (the message names the file, line
-            and column), nested too deeply to parse, or not a mapping; each message names the file.
+        FileNotFoundError: no such file.
+        ValueError: not a regular file (a FIFO, a folder: refused before it is opened), larger than
+            :data:`CONFIG_FILE_LIMIT` bytes, not UTF-8 text (a binary file), malformed YAML (the
+            message names the file, line and column; an integer of more digits than Python reads
+            too), nested too deeply to parse, or not a mapping; each message names the file.
     """
+    data = read_regular(path, CONFIG_FILE_LIMIT, "config file ")
     try:
-        text = path.read_bytes().decode("utf-8-sig")
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError as error:
         raise ValueError(f"config file {str(path)!r}: not UTF-8 text (byte {error.object[error.start]:#04x} at "
                          f"offset {error.start}); a config file is YAML text") from None
@@ -68,7 +89,8 @@ def _parse(path: Path) -> dict[str, Any]:
         mark = error.problem_mark or error.context_mark
         where = f", line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = " ".join(str(p) for p in (error.context, error.problem) if p)
-        raise ValueError(f"config file {str(path)!r}{where}: malformed YAML ({problem})") from error
+        kind = "unreadable value" if isinstance(error, yaml.constructor.ConstructorError) else "malformed YAML"
+        raise ValueError(f"config file {str(path)!r}{where}: {kind} ({problem})") from error
     except yaml.YAMLError as error:
         raise ValueError(f"config file {str(path)!r}: malformed YAML ({error})") from error
     if data is None:
@@ -78,22 +100,36 @@ def _parse(path: Path) -> dict[str, Any]:
     return data
 
 
-def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """Fields of a preset name or YAML path, with its ``base`` chain resolved (base first)."""
+def _yaml_path(source: str | os.PathLike) -> Path:
+    """The file of a preset name or YAML path.
+
+    Raises:
+        ValueError: ``source`` is neither a preset's name nor a path ending in ``.yaml`` or ``.yml``.
+    """
     path = Path(source)
-    if path.suffix not in (".yaml", ".yml"):
-        presets = available_presets()
-        if str(source) not in presets:
-            raise ValueError(f"config {str(source)!r}: not a preset{did_you_mean(str(source), presets)} nor a YAML "
-                             f"path; the presets are {', '.join(presets)}")
-        path = PRESET_DIR / f"{source}.yaml"
-    if not path.is_file():
-        raise FileNotFoundError(f"config file {str(path)!r} does not exist")
+    if path.suffix in (".yaml", ".yml"):
+        return path
+    presets = available_presets()
+    if str(source) not in presets:
+        raise ValueError(f"config {str(source)!r}: not a preset{did_you_mean(str(source), presets)} nor a YAML "
+                         f"path; the presets are {', '.join(presets)}")
+    return PRESET_DIR / f"{source}.yaml"
+
+
+def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """Fields of a preset name or YAML path, with its ``base`` chain resolved (base first), each
+    checked alone (:func:`.validation.check_field`): a wrong value names its file and field."""
+    path = _yaml_path(source)
     if path.resolve() in seen:
         raise ValueError(f"config {str(path)!r}: 'base' chain loops back to itself")
     data = _parse(path)
     base = data.pop("base", None)
     check_names(data, SidarConfig, f"field in {str(path)!r}:")
+    for name, value in data.items():
+        try:
+            check_field(SidarConfig.__dataclass_fields__[name], value)
+        except ValueError as error:
+            raise ValueError(f"config file {str(path)!r}: {error}") from None
     if base is None:
         return data
     base_path = base if str(base) in available_presets() else path.parent / str(base)
@@ -110,14 +146,24 @@ def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", *
             ``n_lights=(0, 2)``; numbers may be NumPy or 0-d torch scalars.
 
     Raises:
-        ValueError: unknown preset or field (with the closest names), a YAML file that is not UTF-8
-            text, malformed (naming the file and line) or nested too deeply, or a value of the wrong
-            type or out of its allowed range (the message names the field). Nothing else: no
-            ``TypeError`` or ``OverflowError`` for a wrong value.
+        ValueError: unknown preset or field (with the closest names), a YAML file that is not a
+            regular file (a FIFO), not UTF-8 text, malformed (naming the file and line) or nested too
+            deeply, or a value of any type (a ``Fraction``, a ``Decimal``, an integer of 5000 digits,
+            a bool, ...) that is not one the field takes or lies out of its range (the message names
+            the field, and the file the value came from). Nothing else: no ``TypeError`` or
+            ``OverflowError`` for a wrong value.
         FileNotFoundError: a YAML path, or a ``base`` it names, does not exist.
     """
     check_names(overrides, SidarConfig, "override")
     if isinstance(preset, SidarConfig):
         return preset.replace(**overrides)
     fields = {} if preset is None else _read_yaml(preset)
-    return SidarConfig(**{**fields, **overrides})
+    for name, value in overrides.items():  # each value alone first, so that a file is named only for its own
+        check_field(SidarConfig.__dataclass_fields__[name], value)
+    try:
+        return SidarConfig(**{**fields, **overrides})
+    except ValueError as error:  # every value passed alone: a rule between fields, some of them the file's
+        if not fields:
+            raise
+        raise ValueError(f"config file {str(_yaml_path(preset))!r}{' with overrides' if overrides else ''}: "
+                         f"{error}") from None

@@ -13,15 +13,42 @@ import numbers
 import reprlib
 from typing import Any
 
-__all__ = ["as_float", "as_int", "shown"]
+__all__ = ["MAX_INTEGER_DIGITS", "as_float", "as_int", "long_integer_text", "shown"]
 
-_SHORT = reprlib.Repr()
+class _Short(reprlib.Repr):
+    """reprlib's cut ``repr``, also of integers whose ``repr`` Python refuses (more than
+    ``sys.get_int_max_str_digits()`` digits, 4300 by default, raise ``ValueError``)."""
+
+    def repr_int(self, x: int, level: int) -> str:
+        try:
+            return super().repr_int(x, level)
+        except ValueError:
+            return f"<an integer of about {int(x.bit_length() * math.log10(2)) + 1} digits>"
+
+
+_SHORT = _Short()
 _SHORT.maxlong, _SHORT.maxstring, _SHORT.maxother = 40, 60, 60
 
 
 def shown(value: Any) -> str:
-    """``repr(value)`` cut to a readable length for an error message (``10**400`` shows 40 digits)."""
+    """``repr(value)`` cut to a readable length for an error message (``10**400`` shows 40 digits,
+    ``10**5000`` ``<an integer of about 5001 digits>``)."""
     return _SHORT.repr(value)
+
+
+MAX_INTEGER_DIGITS = 4300
+"""Most digits of an integer read from a config or manifest file's text: Python's default limit
+for decimal text (``sys.get_int_max_str_digits()``), whatever the interpreter's is set to, far
+more than any number there may hold (converting a longer one takes time quadratic in its length)."""
+
+
+def long_integer_text(text: str) -> str | None:
+    """Why the integer written ``text`` (a YAML or JSON number: decimal, hex, sexagesimal ``1:30``)
+    is not read, or None if it is: more than :data:`MAX_INTEGER_DIGITS` digits."""
+    count = sum(c.isalnum() for c in text)
+    if count > MAX_INTEGER_DIGITS:
+        return f"an integer of {count} digits, more than the {MAX_INTEGER_DIGITS} read from a file"
+    return None
 
 
 def _scalar(name: str, value: Any) -> int | float:
@@ -32,9 +59,16 @@ def _scalar(name: str, value: Any) -> int | float:
     """
     if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):  # 0-d numpy array or torch tensor
         value = value.item()
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # np.bool_ is no numbers.Real
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # np.bool_ and Decimal are no numbers.Real
         raise ValueError(f"{name}: expected a number, got {shown(value)}")
-    return int(value) if isinstance(value, numbers.Integral) else float(value)
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Rational) and value.denominator == 1:  # Fraction(6, 2): exactly 3
+        return int(value.numerator)
+    try:
+        return float(value)
+    except OverflowError:  # a Fraction beyond float's range, e.g. Fraction(10**400, 3)
+        return math.inf if value > 0 else -math.inf
 
 
 def as_int(name: str, value: Any, minimum: int | None = None) -> int:
@@ -66,10 +100,11 @@ def as_float(name: str, value: Any, *, finite: bool = True) -> float:
     Raises:
         ValueError: a bool, not a number, or (if ``finite``) NaN or infinite (the message starts with ``name``).
     """
+    number = _scalar(name, value)
     try:
-        number = float(_scalar(name, value))
+        number = float(number)
     except OverflowError:  # an integer beyond float's range, e.g. 10**400
-        number = math.inf
+        number = math.inf if number > 0 else -math.inf
     if finite and not math.isfinite(number):
         raise ValueError(f"{name}: expected a finite number, got {shown(value)}")
     return number + 0.0  # -0.0 becomes 0.0: numpy's uniform(0.0, -0.0) raises "high - low < 0"

@@ -19,7 +19,7 @@ from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHA
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
 
-__all__ = ["bounds_text", "check_names", "coerce", "did_you_mean", "validate"]
+__all__ = ["bounds_text", "check_field", "check_names", "coerce", "did_you_mean", "validate"]
 
 
 def box_tilt_limit_deg(camera_xy: float, lowest_height: float) -> float:
@@ -110,6 +110,37 @@ def _within_bounds(f: dataclasses.Field, value: Any) -> bool:
     return _BOUNDED[str(f.type)][1](value, lo, hi)
 
 
+def _check_allowed(f: dataclasses.Field, value: Any) -> None:
+    """Check the coerced ``value`` of field ``f`` against its ``bounds`` or ``choices`` metadata.
+
+    Raises:
+        ValueError: ``config field '<name>': expected <what the metadata allows>, got <value>``.
+    """
+    def need(ok: bool, expected: str) -> None:
+        if not ok:
+            raise ValueError(f"config field {f.name!r}: expected {expected}, got {shown(value)}")
+
+    if "bounds" in f.metadata:
+        need(_within_bounds(f, value), bounds_text(f))
+    if "choices" in f.metadata and isinstance(value, tuple):
+        choices = f.metadata["choices"]
+        need(len(value) > 0 and set(value) <= set(choices), f"a non-empty subset of {choices}")
+    elif "choices" in f.metadata:
+        need(value in f.metadata["choices"], f"one of {f.metadata['choices']}")
+
+
+def check_field(f: dataclasses.Field, value: Any) -> Any:
+    """``value`` in the type of field ``f`` (:func:`coerce`) and within its ``bounds`` or ``choices``:
+    what a ``SidarConfig`` checks of one field alone (the rules between fields are :func:`validate`'s).
+
+    Raises:
+        ValueError: as :func:`coerce`, or a value out of its bounds (the message names the field).
+    """
+    value = coerce(f, value)
+    _check_allowed(f, value)
+    return value
+
+
 def validate(config: Any) -> None:
     """Check the coerced fields of a ``SidarConfig`` against their ``bounds`` and ``choices``
     metadata and the rules between fields (the camera box's tilt, the shadow maps the renderer can
@@ -124,14 +155,7 @@ def validate(config: Any) -> None:
 
     c = config
     for f in dataclasses.fields(c):
-        value = getattr(c, f.name)
-        if "bounds" in f.metadata:
-            need(_within_bounds(f, value), f.name, bounds_text(f))
-        if "choices" in f.metadata and isinstance(value, tuple):
-            choices = f.metadata["choices"]
-            need(len(value) > 0 and set(value) <= set(choices), f.name, f"a non-empty subset of {choices}")
-        elif "choices" in f.metadata:
-            need(value in f.metadata["choices"], f.name, f"one of {f.metadata['choices']}")
+        _check_allowed(f, getattr(c, f.name))
     reach = box_tilt_limit_deg(c.camera_xy, c.camera_height[0])
     need(c.max_tilt_deg == 90 or c.max_tilt_deg <= reach, "max_tilt_deg",
          f"at most {reach:.4g} deg, the steepest tilt of the camera box (x, y within camera_xy={c.camera_xy:.4g} "

@@ -13,11 +13,11 @@ from __future__ import annotations
 import fcntl
 import os
 import shutil
-import stat
 from contextlib import contextmanager
 from pathlib import Path
 from typing import BinaryIO, Iterator
 
+from ..config.files import open_regular
 from .layout import is_export_name
 
 TMP_PREFIX = ".tmp-sidar-"
@@ -135,7 +135,8 @@ def _open_lock_file(path: Path) -> tuple[int, bool]:
 @contextmanager
 def open_inside(path: Path, root: Path) -> Iterator[BinaryIO]:
     """``path`` opened for reading, checked to be a regular file inside the folder ``root`` (after
-    following links): a FIFO, a device or a link out of ``root`` is refused before any byte is read.
+    following links): a FIFO, a device or a link out of ``root`` is refused before any byte is read
+    (:func:`sidar_torch.config.files.open_regular` opens it).
 
     Raises:
         FileNotFoundError: ``path`` does not exist.
@@ -145,22 +146,8 @@ def open_inside(path: Path, root: Path) -> Iterator[BinaryIO]:
     if os.path.commonpath([real, base]) != base:
         raise ValueError(f"{str(path)!r}: leads outside the export {str(root)!r} (to {real!r}); "
                          f"an export reads only its own files")
-    _check_regular(path, os.stat(real).st_mode)
-    fd = os.open(real, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)  # a FIFO swapped in opens without waiting
-    with os.fdopen(fd, "rb") as f:
-        _check_regular(path, os.fstat(fd).st_mode)
+    with open_regular(real) as f:
         yield f
-
-
-def _check_regular(path: Path, mode: int) -> None:
-    if not stat.S_ISREG(mode):
-        raise ValueError(f"{str(path)!r}: expected a regular file, got a {_file_kind(mode)}")
-
-
-def _file_kind(mode: int) -> str:
-    kinds = ((stat.S_ISDIR, "folder"), (stat.S_ISFIFO, "FIFO"), (stat.S_ISCHR, "character device"),
-             (stat.S_ISBLK, "block device"), (stat.S_ISSOCK, "socket"))
-    return next((kind for test, kind in kinds if test(mode)), "special file")
 
 
 def read_inside(path: Path, root: Path, limit: int) -> bytes:

@@ -232,7 +232,7 @@ def test_the_reader_refuses_a_sequence_folder_linked_from_outside_and_a_device_a
     export_dataset(tiny_dataset(), shards, count=1, shard_size=2, progress=False)
     (shards / "shard-00000.tar").unlink()
     os.mkfifo(shards / "shard-00000.tar")
-    with deadline(20), pytest.raises(ValueError, match=r"shard-00000\.tar'?: expected a regular file, got a FIFO"):
+    with deadline(20), pytest.raises(ValueError, match=r"shard-00000\.tar'?: not a regular file: expected a regular file, got a FIFO"):
         ExportedDataset(shards)
 
 

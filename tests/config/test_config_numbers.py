@@ -1,0 +1,90 @@
+"""Issue 34 item 4: every config number, whatever its Python type, is a ``ValueError`` naming the
+field; a config file names itself in every error; a FIFO is refused as not a regular file without
+blocking."""
+
+import os
+import subprocess
+import sys
+from decimal import Decimal
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from sidar_torch import load_config
+from sidar_torch.config.numbers import shown
+
+HUGE = Fraction(10**400, 3)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("max_image_pixels", HUGE), ("n_views", HUGE), ("image_size", (HUGE, 3)), ("n_lights", (0, HUGE)),  # OverflowError
+    ("camera_xy", HUGE), ("camera_height", (1, -HUGE)), ("n_views", -HUGE),
+    ("n_views", 10**5000), ("max_image_pixels", 10**5000), ("camera_xy", 10**5000), ("image_size", (3, -10**5000)),
+    ("n_views", Decimal("3")), ("camera_xy", Decimal("NaN")), ("n_views", Decimal("sNaN")), ("n_views", Decimal("1e999999")),
+    ("n_views", Fraction(5, 2)), ("n_views", np.uint64(2**64 - 1)), ("n_views", np.longdouble("1e4000")),
+    ("n_views", True), ("camera_xy", np.bool_(False)), ("n_views", 3 + 0j), ("n_views", "3"), ("n_views", None),
+], ids=lambda v: v if isinstance(v, str) else type(v).__name__)
+def test_a_number_of_any_type_is_a_value_error_naming_the_field(field, value):
+    with pytest.raises(ValueError, match=f"^config field '{field}': expected"):
+        load_config("misaligned", **{field: value})
+
+
+def test_an_integral_fraction_is_its_integer():
+    assert load_config("misaligned", n_views=Fraction(6, 2), image_size=(Fraction(48), 64)).n_views == 3
+
+
+def test_a_huge_integer_is_shown_by_its_length():
+    assert shown(10**5000) == "<an integer of about 5001 digits>"
+    assert shown((1, -10**5000)) == "(1, <an integer of about 5001 digits>)"
+
+
+@pytest.mark.parametrize("text, named", [
+    ("n_views: " + "9" * 5000, r"line 2, column 10: unreadable value \(an integer of 5000 digits"),  # ValueError, no file
+    ("n_views: 1" + ":1" * 5000, "line 2, column 10: unreadable value"),  # sexagesimal: quadratic time
+    ("n_views: 1000", "config field 'n_views': expected 1 <= value <= 256, got 1000"),
+    ("image_size: [1, 0x" + "f" * 4000 + "]", r"config field 'image_size': expected .* got \(1, <an integer of about"),
+    ("camera_xy: .nan", "config field 'camera_xy': expected a finite number"),
+    ("image_size: [3000, 4000]\nn_views: 64", "config fields 'image_size', 'n_views'"),  # a rule between fields
+])
+def test_every_error_of_a_config_file_names_the_file(tmp_path, text, named):
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: misaligned\n" + text + "\n")
+    with pytest.raises(ValueError, match=named) as error:
+        load_config(path)
+    assert str(error.value).startswith(f"config file {str(path)!r}")
+
+
+def test_an_override_is_named_alone_and_a_rule_between_a_file_and_overrides_names_both(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text("base: misaligned\nimage_size: [3000, 4000]\n")
+    with pytest.raises(ValueError, match="^config field 'n_views': expected 1 <= value <= 256, got 1000$"):
+        load_config(path, n_views=1000)
+    with pytest.raises(ValueError, match=rf"^config file {str(path)!r} with overrides: config fields 'image_size'"):
+        load_config(path, n_views=64)
+
+
+def load_in_a_child(path):
+    """stderr of ``load_config(path)`` in a child process given 120 s: a blocking ``open`` of a FIFO
+    would never return, however loaded the machine, so the bound only tells a hang from a refusal."""
+    result = subprocess.run([sys.executable, "-c", "import sys; from sidar_torch import load_config\n"
+                             "load_config(sys.argv[1])", str(path)], capture_output=True, text=True, timeout=120)
+    assert result.returncode != 0
+    return result.stderr.strip().splitlines()[-1]
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+def test_a_fifo_or_a_folder_named_yaml_is_not_a_regular_file_and_nothing_blocks(tmp_path, kind):
+    """Issue 34 item 4: a FIFO named ``*.yaml`` was reported as missing."""
+    path = tmp_path / "fifo.yaml"
+    os.mkfifo(path) if kind == "fifo" else path.mkdir()
+    assert load_in_a_child(path) == (f"ValueError: config file {str(path)!r}: not a regular file: expected a regular "
+                                     f"file, got a {'FIFO' if kind == 'fifo' else 'folder'}")
+    child = tmp_path / "child.yaml"
+    child.write_text("base: fifo.yaml\n")
+    assert load_in_a_child(child).startswith(f"ValueError: config file {str(path)!r}: not a regular file")
+
+
+def test_a_missing_file_is_still_file_not_found(tmp_path):
+    with pytest.raises(FileNotFoundError, match="mine.yaml' does not exist"):
+        load_config(tmp_path / "mine.yaml")
