@@ -23,6 +23,7 @@ from .config.loader import parse_yaml
 from .dataset import SidarDataset
 from .io import ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
+from .orphans import process_age
 from .preview import contact_sheet
 from .timing import timed
 
@@ -51,25 +52,14 @@ def counted(count: int, noun: str) -> str:
     return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
-def process_age() -> float | None:
-    """Seconds since this process started (the interpreter's start, before any import), from Linux's
-    ``/proc/self/stat`` (10 ms steps); ``None`` where that cannot be read (another system)."""
-    try:
-        with open("/proc/self/stat", "rb") as stat:
-            fields = stat.read().rsplit(b")", 1)[1].split()  # the command name in parentheses may hold spaces
-        started = int(fields[19]) / os.sysconf("SC_CLK_TCK")  # field 22, start time after boot, in clock ticks
-        return max(time.clock_gettime(time.CLOCK_BOOTTIME) - started, 0.0)
-    except (OSError, ValueError, IndexError, AttributeError):
-        return None
-
-
 class WallClock:
     """The command's wall time, in parts: ``parts[name]`` holds the seconds spent in each
     ``with clock.part(name):`` block (:func:`sidar_torch.timing.timed`).
 
     Args:
-        age: seconds between the process's start and now (:func:`process_age`): counted as the part
-            ``start-up`` (the interpreter, its imports and argument parsing); ``None`` counts from now.
+        age: seconds between the process's start and now (:func:`sidar_torch.orphans.process_age`):
+            counted as the part ``start-up`` (the interpreter, its imports and argument parsing);
+            ``None`` counts from now.
     """
 
     def __init__(self, age: float | None):
@@ -322,7 +312,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     When the reader of the output goes away (``python -m sidar_torch schema | head``), the command
     stops quietly with exit code :data:`PIPE_CLOSED_EXIT` (the only pipes a command writes to are
     stdout and stderr, so a ``BrokenPipeError`` means one of them)."""
-    clock = WallClock(process_age() if argv is None else None)
+    clock = WallClock(process_age(os.getpid()) if argv is None else None)
     parser = _parser()
     _did_you_mean(parser, sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(argv)

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Callable, Iterable
 
 __all__ = ["POLL_S", "ProcessStamp", "exit_with_parent", "exit_with_process", "open_descriptors",
-           "release_inherited_descriptors"]
+           "process_age", "process_state", "release_inherited_descriptors"]
 
 POLL_S = 0.25
 """How often, in seconds, the watching thread checks that the parent is alive."""
@@ -111,15 +111,44 @@ class ProcessStamp:
         return _start_time(self.pid) == self.started
 
 
-def _start_time(pid: int) -> str | None:
-    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
-    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
+def _stat_fields(pid: int) -> list[bytes] | None:
+    """Fields 3 on of ``/proc/<pid>/stat`` (``[0]`` the state letter, ``[19]`` field 22, the start
+    time in clock ticks after boot), or ``None`` if there is no such process or no ``/proc``."""
     try:
         stat_line = Path(f"/proc/{pid}/stat").read_bytes()
     except OSError:
         return None
-    fields = stat_line.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
-    return None if fields[0] in (b"Z", b"X") else fields[19].decode()
+    return stat_line.rpartition(b")")[2].split()  # after the name, which may hold spaces: state, ppid, ...
+
+
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (field 22 of ``/proc/<pid>/stat``, clock ticks after boot), or
+    ``None`` if there is no such live process (a zombie is dead) or no ``/proc``."""
+    fields = _stat_fields(pid)
+    return None if fields is None or fields[0] in (b"Z", b"X") else fields[19].decode()
+
+
+def process_age(pid: int) -> float | None:
+    """Seconds since process ``pid`` started (10 ms steps, ``/proc``); ``None`` if there is no such
+    process or no ``/proc``."""
+    fields = _stat_fields(pid)
+    if fields is None or not hasattr(time, "CLOCK_BOOTTIME"):
+        return None
+    return max(time.clock_gettime(time.CLOCK_BOOTTIME) - int(fields[19]) / os.sysconf("SC_CLK_TCK"), 0.0)
+
+
+_STATES = {b"R": "running", b"S": "sleeping", b"D": "waiting for a device", b"T": "stopped (SIGSTOP or Ctrl-Z)",
+           b"t": "stopped by a debugger", b"Z": "dead (a zombie, not yet reaped)", b"X": "dead", b"I": "idle"}
+"""What the state letter of ``/proc/<pid>/stat`` means (``man 5 proc``)."""
+
+
+def process_state(pid: int) -> str:
+    """Process ``pid``'s state in words, for error messages: ``"stopped (SIGSTOP or Ctrl-Z)"``,
+    ``"running"``, ``"gone"`` (no such process), ``"unknown"`` (no ``/proc``)..."""
+    fields = _stat_fields(pid)
+    if fields is None:
+        return "gone" if Path("/proc/self/stat").exists() else "unknown"
+    return _STATES.get(fields[0], f"state {fields[0].decode()!r}")
 
 
 _watched: set[ProcessStamp] = set()
