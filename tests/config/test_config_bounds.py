@@ -2,11 +2,8 @@
 the field when the config is made (never an ``OverflowError``, ``TypeError`` or ``LinAlgError``, a
 hang or NaN later)."""
 
-import contextlib
 import dataclasses
-import faulthandler
 import math
-import signal
 from datetime import timedelta
 
 import numpy as np
@@ -15,6 +12,7 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from hang_guard import no_hang
 from sidar_torch import SidarConfig, SidarDataset, available_presets, load_config
 from sidar_torch.config import (MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT,
                                 MAX_VIEWS)
@@ -24,25 +22,6 @@ from sidar_torch.scene import sample_sequence
 
 FIELDS = {f.name: f for f in dataclasses.fields(SidarConfig)}
 NUMBER_TYPES = ("int", "float", "Range", "IntRange", "tuple[int, int]")
-
-
-@contextlib.contextmanager
-def no_hang(seconds: float):
-    """Raise ``TimeoutError`` in the block after ``seconds`` (a Python loop that spins, like the scene
-    sampler's did); if native code holds on for as long again, end the process with a traceback
-    (``faulthandler``) rather than block the suite."""
-    def expire(signum, frame):
-        raise TimeoutError(f"still running after {seconds} s")
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    faulthandler.dump_traceback_later(2 * seconds, exit=True)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-        faulthandler.cancel_dump_traceback_later()
 
 
 def test_every_number_field_has_finite_bounds_or_choices():
