@@ -13,11 +13,12 @@ from . import render  # noqa: F401  (sets PYOPENGL_PLATFORM, LP_NUM_THREADS befo
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .dataset import SidarDataset
+from .evaluation import evaluate
 from .io import ExportedDataset, export_dataset
 from .pairs import homography_pairs
 from .version import __version__  # noqa: F401  (the package's version, recorded in export manifests)
 
 __all__ = [
-    "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "export_dataset",
-    "homography_pairs", "load_config",
+    "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "evaluate",
+    "export_dataset", "homography_pairs", "load_config",
 ]

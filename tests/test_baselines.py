@@ -1,0 +1,80 @@
+"""The baseline estimators (``sidar_torch.baselines``) recover a known homography in our pixel
+convention; names resolve, wrong ones and a missing OpenCV are errors naming them."""
+
+import sys
+
+import numpy as np
+import pytest
+
+from sidar_torch import baselines
+from sidar_torch.baselines import ESTIMATORS, resolve_estimator
+from sidar_torch.evaluation import corner_error
+from sidar_torch.paintings import ProceduralPaintings
+
+cv2 = pytest.importorskip("cv2")
+
+SIZE = (240, 320)  # (H, W)
+H_TRUE = np.array([[1.02, 0.03, 2.5], [-0.02, 0.99, -1.5], [5e-5, -4e-5, 1.0]])
+
+
+def textured(size):
+    """A built-in procedural painting: features for the matchers, gradients for ECC."""
+    return ProceduralPaintings(4).painting(1, size)
+
+
+@pytest.mark.parametrize("name, px", [("sift", 0.5), ("sift-magsac", 0.5), ("orb", 2.0), ("ecc", 0.5)])
+def test_a_baseline_recovers_a_known_homography_in_our_pixels(name, px):
+    """Within ``px`` (ORB's keypoints are whole pixels of its pyramid's levels: 0.7-1.1 px on these paintings)."""
+    source = textured(SIZE)
+    # cv2.warpPerspective maps source pixel x to H x with pixel centres at integers, as ours.
+    target = cv2.warpPerspective(source, H_TRUE, SIZE[::-1], flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+    H = resolve_estimator(name)[1](source, target)
+    assert H is not None and corner_error(H, H_TRUE, SIZE) < px
+
+
+def test_identity_and_a_failure():
+    image = textured(SIZE)
+    assert (baselines.identity(image, image) == np.eye(3)).all() and baselines.identity(image) is image
+    flat = np.zeros((*SIZE, 3), np.uint8)
+    assert baselines.sift_ransac(flat, flat) is None  # no keypoints: a failure, not an error
+
+
+def test_names_resolve_and_wrong_ones_are_errors_naming_them():
+    assert resolve_estimator("identity") == ("identity", baselines.identity)
+    assert resolve_estimator("sidar_torch.baselines:ecc") == ("sidar_torch.baselines:ecc", baselines.ecc)
+    with pytest.raises(ValueError, match=r"estimator: expected one of \[.*'homographynet'.*\] or MODULE:FUNCTION"):
+        resolve_estimator("sift2")
+    with pytest.raises(ValueError, match=r"module 'math' has no 'nope'"):
+        resolve_estimator("math:nope")
+    with pytest.raises(ValueError, match=r"expected a callable, got float"):
+        resolve_estimator("math:pi")
+    with pytest.raises(ImportError):
+        resolve_estimator("no_such_module_here:f")
+    assert set(ESTIMATORS) == {"identity", "sift", "sift-magsac", "orb", "ecc", "homographynet"}
+
+
+def test_without_opencv_a_baseline_names_the_extra(monkeypatch):
+    monkeypatch.setitem(sys.modules, "cv2", None)  # import cv2 raises ImportError
+    with pytest.raises(ImportError, match=r'pip install "sidar_torch\[bench\]"'):
+        baselines.sift_ransac(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8))
+
+
+def test_homographynet_without_weights_says_how_to_make_them(tmp_path, monkeypatch):
+    monkeypatch.setenv(baselines.HOMOGRAPHYNET_WEIGHTS, str(tmp_path / "none.pt"))
+    with pytest.raises(FileNotFoundError, match=r"python examples/train_homography.py --save .*none.pt"):
+        baselines.homographynet(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8))
+
+
+def test_homographynet_maps_its_64_px_corners_back_to_the_views_pixels(tmp_path, monkeypatch):
+    import torch
+
+    network = baselines.homography_net()
+    torch.nn.init.zeros_(network[-1].weight)
+    with torch.no_grad():
+        network[-1].bias.copy_(torch.tensor([1.0, 0.5] * 4))  # every corner moves (16, 8) px at 64 x 64
+    torch.save(network.state_dict(), tmp_path / "net.pt")
+    monkeypatch.setenv(baselines.HOMOGRAPHYNET_WEIGHTS, str(tmp_path / "net.pt"))
+    image = textured(SIZE)
+    H = baselines.homographynet(image, image)
+    h, w = SIZE
+    np.testing.assert_allclose(H / H[2, 2], [[1, 0, 16 * w / 64], [0, 1, 8 * h / 64], [0, 0, 1]], atol=1e-9)

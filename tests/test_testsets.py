@@ -1,0 +1,62 @@
+"""The shipped test sets (``sidar_torch.testsets``): published definitions never change, they are
+whole (a digest for every file of every sequence), and rebuilding a set's first sequences on the
+renderer that recorded it reproduces their digests."""
+
+import dataclasses
+
+import pytest
+
+from sidar_torch import load_config
+from sidar_torch.testsets import (available_testsets, check_digests, definition_digest, export_testset,
+                                  file_digests, gl_renderer, load_testset)
+
+PUBLISHED = {
+    "homography-v1": "a12b5b04ec85f6a72477ce38f7bd77a995f7ad0576c12a0a8684ac944ee3f052",
+    "shadow-removal-v1": "3741fe9824701313e46d3e3809b7cb655d1ecd10a5351dddc1bdd5139700ff7d",
+}
+"""SHA-256 of each published definition file. Never edit an entry: a changed set is a new name
+(``-v2``) with an entry of its own (``scripts/record_testset.py`` writes its definition)."""
+
+
+def test_every_shipped_set_is_published_and_unchanged():
+    assert available_testsets() == sorted(PUBLISHED)
+    for name, digest in PUBLISHED.items():
+        assert definition_digest(name) == digest, f"{name} changed: publish the change as a new name (-v2)"
+
+
+@pytest.mark.parametrize("name", sorted(PUBLISHED))
+def test_a_definition_is_whole_and_its_configs_load(name):
+    testset = load_testset(name)
+    assert testset.name == name and testset.task in ("homography", "shadow-removal") and testset.pairs == "reference"
+    for category in testset.categories:
+        config = load_config(None, **category.config)
+        names = [key.split("/") for key in testset.digests if key.startswith(f"{category.name}/")]
+        assert {folder for _, folder, _ in names} == {f"{i:06d}" for i in range(category.count)}
+        first = {file for _, folder, file in names if folder == "000000"}
+        expected = {"0.png", "0-m.png", "gt.png", "cameras.json", "H_0_1.mat", "H_1_0.mat"}
+        expected |= {"0-s.png"} if config.shadow_mask_output else set()
+        expected |= {"0-f.png"} if config.shadow_free_output else set()
+        assert expected <= first and len(names) == len(first) * category.count  # every sequence: the same files
+    assert testset.recorded_on["gl_renderer"]
+
+
+def test_a_digest_check_names_the_files_that_differ_and_why_they_may(tmp_path):
+    testset = load_testset("homography-v1")
+    name = "clean/000000/1.png"
+    (tmp_path / "clean" / "000000").mkdir(parents=True)
+    (tmp_path / "clean" / "000000" / "1.png").write_bytes(b"not the recorded bytes")
+    check = check_digests(testset, tmp_path, renderer="another renderer")
+    assert file_digests(tmp_path) == {name: file_digests(tmp_path)[name]}
+    assert check.checked == 1 and check.differing == (name,) and not check.matches
+    assert "1 of 1 files differ" in check.summary() and "another renderer" in check.summary()
+    assert "evaluate" in check.summary()
+
+
+@pytest.mark.gl
+def test_rebuilding_the_first_sequences_of_a_set_reproduces_their_digests(tmp_path):
+    testset = load_testset("homography-v1")
+    first = dataclasses.replace(testset, categories=(testset.categories[0], testset.categories[-1]))  # clean, all
+    check = export_testset(first, tmp_path, sequences=1, progress=False)
+    if gl_renderer() != testset.recorded_on["gl_renderer"]:
+        pytest.skip(f"pixels were recorded on {testset.recorded_on['gl_renderer']!r}, not on this {gl_renderer()!r}")
+    assert check.checked == 2 * 26 and check.matches, check.summary()
