@@ -35,3 +35,27 @@ def test_short_soak_keeps_memory_programs_and_gl_objects_flat(tmp_path):
         assert len({r[key] for r in after}) == 1, (key, summary["reports"])
     assert summary["growth_mb"] <= MAX_GROWTH_MB, summary["reports"]
     assert done.returncode == 0, done.stdout
+
+
+@pytest.mark.slow
+def test_a_soak_in_dataloader_workers_reports_each_workers_memory_heap_and_python_growth(tmp_path):
+    # Issue 34 item 5: the growth was seen in DataLoader workers, so each worker reports its own figures:
+    # resident memory, glibc's heap in use and free, the resident memory after malloc_trim, and (with
+    # --tracemalloc) the source lines whose Python memory grew after the warm-up.
+    config = tmp_path / "soak.yaml"
+    config.write_text("base: misaligned\nn_views: 2\nshadow_map_size: 256\n")
+    done = subprocess.run(
+        [sys.executable, "-m", "benchmarks.soak", "--config", str(config), "--size", "48x64", "--samples", "6",
+         "--every", "2", "--warmup", "2", "--workers", "2", "--trim", "--tracemalloc"],
+        capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert done.returncode in (0, 1), done.stderr
+    summary = json.loads(done.stdout.splitlines()[-1])
+    reports = summary["reports"]
+    assert sorted((r["worker"], r["samples"]) for r in reports) == [(w, s) for w in (0, 1) for s in (2, 4, 6)]
+    for r in reports:
+        assert 0 < r["heap_used_mb"] < r["rss_mb"] and r["heap_free_mb"] >= 0, r
+        assert 0 < r["rss_trimmed_mb"] <= r["rss_mb"] + 1, r
+    for worker in (0, 1):
+        lines = done.stdout.splitlines()
+        top = lines.index(next(line for line in lines if line.startswith(f"worker {worker}: growth after warm-up")))
+        assert ".py:" in lines[top + 1] and "size=" in lines[top + 1], lines[top:top + 3]
