@@ -21,12 +21,12 @@ up:
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 from ..render_choices import shadow_map_side
 from .allowed import LIGHT_EMITTERS
 
-__all__ = ["estimated_sample_bytes", "shadowed_emitters"]
+__all__ = ["estimated_sample_bytes", "output_bytes", "shadowed_emitters"]
 
 VIEW_PIXEL_BYTES = 32
 FRAME_PIXEL_BYTES = 96
@@ -60,9 +60,27 @@ def estimated_sample_bytes(config: Any) -> int:
     views = config.n_views
     multisample = MULTISAMPLE_PIXEL_BYTES * config.antialias if config.antialias > 1 else 0
     maps = max(1, shadowed_emitters(config) if config.shadows else 0)
-    per_view = VIEW_PIXEL_BYTES + sum(b for field, b in SHADOW_OUTPUT_PIXEL_BYTES.items() if getattr(config, field))
     samples = 1 + (config.antialias if config.antialias > 1 else 0)  # the single- and multisampled buffers
     second_output = 4 * samples if config.shadow_free_output else 0
-    return (h * w * (views * per_view + FRAME_PIXEL_BYTES + multisample + second_output)
+    outputs = {field: getattr(config, field) for field in SHADOW_OUTPUT_PIXEL_BYTES}
+    return (output_bytes(config.image_size, views, outputs) + h * w * (multisample + second_output)
             + views * views * VIEW_PAIR_BYTES
             + maps * shadow_map_side(config.shadow_map_size, config.image_size)**2 * SHADOW_TEXEL_BYTES)
+
+
+def output_bytes(image_size: tuple[int, int], n_views: int, outputs: Mapping[str, Any]) -> int:
+    """The part of :func:`estimated_sample_bytes` that only the image size, the view count and the
+    output switches set: ``H * W * (V * (32 + shadow outputs) + 96)`` bytes (the views and masks as
+    arrays and tensors, the frame's buffers and label). A lower bound of the estimate of any config
+    with these fields, so a sample over :data:`~.allowed.MAX_SAMPLE_BYTES` by it is refused
+    whatever the other fields hold; the export reader bounds a recorded export with it.
+
+    Args:
+        image_size: ``(H, W)`` pixels, integers.
+        n_views: ``V``, an integer.
+        outputs: the switches of :data:`SHADOW_OUTPUT_PIXEL_BYTES` (``shadow_free_output``,
+            ``shadow_mask_output``), true or false; a missing one counts as false.
+    """
+    h, w = image_size
+    per_view = VIEW_PIXEL_BYTES + sum(b for field, b in SHADOW_OUTPUT_PIXEL_BYTES.items() if outputs.get(field))
+    return h * w * (n_views * per_view + FRAME_PIXEL_BYTES)

@@ -7,13 +7,15 @@ without a change here. The writers (:mod:`.folders`, :mod:`.shards`) turn entrie
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from functools import partial
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..sample import KEYS, SampleArrays, present_keys
+from ..config.numbers import shown
+from ..sample import KEYS, SampleArrays, SampleKey, present_keys
 
-__all__ = ["CAMERAS", "pixel_entries_text", "sample_entries", "sample_from_entries"]
+__all__ = ["CAMERAS", "pixel_entries_text", "pixel_shape", "read_cameras", "sample_entries", "sample_from_entries"]
 
 CAMERAS = "cameras.json"
 
@@ -46,32 +48,80 @@ def pixel_entries_text() -> str:
                      for key in KEYS if key.entry is not None)
 
 
-def sample_from_entries(read: Callable[[str], Any], index: int, config: dict[str, Any],
+def pixel_shape(key: SampleKey, image_size: tuple[int, int]) -> tuple[int, ...]:
+    """The shape of one decoded file of pixel key ``key`` (a row of :data:`~sidar_torch.sample.KEYS`
+    with an ``entry``): ``(H, W, 3)`` for a key of 3 channels (its table shape ``(..., 3, H, W)``),
+    else ``(H, W)``."""
+    channels = key.shape.strip("()").split(", ")[-3]
+    return (*image_size, 3) if channels == "3" else tuple(image_size)
+
+
+def _numbers(cameras: dict[str, Any], name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``cameras[name]`` as a float64 array of ``shape`` (``()``: one number), from nested JSON lists
+    of numbers (NaN allowed: the paper's sequences have no cameras); ``ValueError`` naming the field
+    otherwise (a bool, a string, an integer beyond float64, another shape)."""
+    try:
+        value = np.array(cameras.get(name), dtype=object)
+    except ValueError:  # nested lists NumPy cannot make an array of
+        value = np.array(None, dtype=object)
+    if value.shape == shape and all(type(v) in (int, float) for v in value.flat):
+        try:
+            return value.astype(np.float64)
+        except OverflowError:  # an integer beyond float64
+            pass
+    expected = f"{shape} numbers (nested lists)" if shape else "a number"
+    raise ValueError(f"field {name!r}: expected {expected}, got {shown(cameras.get(name))}")
+
+
+def read_cameras(cameras: Any, config: Mapping[str, Any]) -> dict[str, Any]:
+    """The decoded ``cameras.json`` of a sequence of an export recorded with ``config``, checked:
+    a JSON object whose ``image_size`` is the recorded one, with ``K``, ``R`` ``(V, 3, 3)`` and
+    ``t`` ``(V, 3)`` numbers for the recorded ``n_views`` ``V`` and a number ``homography_error``.
+
+    Returns:
+        ``{"K", "R", "t"}`` float64 arrays and ``homography_error`` a float.
+
+    Raises:
+        ValueError: the first field that is missing or wrong, by name (not the file's: the caller's).
+    """
+    if not isinstance(cameras, dict):
+        raise ValueError(f"expected a JSON object of the cameras, got {shown(cameras)}")
+    size, views = list(config["image_size"]), config["n_views"]
+    if cameras.get("image_size", size) != size:
+        raise ValueError(f"field 'image_size': the cameras' image_size {shown(cameras['image_size'])}, the recorded "
+                         f"config's {size}")
+    K = cameras.get("K")
+    if isinstance(K, list) and len(K) != views:
+        raise ValueError(f"field 'K': the cameras of {len(K)} views, but the recorded config field 'n_views' is {views}")
+    return {"K": _numbers(cameras, "K", (views, 3, 3)), "R": _numbers(cameras, "R", (views, 3, 3)),
+            "t": _numbers(cameras, "t", (views, 3)),
+            "homography_error": float(_numbers(cameras, "homography_error", ()))}
+
+
+def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[str, Any],
                         homographies: Callable[[int], np.ndarray]) -> SampleArrays:
     """Rebuild the :class:`SampleArrays` of sequence ``index`` from its decoded entries.
 
     Args:
-        read: entry name -> decoded value (raises ``FileNotFoundError`` naming a missing entry).
+        read: ``(entry name, shape, check)`` -> its decoded value, checked to be of ``shape`` (see
+            :func:`.codecs.decode`) and passed through ``check`` (value -> value, or None); raises
+            ``FileNotFoundError`` naming a missing entry and ``ValueError`` naming a malformed one
+            (``check``'s errors included).
         index: the sequence's dataset index.
-        config: the recorded config (says which keys are present, e.g. ``opacities``).
+        config: the recorded config, its sizes checked (:func:`.limits.check_recorded_sizes`):
+            the image size and view count every file must hold, and which keys are present
+            (e.g. ``opacities``).
         homographies: ``V`` -> the ``(V, V, 3, 3)`` float64 homographies, read the layout's way.
     """
-    cameras = read(CAMERAS)
+    cameras = read(CAMERAS, None, partial(read_cameras, config=config))
     n_views = len(cameras["K"])
     pixels = {}
     for key in present_keys(config):
         if key.entry is None:
             continue
+        shape = pixel_shape(key, config["image_size"])
         if "{v}" not in key.entry:
-            pixels[key.name] = read(key.entry)
+            pixels[key.name] = read(key.entry, shape, None)
             continue
-        views = [read(key.entry.format(v=v)) for v in range(n_views)]
-        shapes = sorted({view.shape for view in views})
-        if len(shapes) > 1:
-            raise ValueError(f"SampleArrays.{key.name}: the files {key.entry.format(v='<v>')} of sequence {index} "
-                             f"differ in shape: {shapes}")
-        pixels[key.name] = np.stack(views)
-    return SampleArrays(**pixels, homographies=homographies(n_views),
-                        homography_error=float(cameras["homography_error"]),
-                        K=np.array(cameras["K"], dtype=np.float64), R=np.array(cameras["R"], dtype=np.float64),
-                        t=np.array(cameras["t"], dtype=np.float64), index=index)
+        pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None) for v in range(n_views)])
+    return SampleArrays(**pixels, homographies=homographies(n_views), index=index, **cameras)

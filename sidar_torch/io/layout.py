@@ -90,9 +90,10 @@ class Layout(Protocol):
             ValueError: the entry is larger than ``limit`` bytes or not a regular file inside ``out``.
         """
 
-    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
+    def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
         """``(V, V, 3, 3)`` float64 homographies of a sequence from its decoded entries (``read``:
-        entry name -> value), the identity on the diagonal."""
+        entry name and, optionally, the array's expected shape -> value, checked to be of that
+        shape before it is made: see :func:`.codecs.decode`), the identity on the diagonal."""
 
 
 def sequence_name(index: int) -> str:

@@ -13,6 +13,7 @@ import yaml
 from ..sample import GEOMETRY_DTYPES, KEYS
 from ..paintings import PaintingSource
 from ..version import __version__
+from .codecs import read_json
 from .files import LOCK, is_own_temporary, read_inside, replace_file
 from .layout import CONFIG, MANIFEST, Layout
 from .layouts import LAYOUTS
@@ -94,18 +95,17 @@ def read_manifest(path: Path) -> dict[str, Any]:
 
     Raises:
         ValueError: no ``export.json``, or one that is not a regular file of at most
-            :data:`MANIFEST_LIMIT` bytes of UTF-8 JSON, or a field that is missing or wrong (the
-            message names the file and the field).
+            :data:`MANIFEST_LIMIT` bytes of UTF-8 JSON (an integer of more than 4300 digits
+            included), or a field that is missing or wrong (the message names the file and the field).
     """
     manifest_path = path / MANIFEST
     if not manifest_path.exists():
         raise ValueError(f"{str(path)!r}: not a sidar_torch export (no {MANIFEST})")
+    data = read_inside(manifest_path, path, MANIFEST_LIMIT)
     try:
-        manifest = json.loads(read_inside(manifest_path, path, MANIFEST_LIMIT).decode("utf-8"))
-    except UnicodeDecodeError as error:
-        raise ValueError(f"{str(manifest_path)!r}: not UTF-8 text ({error})") from None
-    except (json.JSONDecodeError, RecursionError) as error:
-        raise ValueError(f"{str(manifest_path)!r}: not valid JSON ({type(error).__name__}: {error})") from None
+        manifest = read_json(data)
+    except ValueError as error:
+        raise ValueError(f"{str(manifest_path)!r}: {error}") from None
     check_manifest(manifest, manifest_path)
     return manifest
 

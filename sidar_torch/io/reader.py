@@ -5,25 +5,18 @@ from __future__ import annotations
 import os
 from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from torch.utils.data import Dataset
 
-from .codecs import decode, png_size
+from .codecs import decode
 from .entries import sample_from_entries
 from .layouts import recorded_layout
-from .layout import MANIFEST
+from .layout import MANIFEST, sequence_name
+from .limits import check_recorded_sizes, entry_size_limit
 from .manifest import read_manifest
 from .paper import paper_manifest
-
-
-def entry_size_limit(config: dict[str, Any]) -> int:
-    """Most bytes one file of a sequence rendered with ``config`` can hold, with a wide margin: four
-    times a view's raw RGB pixels (a PNG adds a few bytes per row and per 32 kB), plus 128 bytes per
-    pair of views (``homographies.npy`` holds 72), plus 1 MiB (``cameras.json``, headers)."""
-    height, width = config["image_size"]
-    return 4 * height * width * 3 + 128 * config["n_views"] ** 2 + 2**20
 
 
 class ExportedDataset(Dataset):
@@ -38,8 +31,11 @@ class ExportedDataset(Dataset):
     :data:`.layouts.LAYOUTS` through its interface; works in DataLoader workers.
 
     Only regular files inside ``path`` are read (a link out of it, a FIFO or a device is an error
-    naming it), each of at most :func:`entry_size_limit` bytes, and a PNG only if its header gives
-    the recorded ``image_size``.
+    naming it), each of at most :func:`.limits.entry_size_limit` bytes. The recorded ``image_size``
+    and ``n_views`` are checked against the package's bounds (:func:`.limits.check_recorded_sizes`)
+    before any sequence is read, and each file against them before anything of its size is
+    decoded, inflated or allocated (a PNG's header, ``cameras.json``'s cameras, a ``.npy`` header,
+    a ``.mat``'s variable): a malformed file is a ``ValueError`` naming it (and a shard's entry).
 
     Also reads a folder of the SIDAR paper's own sequences (no ``export.json``; what is inferred:
     :mod:`.paper`).
@@ -58,7 +54,8 @@ class ExportedDataset(Dataset):
     Raises:
         FileNotFoundError: ``path`` does not exist.
         ValueError: ``path`` holds no export (no ``export.json``), one of another format, a
-            manifest with a missing or wrong field, or a damaged shard (each message names the file).
+            manifest with a missing or wrong field or sizes beyond the bounds, or a damaged shard
+            (each message names the file); an item, a malformed file of its sequence.
     """
 
     def __init__(self, path: str | os.PathLike):
@@ -66,7 +63,9 @@ class ExportedDataset(Dataset):
         if not self.path.is_dir():
             raise FileNotFoundError(f"path: no export folder at {str(self.path)!r}")
         # No export.json: the SIDAR paper's own sequence folders, if that is what it holds.
-        manifest = read_manifest(self.path) if (self.path / MANIFEST).exists() else paper_manifest(self.path)
+        recorded = self.path / MANIFEST
+        manifest = read_manifest(self.path) if recorded.exists() else paper_manifest(self.path)
+        check_recorded_sizes(manifest["config"], recorded if recorded.exists() else self.path)
         self.config: dict[str, Any] = manifest["config"]
         self.seed: int = manifest["seed"]
         self.layout: str = manifest["layout"]
@@ -83,20 +82,23 @@ class ExportedDataset(Dataset):
         if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not -len(self) <= k < len(self):
             raise IndexError(f"index {k!r}: expected an integer in [{-len(self)}, {len(self)})")
         index, where = self._items[k]
-        read = partial(self._read, where)
+        read = partial(self._read, index, where)
         arrays = sample_from_entries(read, index, self.config, partial(self._layout.read_homographies, read))
         return arrays.to_tensors(self.config.get("geometry_dtype", "float32"))
 
-    def _read(self, where: Any, name: str) -> Any:
-        """Entry ``name`` of the sequence the layout finds at ``where``, decoded."""
-        path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config))
-        return self._decode(path, name, data)
+    def _read(self, index: int, where: Any, name: str, shape: tuple[int, ...] | None = None,
+              check: Callable[[Any], Any] | None = None) -> Any:
+        """Entry ``name`` of sequence ``index``, which the layout finds at ``where``, decoded and
+        checked to be of ``shape`` (:func:`.codecs.decode`) and by ``check`` (value -> value).
 
-    def _decode(self, where: Path, name: str, data: bytes) -> Any:
-        """``data`` decoded by ``name``'s extension; a PNG only if its header gives the recorded size."""
-        if name.endswith(".png"):
-            expected = tuple(self.config["image_size"])
-            if png_size(data) != expected:
-                raise ValueError(f"{str(where)!r}: {name} is not a PNG of {expected[0]} x {expected[1]} pixels "
-                                 f"(H x W, the recorded image_size): its header says {png_size(data)}")
-        return decode(name, data)
+        Raises:
+            FileNotFoundError: no such entry.
+            ValueError: a malformed entry, its file (and a shard's entry) named.
+        """
+        path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config))
+        try:
+            value = decode(name, data, shape)
+            return value if check is None else check(value)
+        except ValueError as error:
+            entry = "" if path.name == name else f": entry {sequence_name(index)}.{name}"
+            raise ValueError(f"{str(path)!r}{entry}: {error}") from None

@@ -70,11 +70,12 @@ def shard_contents(path: Path) -> dict[int, list[tarfile.TarInfo]]:
                     if not (member.isfile() and dot and SEQUENCE_NAME.match(key)):
                         raise DamagedShard(path, f"entry {member.name!r} is not a sequence's file",
                                            _without_last(contents))
-                    if member.offset_data + member.size > size:
-                        break  # cut inside this entry's data: the end marker check below fails
+                    if not 0 <= member.size <= size - member.offset_data:  # tarfile reads base-256 sizes of any sign
+                        raise DamagedShard(path, f"entry {member.name!r} declares {member.size} bytes from byte "
+                                                 f"{member.offset_data}, the file has {size}", _without_last(contents))
                     contents.setdefault(int(key), []).append(member)
                 end = tar.offset
-        except tarfile.TarError as error:
+        except (tarfile.TarError, OSError) as error:  # OSError: a seek past what the file system allows
             raise DamagedShard(path, f"{type(error).__name__}: {error}", _without_last(contents)) from None
         f.seek(end)
         if f.read(END_MARKER) != bytes(END_MARKER):
@@ -197,6 +198,6 @@ class ShardLayout:
             f.seek(offset)
             return shard, f.read(size)
 
-    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
-        """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry."""
-        return read(HOMOGRAPHIES)
+    def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry (``read``: entry name and shape -> value)."""
+        return read(HOMOGRAPHIES, (n_views, n_views, 3, 3))

@@ -304,10 +304,8 @@ def test_exported_files_match_the_records_stored_on_main():
 def test_reader_names_the_field_a_damaged_file_breaks(tmp_path):
     export_dataset(tiny_dataset(), tmp_path, count=1, progress=False)
     Image.new("RGB", (32, 24)).save(tmp_path / "000000" / "1-m.png")  # a mask is 8-bit grey
-    with pytest.raises(ValueError, match=r"SampleArrays\.masks: the files <v>-m.png of sequence 0 differ in shape"):
-        ExportedDataset(tmp_path)[0]
-    Image.new("RGB", (32, 24)).save(tmp_path / "000000" / "0-m.png")
-    with pytest.raises(ValueError, match=r"SampleArrays\.masks: expected shape \(2, 24, 32\) uint8, got \(2, 24, 32"):
+    with pytest.raises(ValueError, match=r"000000/1-m\.png'?: expected an 8-bit grey PNG, its header says bit depth 8, "
+                                         r"colour type 2"):
         ExportedDataset(tmp_path)[0]
 
 

@@ -20,8 +20,8 @@ from sidar_torch.paintings import ImageFiles, ProceduralPaintings
 SHARD_SIZES = {"folders": None, "shards": 2, "paper": None}
 """A ``shard_size`` of each layout of the table (``export_dataset``'s argument, with ``layout``, that picks it)."""
 
-CONFIG = {"opacity_output": True}
-"""The recorded config fields the entries of :func:`sample` need (opacities are written)."""
+CONFIG = {"image_size": [6, 8], "n_views": 2, "opacity_output": True}
+"""The recorded config fields the entries of :func:`sample` need (their size; opacities are written)."""
 
 
 def sample(index, n_views=2, size=(6, 8)):
@@ -73,8 +73,9 @@ def test_a_layout_writes_and_reads_back_samples_through_the_interface_alone(tmp_
     items = layout.sequences(tmp_path)
     assert [index for index, _ in items] == list(wanted)
     for index, where in items:
-        def read(entry, where=where):
-            return decode(entry, layout.read(tmp_path, where, entry, 2**20)[1])
+        def read(entry, shape=None, check=None, where=where):
+            value = decode(entry, layout.read(tmp_path, where, entry, 2**20)[1], shape)
+            return value if check is None else check(value)
 
         back = sample_from_entries(read, index, CONFIG, partial(layout.read_homographies, read))
         for field, value in vars(samples[index]).items():
