@@ -54,12 +54,18 @@ class SidarAugment(nn.Module):
         crop: how images are fitted to ``image_size``, ``"center"`` or ``"none"`` (see below).
         num_workers: ``0`` (default): render in this process; ``n >= 1``: render each batch in a
             pool of ``n`` render processes (see "Render pool").
-        timeout: with a pool, the most seconds a call waits for a worker's result for one image
-            (as ``DataLoader``'s ``timeout``); ``0`` (default): no limit, also like ``DataLoader``
-            (any fixed limit would either cut off a legitimately long render of a large image or
-            be too long to help; a worker that dies is noticed at once without one, only a live
-            worker that is stopped or deadlocked needs it). Leave room for a new pool's first
-            images, which compile shaders (seconds). Attribute ``timeout``, read at each call.
+        timeout: with a pool, the most seconds a call may take: sending the images to the workers,
+            rendering them and receiving the results (as ``DataLoader``'s ``timeout`` bounds
+            fetching a batch); ``0`` (default): no limit, also like ``DataLoader`` (any fixed
+            limit would either cut off a legitimately long render of a large batch or be too long
+            to help; a worker that dies is noticed at once without one, only a live worker that is
+            stopped or deadlocked needs it). A new pool's warm-up is not counted in it (see
+            ``warm_up_timeout``). Attribute ``timeout``, read at each call.
+        warm_up_timeout: with a pool, the most seconds a new pool's workers may take to warm up
+            (compile every shader variant of the config, ``sidar_torch.warm_up``), which they do when
+            the pool starts, before the call that starts it sends any image: about 1-2 s each on an
+            idle machine (none when this process's renderer was warm at the fork), 48 s was seen on a
+            machine at load 15-20. Default 600; ``0``: no limit. Attribute ``warm_up_timeout``.
         **overrides: config fields replacing the preset's, e.g. ``n_views=3``,
             ``image_size=(h, w)``, ``n_occluders=(0, 1)`` (``load_config(config, **overrides)``).
 
@@ -122,8 +128,10 @@ class SidarAugment(nn.Module):
     that dies raises ``RuntimeError`` and the pool restarts at the next call. A pickled or
     deep-copied module (and a module used in another process than the one that started its pool)
     starts its own pool; ``state_dict`` holds ``calls`` only. With ``timeout`` set, a worker that
-    sends no result for an image within it (stopped, deadlocked) raises ``TimeoutError`` naming its
-    pid; the pool is closed (its workers ended) and the next call starts a new one. A pool pays only
+    does not finish within it (stopped, deadlocked, whether the call is sending it an image,
+    waiting for its result or receiving it) raises ``TimeoutError`` naming its pid, its state
+    (``stopped``, ``running``...) and what it was doing; the pool is closed (its workers ended,
+    nothing left waiting) and the next call starts a new one. A pool pays only
     with idle cores and a warm shader cache, and then less than the number of workers (the
     measured ratio is in ``docs/speed.md``; ``python -m benchmarks.augment_pool``); more workers than
     cores gain nothing.
@@ -140,7 +148,7 @@ class SidarAugment(nn.Module):
 
     def __init__(self, config: SidarConfig | str | os.PathLike | None = "misaligned", *,
                  seed: int | None = None, crop: str = "center", num_workers: int = 0, timeout: float = 0.0,
-                 **overrides: Any):
+                 warm_up_timeout: float = 600.0, **overrides: Any):
         super().__init__()
         if not isinstance(config, (SidarConfig, str, os.PathLike, type(None))):
             raise TypeError(f"config: expected a SidarConfig, preset name or YAML path, got {type(config).__name__}")
@@ -150,16 +158,15 @@ class SidarAugment(nn.Module):
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {crop!r}")
         self.crop = crop
         self.num_workers = as_int("num_workers", num_workers, 0)
-        self.timeout = as_float("timeout", timeout)
-        if self.timeout < 0:
-            raise ValueError(f"timeout: expected seconds >= 0 (0: no limit), got {timeout!r}")
+        self.timeout, self.warm_up_timeout = (_seconds(name, value) for name, value in
+                                              (("timeout", timeout), ("warm_up_timeout", warm_up_timeout)))
         self.calls = 0
         self._pool: RenderPool | None = None
 
     def extra_repr(self) -> str:
         c = self.config
         return (f"n_views={c.n_views}, image_size={c.image_size}, seed={self.seed}, crop={self.crop!r}, "
-                f"num_workers={self.num_workers}, timeout={self.timeout}")
+                f"num_workers={self.num_workers}, timeout={self.timeout}, warm_up_timeout={self.warm_up_timeout}")
 
     def get_extra_state(self) -> dict[str, int]:
         return {"calls": self.calls}
@@ -217,7 +224,7 @@ class SidarAugment(nn.Module):
         if self.num_workers == 0:
             return render_tasks(self.config, self.crop, tasks)
         if self._pool is None or not self._pool.usable:
-            self._pool = RenderPool(self.config, self.crop, self.num_workers)
+            self._pool = RenderPool(self.config, self.crop, self.num_workers, self.warm_up_timeout)
         return self._pool.run(tasks, self.timeout)
 
     def _scene_entropy(self, batch_size: int, generator: Generator | None) -> list[list[int]]:
@@ -227,6 +234,18 @@ class SidarAugment(nn.Module):
             self.calls += 1
             return [[self.seed, call, b] for b in range(batch_size)]
         return _draw_words(batch_size, generator)
+
+
+def _seconds(name: str, value: Any) -> float:
+    """``value`` as seconds ``>= 0`` (``0``: no limit).
+
+    Raises:
+        ValueError: not a finite number ``>= 0`` (the message names ``name``).
+    """
+    seconds = as_float(name, value)
+    if seconds < 0:
+        raise ValueError(f"{name}: expected seconds >= 0 (0: no limit), got {value!r}")
+    return seconds
 
 
 def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]:

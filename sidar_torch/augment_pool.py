@@ -10,8 +10,16 @@ nor the geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
 parent's, or one created and warmed up at its first task, ``sidar_torch.warm_up``; then reused),
-fed one task at a time through its own pipe: a process that finishes takes the next task, and
+fed one task at a time through its own socket: a process that finishes takes the next task, and
 results are put back in batch order.
+
+Bounded waits. The parent never blocks on a worker: each message (an 8-byte length, then a pickle)
+goes out and comes in piece by piece on a non-blocking socket (:class:`_Outgoing`,
+:class:`_Incoming`), between ``select`` calls that wait at most until the call's deadline. A worker
+stopped (``SIGSTOP``) or hung while the parent sends it a task larger than the socket buffer, while it
+renders, or in the middle of its reply is thus caught by the same ``timeout``, and named with its pid
+and state. A new pool's workers warm up (``sidar_torch.warm_up``) before the pool takes tasks, under
+their own limit, so a call's ``timeout`` counts no shader compilation.
 
 A worker ends with its parent, whatever it is doing (rendering, waiting, or blocked sending a reply
 no one reads): right after the fork it calls :func:`sidar_torch.orphans.exit_with_parent` and lets
@@ -28,27 +36,33 @@ parent's renderer, with every shader variant the parent compiled (see
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import math
 import multiprocessing
 import os
 import pickle
+import select
+import signal
+import socket
+import struct
 import threading
 import time
 import traceback
 import weakref
-from multiprocessing.connection import Connection, wait
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import torch
 
 from .config import SidarConfig
-from .orphans import exit_with_parent, open_descriptors, release_inherited_descriptors
+from .orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
 from .render import preload
 from .render.context import forks_nothing
 from .sample import SampleArrays, batch_homographies, render_arrays
 from .scene import sample_sequence
 from .paintings import TensorPaintings
+from .warm_up import warm_renderer
 
 __all__ = ["RenderPool", "RenderTask", "render_tasks"]
 
@@ -69,38 +83,138 @@ def render_tasks(config: SidarConfig, crop: str, tasks: Sequence[RenderTask]) ->
     return arrays
 
 
+_HEADER = struct.Struct("!Q")
+"""A message's length in bytes, before its pickle."""
+
+
+class _Outgoing:
+    """One message on its way out: its bytes and how many a socket took so far."""
+
+    def __init__(self, message: Any):
+        payload = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+        self.data, self.sent = memoryview(_HEADER.pack(len(payload)) + payload), 0
+
+    def pump(self, sock: socket.socket) -> bool:
+        """Send what ``sock`` takes now (all of it on a blocking socket); whether the message is out.
+
+        Raises:
+            OSError: the other end is gone (``BrokenPipeError``, ``ConnectionResetError``).
+        """
+        while self.sent < len(self.data):
+            try:
+                self.sent += sock.send(self.data[self.sent:])
+            except BlockingIOError:
+                return False
+        return True
+
+    @property
+    def done(self) -> bool:
+        return self.sent == len(self.data)
+
+
+class _Incoming:
+    """One message on its way in: its length once its header is in, then its bytes."""
+
+    def __init__(self):
+        self.buffer, self.got, self.size = bytearray(_HEADER.size), 0, None
+
+    def pump(self, sock: socket.socket) -> bool:
+        """Read what ``sock`` holds now (all of the message on a blocking socket); whether it is complete.
+
+        Raises:
+            EOFError: the other end closed before the message was complete.
+            OSError: the connection broke (``ConnectionResetError``).
+        """
+        while True:
+            try:
+                count = sock.recv_into(memoryview(self.buffer)[self.got:])
+            except BlockingIOError:
+                return False
+            if count == 0:
+                raise EOFError("the connection closed in the middle of a message" if self.got else "closed")
+            self.got += count
+            if self.got == len(self.buffer):
+                if self.size is not None:
+                    return True
+                (self.size,) = _HEADER.unpack(self.buffer)
+                self.buffer, self.got = bytearray(self.size), 0
+
+    def message(self) -> Any:
+        return pickle.loads(self.buffer)
+
+
+@dataclasses.dataclass
+class _Job:
+    """What the parent is doing with one worker: ``what`` it waits for (``"image 3 of the batch"``,
+    ``"the warm-up"``), the task still being sent (``None``: nothing to send) and the reply coming in."""
+
+    what: str
+    outgoing: _Outgoing | None
+    incoming: _Incoming = dataclasses.field(default_factory=_Incoming)
+
+    @property
+    def sending(self) -> bool:
+        return self.outgoing is not None and not self.outgoing.done
+
+    def stage(self) -> str:
+        """Where the job stands: ``"image 0 of the batch: 212992 of 589951 bytes of the task sent"``."""
+        if self.sending:
+            return f"{self.what}: {self.outgoing.sent} of {len(self.outgoing.data)} bytes of the task sent"
+        if self.incoming.size is None and self.incoming.got == 0:
+            return f"{self.what}: no reply yet"
+        return f"{self.what}: {self.incoming.got} of {self.incoming.size or '?'} bytes of its reply received"
+
+
 class RenderPool:
     """``num_workers`` forked render processes for one config and crop mode.
 
     Args:
         config, crop: what every task is rendered with (copied into the workers at the fork).
         num_workers: number of processes (``>= 1``).
+        warm_up_timeout: the most seconds the constructor waits for every worker to warm up (compile
+            the shader variants of ``config``, :func:`sidar_torch.warm_up.warm_renderer`; at once
+            when the parent's renderer was warm at the fork); ``0``: no limit.
 
-    The processes start in the constructor and live until :meth:`close` (also called when the pool
-    is garbage-collected and at interpreter exit). A worker exits by itself within a second of its
-    parent's death (see the module docstring). A pool belongs to the process that made it: a forked
-    copy of it (e.g. inside a DataLoader worker) is :attr:`usable` nowhere but there.
+    The processes start and warm up in the constructor and live until :meth:`close` (also called
+    when the pool is garbage-collected and at interpreter exit). A worker exits by itself within a
+    second of its parent's death (see the module docstring). A pool belongs to the process that made
+    it: a forked copy of it (e.g. inside a DataLoader worker) is :attr:`usable` nowhere but there.
+
+    Raises:
+        TimeoutError: a worker did not warm up within ``warm_up_timeout`` (naming its pid and state);
+            the exception a worker's warm-up raised (no GL context, ...). The workers are ended.
     """
 
-    def __init__(self, config: SidarConfig, crop: str, num_workers: int):
+    def __init__(self, config: SidarConfig, crop: str, num_workers: int, warm_up_timeout: float = 0.0):
         context = multiprocessing.get_context("fork")
         preload()  # the workers inherit the renderer's imports
         self.pid = os.getpid()
         # Linux's parent-death signal follows the forking thread: armed only if that is the main thread.
         death_signal = threading.current_thread() is threading.main_thread()
-        self._connections: list[Connection] = []
+        self._sockets: list[socket.socket] = []
         processes = []
         for _ in range(num_workers):
-            parent_end, child_end = context.Pipe()
+            parent_end, child_end = socket.socketpair()
             inherited = open_descriptors() - {child_end.fileno()}  # what the worker lets go of
             process = context.Process(target=_worker_main, daemon=True, name="sidar-augment-render",
                                       args=(child_end, config, crop, self.pid, death_signal, inherited))
             process.start()
             child_end.close()
-            self._connections.append(parent_end)
+            parent_end.setblocking(False)  # the parent never waits on one worker: see _step
+            self._sockets.append(parent_end)
             processes.append(process)
         self.processes = processes
-        self._finalizer = weakref.finalize(self, _shut_down, self.pid, self._connections, processes)
+        self._finalizer = weakref.finalize(self, _shut_down, self.pid, self._sockets, processes)
+        jobs, deadline = {sock: _Job("the warm-up", None) for sock in self._sockets}, _deadline(warm_up_timeout)
+        try:
+            while jobs:
+                for sock, (status, payload) in self._step(jobs, deadline, "warm_up_timeout", warm_up_timeout):
+                    del jobs[sock]
+                    if status != "ok":
+                        raise payload
+        except BaseException:
+            self.close()
+            raise
 
     @property
     def usable(self) -> bool:
@@ -112,47 +226,43 @@ class RenderPool:
 
         Args:
             tasks: what to render.
-            timeout: the most seconds to wait, after sending a worker a task, for its result to
-                start arriving (``0``: no limit). As with ``DataLoader``'s timeout, a worker stopped
-                in the middle of sending a result is not covered.
+            timeout: the most seconds the whole call may take: sending the tasks, rendering them and
+                receiving the results (``0``: no limit). The workers are warm (see the constructor):
+                no shader compilation falls in it.
 
         Raises:
             The exception a worker raised (its traceback in the exception's notes), after the
-            other workers finished their tasks; ``RuntimeError`` if a worker died, ``TimeoutError``
-            naming the worker if one sent no result within ``timeout`` (the pool is then closed).
+            other workers finished their tasks (the pool stays open); ``RuntimeError`` naming the
+            worker if one died, ``TimeoutError`` naming every worker still busy at the deadline,
+            its pid, its state (e.g. stopped) and what it was doing: the pool is then closed, its
+            workers ended.
         """
         if not self.usable:
             raise RuntimeError("RenderPool.run: the pool is closed or belongs to another process")
-        limit = timeout if timeout > 0 else math.inf
+        deadline = _deadline(timeout)
         results: list[SampleArrays | None] = [None] * len(tasks)
         pending = list(reversed(range(len(tasks))))
-        busy: dict[Connection, tuple[int, float]] = {}  # connection -> (task, deadline on time.monotonic)
+        jobs: dict[socket.socket, _Job] = {}
+        positions: dict[socket.socket, int] = {}
         error: BaseException | None = None
 
-        def hand_out(connection: Connection) -> None:
+        def hand_out(sock: socket.socket) -> None:
             index = pending.pop()
-            self._send(connection, tasks[index])
-            busy[connection] = index, time.monotonic() + limit
+            jobs[sock], positions[sock] = _Job(f"image {index} of the batch", _Outgoing(tasks[index])), index
 
         try:
-            for connection in self._connections:
+            for sock in self._sockets:
                 if pending:
-                    hand_out(connection)
-            while busy:
-                first = min(busy, key=lambda c: busy[c][1])
-                left = busy[first][1] - time.monotonic()
-                ready = wait(list(busy), None if math.isinf(left) else max(left, 0.0))
-                if not ready and time.monotonic() >= busy[first][1]:
-                    raise self._timed_out(first, busy[first][0], timeout)
-                for connection in ready:
-                    index, _ = busy.pop(connection)
-                    status, payload = self._receive(connection)
+                    hand_out(sock)
+            while jobs:
+                for sock, (status, payload) in self._step(jobs, deadline, "timeout", timeout):
+                    del jobs[sock]
                     if status == "ok":
-                        results[index] = payload
+                        results[positions[sock]] = payload
                     elif error is None:
                         error = payload
                     if pending and error is None:
-                        hand_out(connection)
+                        hand_out(sock)
         except BaseException:
             self.close()  # a worker died or hangs, or the caller was interrupted with tasks in flight
             raise
@@ -160,30 +270,46 @@ class RenderPool:
             raise error
         return results  # type: ignore[return-value]
 
-    def _send(self, connection: Connection, task: RenderTask) -> None:
+    def _step(self, jobs: dict[socket.socket, _Job], deadline: float, limit_name: str,
+              limit: float) -> list[tuple[socket.socket, Any]]:
+        """Wait (until ``deadline`` at most, on ``time.monotonic``) for a socket of ``jobs`` to be
+        ready, move what it can of each job's task out and of its reply in, and return the
+        ``(socket, reply)`` of the jobs whose reply is complete.
+
+        Raises:
+            TimeoutError: the deadline passed with ``jobs`` unfinished (``limit_name=limit`` named).
+            RuntimeError: a worker died (its socket closed).
+        """
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise self._timed_out(jobs, limit_name, limit)
+        sending = [sock for sock, job in jobs.items() if job.sending]
+        readable, writable, _ = select.select(list(jobs), sending, [], None if math.isinf(left) else left)
+        done = []
         try:
-            connection.send(task)
-        except OSError:  # BrokenPipeError: the worker is gone
-            raise self._died(connection) from None
+            for sock in writable:
+                jobs[sock].outgoing.pump(sock)
+            for sock in readable:
+                if jobs[sock].incoming.pump(sock):
+                    done.append((sock, jobs[sock].incoming.message()))
+        except (EOFError, OSError):  # BrokenPipeError, ConnectionResetError, a closed socket: the worker is gone
+            raise self._died(sock) from None
+        return done
 
-    def _receive(self, connection: Connection) -> tuple[str, Any]:
-        try:
-            return connection.recv()
-        except (EOFError, OSError):
-            raise self._died(connection) from None
+    def _worker(self, sock: socket.socket) -> Any:
+        return self.processes[self._sockets.index(sock)]
 
-    def _worker(self, connection: Connection) -> Any:
-        return self.processes[self._connections.index(connection)]
-
-    def _died(self, connection: Connection) -> RuntimeError:
-        process = self._worker(connection)
+    def _died(self, sock: socket.socket) -> RuntimeError:
+        process = self._worker(sock)
         process.join(1.0)
-        return RuntimeError(f"SidarAugment render worker (pid {process.pid}) died with exit code {process.exitcode}")
+        how = f"exit code {process.exitcode}" if process.exitcode is not None else process_state(process.pid)
+        return RuntimeError(f"SidarAugment render worker (pid {process.pid}) died with {how}")
 
-    def _timed_out(self, connection: Connection, index: int, timeout: float) -> TimeoutError:
-        return TimeoutError(f"SidarAugment render worker (pid {self._worker(connection).pid}) sent no result for "
-                            f"image {index} of the batch within timeout={timeout} s; the render pool is closed "
-                            "(the next call starts a new one)")
+    def _timed_out(self, jobs: dict[socket.socket, _Job], limit_name: str, limit: float) -> TimeoutError:
+        workers = "; ".join(f"worker pid {self._worker(sock).pid} ({process_state(self._worker(sock).pid)}), "
+                            f"{job.stage()}" for sock, job in jobs.items())
+        return TimeoutError(f"SidarAugment render pool: not done within {limit_name}={limit} s: {workers}. "
+                            f"The render pool is closed, its workers ended (the next call starts a new one)")
 
     def close(self) -> None:
         """Stop the workers (safe to call twice; does nothing in a process that does not own the pool)."""
@@ -193,42 +319,65 @@ class RenderPool:
             self._finalizer.detach()
 
 
-def _shut_down(pid: int, connections: list[Connection], processes: list) -> None:
-    """Ask each worker to stop (closing its pipe), wait a little, then terminate stragglers and kill
-    those that do not end (a stopped process does not act on SIGTERM)."""
+def _deadline(limit: float) -> float:
+    """The ``time.monotonic`` time ``limit`` seconds from now (``0``: no limit, infinity)."""
+    return time.monotonic() + limit if limit > 0 else math.inf
+
+
+_ENDINGS = (((signal.SIGCONT,), 2.0), ((signal.SIGTERM, signal.SIGCONT), 1.0), ((signal.SIGKILL,), 1.0))
+"""How :func:`_shut_down` ends the workers once their sockets are closed: the signals of each step
+and the seconds it waits for them after it. ``SIGCONT`` first lets a stopped worker see its closed
+socket and leave, and makes it act on a ``SIGTERM`` (a stopped process acts only on ``SIGKILL``)."""
+
+
+def _shut_down(pid: int, sockets: list[socket.socket], processes: list) -> None:
+    """Ask each worker to stop (closing its socket), wait a little, then terminate stragglers and kill
+    those that do not end, each step with one wait shared by all workers (:data:`_ENDINGS`)."""
     if os.getpid() != pid:
         return
-    for connection in connections:
-        connection.close()
-    for process in processes:
-        process.join(2.0)
-        for end in (process.terminate, process.kill):
-            if process.is_alive():
-                end()
-                process.join(1.0)
+    for sock in sockets:
+        sock.close()
+    for signals, grace in _ENDINGS:
+        deadline = time.monotonic() + grace
+        for process in processes:
+            for sent in signals if process.is_alive() else ():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, sent)
+        for process in processes:
+            process.join(max(deadline - time.monotonic(), 0.0))
 
 
-def _worker_main(connection: Connection, config: SidarConfig, crop: str, parent_pid: int,
+def _worker_main(sock: socket.socket, config: SidarConfig, crop: str, parent_pid: int,
                  death_signal: bool, inherited: set[int]) -> None:
-    """Render tasks from ``connection`` until it closes or the parent dies (``inherited``: the
-    parent's descriptors at the fork, less ``connection``'s)."""
+    """Warm up, say so (``("ok", None)`` or ``("error", exception)``), then render tasks from ``sock``
+    until it closes or the parent dies (``inherited``: the parent's descriptors at the fork, less
+    ``sock``'s). Every reply is ``("ok", SampleArrays)`` or ``("error", exception)``."""
     exit_with_parent(parent_pid, death_signal=death_signal)
     release_inherited_descriptors(inherited)
     torch.set_num_threads(1)
     forks_nothing()  # a worker forks nothing: Mesa's disk cache may serve its shader variants
+
+    def warm_up() -> None:
+        warm_renderer(config)
+
+    reply = _attempt(warm_up)
     while True:
         try:
-            task = connection.recv()
-        except (EOFError, OSError):  # the pool closed this pipe, or the parent died
+            _Outgoing(reply).pump(sock)
+            incoming = _Incoming()
+            incoming.pump(sock)
+        except (EOFError, OSError):  # the pool closed this socket, or the parent died
             return
-        try:
-            reply = ("ok", render_tasks(config, crop, [task])[0])
-        except Exception as exc:  # sent to the caller, which raises it
-            reply = ("error", _portable(exc))
-        try:
-            connection.send(reply)
-        except OSError:  # BrokenPipeError: the parent is gone
-            return
+        reply = _attempt(lambda: render_tasks(config, crop, [incoming.message()])[0])
+
+
+def _attempt(work: Callable[[], Any]) -> tuple[str, Any]:
+    """``("ok", work())``, or ``("error", exception)`` with the exception ``work`` raised (:func:`_portable`),
+    which the caller raises."""
+    try:
+        return "ok", work()
+    except Exception as exc:
+        return "error", _portable(exc)
 
 
 def _portable(exc: Exception) -> BaseException:
