@@ -253,6 +253,8 @@ def tamper(manifest):
         "geometry-dtype": ({**manifest, "config": {**manifest["config"], "geometry_dtype": "int8"}},
                            "field 'config.geometry_dtype'"),
         "binary": (b"\xff\xfe\x00garbage", "not UTF-8"),
+        "long-integer": (json.dumps(manifest).replace('"seed": 0', '"seed": ' + "9" * 5000).encode(),
+                         "an integer of 5000 digits"),  # issue 34 item 4: a ValueError naming no file
         "deep": (b"[" * 100000, "not valid JSON"),
     }
 
