@@ -52,8 +52,8 @@ def _json(data: dict[str, Any]) -> bytes:
 
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-PNG_KINDS = {0: ("grey", ()), 2: ("RGB", (3,))}
-"""PNG colour type -> its name and the trailing axes of its pixels: the 8-bit kinds :func:`_png` writes."""
+PNG_CHANNEL_AXES = {0: (), 2: (3,)}
+"""PNG colour type -> the trailing axes of its pixels, for the kinds :func:`_png` writes (8-bit grey, RGB)."""
 
 MAT_LIMIT = 4096
 """Most bytes of an export's ``.mat`` file: a 3 x 3 float64 ``H`` takes 256 (a compressed one
@@ -87,12 +87,12 @@ def _read_png(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
         raise ValueError(f"not a PNG (no PNG signature and header; starts with {data[:8]!r})")
     depth, colour = data[24:26] if len(data) >= 26 else (None, None)
     if shape is not None:
-        kind = "grey" if len(shape) == 2 else "RGB"
         if png_size(data) != shape[:2]:
             raise ValueError(f"not a PNG of {shape[0]} x {shape[1]} pixels (H x W, the recorded image_size): "
                              f"its header says {png_size(data)}")
-        if (depth, PNG_KINDS.get(colour, (None, None))[1]) != (8, shape[2:]):
-            raise ValueError(f"expected an 8-bit {kind} PNG, its header says bit depth {depth}, colour type {colour}")
+        if depth != 8 or PNG_CHANNEL_AXES.get(colour) != shape[2:]:
+            raise ValueError(f"expected an 8-bit {'RGB' if shape[2:] else 'grey'} PNG, its header says bit depth "
+                             f"{depth}, colour type {colour}")
     with _unreadable("PNG"), Image.open(io.BytesIO(data)) as image:
         pixels = np.array(image)
     if shape is not None and (pixels.shape != shape or pixels.dtype != np.uint8):
@@ -163,12 +163,13 @@ def read_json(data: bytes, shape: None = None) -> Any:
 
 ENCODERS: dict[str, Callable[[Any], bytes]] = {".png": _png, ".mat": _mat, ".npy": _npy, ".json": _json}
 """Entry extension -> encoder: ``.png`` uint8 ``(H, W)`` or ``(H, W, 3)``, ``.mat`` a 3 x 3 float64
-``H``, ``.npy`` any array, ``.json`` a dict."""
+``H``, ``.npy`` an array (the export writes float64 homographies), ``.json`` a dict."""
 
 DECODERS: dict[str, Callable[[bytes, Any], Any]] = {".png": _read_png, ".mat": _read_mat, ".npy": _read_npy,
                                                      ".json": read_json}
-"""Entry extension -> decoder, the inverse of :data:`ENCODERS` for what it writes: ``(data, shape)``
--> value, checking ``shape`` (None: any) before anything of its size is made."""
+"""Entry extension -> decoder, the inverse of :data:`ENCODERS` for what the export writes (``.npy``:
+float64 only): ``(data, shape)`` -> value, checking ``shape`` (None: any) before anything of its
+size is made."""
 
 
 def encode(entries: dict[str, Any]) -> dict[str, bytes]:
