@@ -24,7 +24,7 @@ True
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 import torch
@@ -34,7 +34,7 @@ from .augment_pool import RenderPool, RenderTask, render_tasks
 from .config import SidarConfig, as_float, as_int, load_config
 from .sample import stack_arrays
 from .scene import SceneSequence, sample_sequence
-from .paintings import CROP_MODES, tensor_to_uint8
+from .paintings import CROP_MODES, array_to_uint8, tensor_to_uint8
 
 __all__ = ["SidarAugment"]
 
@@ -92,7 +92,9 @@ class SidarAugment(nn.Module):
     copied to the three channels), or one image ``(3, h, w)`` / ``(1, h, w)``, taken as a batch of
     one (``B = 1`` in the output, as ``kornia.augmentation`` does), on any device, either
     ``torch.uint8`` (``0..255``) or any floating dtype with values in [0, 1], the two forms painting
-    sources accept (converted by the same function). Float images are
+    sources accept (converted by the same function). NumPy images are taken too, channels last as
+    OpenCV and albumentations give them (``(B, h, w, 3)``, ``(h, w, 3)``, ``(h, w)``; the output
+    is then on the CPU, channels first like every sample). Float images are
     quantised to 8 bits (``round(x * 255)``, the texture's precision) and, if ``(h, w)`` is not
     ``image_size``, fitted to it exactly as painting sources fit images
     (:class:`sidar_torch.paintings.TensorPaintings`, :func:`sidar_torch.paintings.fit_painting`: the
@@ -202,7 +204,9 @@ class SidarAugment(nn.Module):
 
         Args:
             images: ``(B, 3, h, w)`` or ``(B, 1, h, w)`` (or one image ``(3, h, w)``, ``(1, h, w)``:
-                ``B = 1``), uint8 or float in [0, 1], any device, ``B >= 1``.
+                ``B = 1``), uint8 or float in [0, 1], any device, ``B >= 1``; or a NumPy array,
+                channels last as OpenCV and albumentations give them: ``(B, h, w, 3)``, ``(h, w, 3)``,
+                ``(h, w)`` (the output is then on the CPU, pixel keys in the array's dtype).
             generator: optional ``torch.Generator`` or ``numpy.random.Generator`` to draw the
                 scenes from instead of ``(seed, call)``.
 
@@ -210,15 +214,19 @@ class SidarAugment(nn.Module):
             The batched sample dict; pixel keys in ``images.dtype`` (see "Output dtypes").
 
         Raises:
-            TypeError: ``images`` is not a tensor, or ``generator`` of another type.
+            TypeError: ``images`` is not a tensor or NumPy array, or ``generator`` of another type.
             ValueError: wrong shape or dtype, empty batch, NaN/infinite values or float values outside [0, 1].
         """
-        pixels = _check_images(images)
-        tasks: list[RenderTask] = [(b, entropy, pixels[b]) for b, entropy in
-                                   enumerate(self._scene_entropy(len(pixels), generator))]
-        arrays = self._render(tasks)
-        batch = stack_arrays(arrays, self.config.geometry_dtype, pixel_dtype=images.dtype)
-        return {key: _to_device(value, key, images.device) for key, value in batch.items()}
+        pixels, dtype, device = _check_images(images)
+        return self._augment(pixels, self._scene_entropy(len(pixels), generator), range(len(pixels)), dtype, device)
+
+    def _augment(self, pixels: np.ndarray, entropy: Sequence[list[int]], positions: Sequence[int],
+                 dtype: torch.dtype, device: torch.device) -> dict[str, torch.Tensor]:
+        """Render ``pixels[k]`` (``(K, 3, h, w)`` uint8) as image ``positions[k]`` of the batch, its scene
+        drawn with ``entropy[k]``; the batched sample dict, pixel keys in ``dtype``, on ``device``."""
+        tasks: list[RenderTask] = [(int(b), e, image) for b, e, image in zip(positions, entropy, pixels)]
+        batch = stack_arrays(self._render(tasks), self.config.geometry_dtype, pixel_dtype=dtype)
+        return {key: _to_device(value, key, device) for key, value in batch.items()}
 
     def _render(self, tasks: list[RenderTask]):
         if self.num_workers == 0:
@@ -266,11 +274,15 @@ def _to_device(values: torch.Tensor, key: str, device: torch.device) -> torch.Te
     return values.to(device)
 
 
-def _check_images(images: Any) -> np.ndarray:
-    """Validate ``images`` (see :meth:`SidarAugment.forward`) and return them as ``(B, 3, h, w)``
-    uint8 NumPy pixels (float values ``round(x * 255)``, grey copied to three channels), with the
-    conversion painting sources use (:func:`sidar_torch.paintings.tensor_to_uint8`)."""
+def _check_images(images: Any) -> tuple[np.ndarray, torch.dtype, torch.device]:
+    """Validate ``images`` (see :meth:`SidarAugment.forward`): their pixels as ``(B, 3, h, w)`` uint8
+    NumPy (float values ``round(x * 255)``, grey copied to three channels, with the conversion
+    painting sources use: :func:`sidar_torch.paintings.tensor_to_uint8`, ``array_to_uint8``), and the
+    dtype and device of the output's pixel keys (a NumPy array's own dtype, on the CPU)."""
+    if isinstance(images, np.ndarray):
+        pixels = array_to_uint8(images, batched=True, name="images").numpy()
+        return pixels, torch.from_numpy(np.empty(0, images.dtype.newbyteorder("="))).dtype, torch.device("cpu")
     if not isinstance(images, torch.Tensor):
-        raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w) or (B, 1, h, w), "
-                        f"got {type(images).__name__}")
-    return tensor_to_uint8(images, batched=True, name="images", grey=True).numpy()
+        raise TypeError(f"images: expected a torch.Tensor of shape (B, 3, h, w) or (B, 1, h, w), or a NumPy array "
+                        f"(B, h, w, 3) or (h, w, 3), got {type(images).__name__}")
+    return tensor_to_uint8(images, batched=True, name="images", grey=True).numpy(), images.dtype, images.device

@@ -41,8 +41,10 @@ class SidarDataset(IterableDataset):
 
     Args:
         source: the paintings: ``None`` (built-in procedural paintings), a folder, an image path
-            or list of paths, a tensor ``(N, 3, h, w)`` / ``(3, h, w)``, a sequence of tensors or
-            PIL images, or any indexable dataset of images (see ``sidar_torch.paintings``). Images that
+            or list of paths, a tensor ``(N, 3, h, w)`` / ``(3, h, w)``, a NumPy array ``(N, h, w, 3)`` /
+            ``(h, w, 3)`` / ``(h, w)`` (channels last, as OpenCV and albumentations give them), a
+            sequence of tensors, NumPy images or PIL images, or any indexable dataset of images (see
+            ``sidar_torch.paintings``); uint8, or float in [0, 1]. Images that
             cannot be read, or whose files claim more than ``config.max_image_pixels`` pixels, raise or
             are skipped as ``config.on_bad_image`` says; with ``"skip"``, call ``ds.source.scan()``
             once before iterating to drop them up front (see ``sidar_torch.paintings``, "Bad input").

@@ -142,12 +142,26 @@ def test_outputs_follow_the_input_device():
     (torch.full((1, 3, *TINY), float("inf")), "images values must be finite"),
     (torch.full((1, 3, *TINY), 1.5), r"images float values must be in \[0, 1\], got range \[1.5, 1.5\]"),
     (torch.full((1, 3, *TINY), -0.1, dtype=torch.float64), r"images float values must be in \[0, 1\]"),
+    # issue 34 item 7: the refusals name the call that fixes an evident layout or range
+    (torch.rand(*TINY, 3), r"got \(48, 64, 3\); channels last \(h, w, c\), .* use x.permute\(2, 0, 1\)"),
+    (torch.rand(1, 3, *TINY) * 255, r"got range \[.*\]; 8-bit values 0..255 as floats\? use x / 255"),
+    (np.zeros((2, 3, *TINY), np.uint8), r"channels first \(c, h, w\)\? use x.transpose\(0, 2, 3, 1\)"),
 ])
 def test_bad_images_are_rejected(images, match):
     aug = tiny_augment()
     with pytest.raises(ValueError, match=match):
         aug(images)
     assert aug.calls == 0
+
+
+def test_numpy_images_channels_last_give_the_outputs_of_the_same_tensor():
+    """Issue 34 item 7: OpenCV and albumentations hand out (h, w, 3) arrays; SidarAugment refused them."""
+    images = (paintings(2, TINY) * 255).round().to(torch.uint8)
+    hwc = images.permute(0, 2, 3, 1).numpy()
+    assert_same_batch(tiny_augment(seed=2)(hwc), tiny_augment(seed=2)(images))
+    as_float = tiny_augment(seed=2)(hwc[0].astype(np.float64) / 255)  # one image, float64 in [0, 1]
+    assert as_float["images"].dtype == torch.float64 and as_float["images"].shape == (1, 3, 3, *TINY)
+    assert torch.equal(as_float["images"], tiny_augment(seed=2)(images[:1].double() / 255)["images"])
 
 
 def test_one_image_without_a_batch_dimension_is_a_batch_of_one():

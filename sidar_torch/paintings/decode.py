@@ -2,7 +2,9 @@
 ``(H, W, 3)`` uint8 RGB painting of an exact size (``docs/paintings.md``: formats, large images).
 
 :func:`fit_painting` crops and resamples a PIL image; :func:`tensor_to_uint8` converts float
-``[0, 1]`` or uint8 tensors (painting sources and ``SidarAugment`` both use it); :func:`load_image`
+``[0, 1]`` or uint8 tensors (painting sources and ``SidarAugment`` both use it) and
+:func:`array_to_uint8` NumPy images, channels last as OpenCV and albumentations hand them out, into
+such tensors; :func:`load_image`
 decodes a file within a pixel budget, the EXIF orientation applied.
 """
 
@@ -20,7 +22,7 @@ from PIL import ExifTags, Image, ImageOps
 from ..config import SidarConfig
 
 __all__ = ["CROP_MODES", "JPEG_DRAFT_PIXELS", "MAX_IMAGE_PIXELS", "ImageTooLargeError", "PaintingSize", "check_choice",
-           "check_size", "chw_to_image", "fit_painting", "load_image", "tensor_to_uint8", "to_rgb"]
+           "array_to_uint8", "check_size", "chw_to_image", "fit_painting", "load_image", "tensor_to_uint8", "to_rgb"]
 
 PaintingSize = tuple[int, int]
 """``(height, width)`` of a painting in pixels."""
@@ -168,7 +170,7 @@ def tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image t
     expected = f"(N, 3, h, w){' or (N, 1, h, w)' if grey else ''} or {single}" if batched else single
     shape = tuple(tensor.shape)
     if tensor.ndim not in ((3, 4) if batched else (3,)) or shape[-3] not in channels:
-        raise ValueError(f"{name} must have shape {expected}, got {shape}")
+        raise ValueError(f"{name} must have shape {expected}, got {shape}{_layout_fix(shape, batched, grey)}")
     if tensor.numel() == 0:
         raise ValueError(f"{name} is empty: shape {shape}")
     tensor = tensor.detach().cpu()
@@ -180,12 +182,73 @@ def tensor_to_uint8(tensor: torch.Tensor, *, batched: bool, name: str = "image t
         if not (math.isfinite(low) and math.isfinite(high)):
             raise ValueError(f"{name} values must be finite, got NaN or infinite values")
         if low < 0.0 or high > 1.0:
-            raise ValueError(f"{name} float values must be in [0, 1], got range [{low}, {high}]")
+            raise ValueError(f"{name} float values must be in [0, 1], got range [{low}, {high}]{_range_fix(low, high)}")
         result = tensor.mul(255).round_().to(torch.uint8)
     else:
         raise ValueError(f"{name} dtype must be a float type or torch.uint8, got {tensor.dtype}")
     result = result.unsqueeze(0) if batched and result.ndim == 3 else result
     return result.expand(*result.shape[:-3], 3, *result.shape[-2:]).contiguous() if result.shape[-3] == 1 else result
+
+
+def _layout_fix(shape: tuple[int, ...], batched: bool, grey: bool) -> str:
+    """The call that turns a tensor of ``shape``, refused by :func:`tensor_to_uint8`, into an accepted
+    one, as a hint to end its message with (``""`` when no layout is evident)."""
+    if len(shape) in ((3, 4) if batched else (3,)) and shape[-1] in ((1, 3) if grey else (3,)):
+        permute = "x.permute(2, 0, 1)" if len(shape) == 3 else "x.permute(0, 3, 1, 2)"
+        return f"; channels last (h, w, c), as OpenCV, albumentations and PIL give them? use {permute}"
+    if len(shape) == 2:
+        return f"; one grey image (h, w)? use {'x[None]' if grey else 'x.expand(3, -1, -1)'}"
+    return ""
+
+
+def _range_fix(low: float, high: float) -> str:
+    """What to do with float pixels in ``[low, high]``, outside [0, 1], as a hint for an error message."""
+    if low >= 0.0 and 2.0 < high <= 255.0:
+        return "; 8-bit values 0..255 as floats? use x / 255 (or pass uint8)"
+    if low >= -1.0 and high <= 1.0:
+        return "; values in [-1, 1]? use (x + 1) / 2"
+    if low < 0.0:
+        return "; normalised (x - mean) / std? undo it first: x * std + mean"
+    return "; slightly above 1 from arithmetic? clip to [0, 1] (x.clamp(0, 1), np.clip(x, 0, 1))"
+
+
+def array_to_uint8(array: np.ndarray, *, batched: bool, name: str = "image array") -> torch.Tensor:
+    """NumPy image(s), channels last, as :func:`tensor_to_uint8` returns tensors.
+
+    Args:
+        array: one RGB image ``(h, w, 3)`` or grey image ``(h, w)`` / ``(h, w, 1)`` (copied to the three
+            channels), or if ``batched`` also ``(N, h, w, 3)`` / ``(N, h, w, 1)``: channels last, as
+            OpenCV, albumentations and ``np.asarray(pil_image)`` give them (RGB: OpenCV's ``cv2.imread``
+            gives BGR, convert it with ``cv2.cvtColor(x, cv2.COLOR_BGR2RGB)``). ``uint8``, or any float
+            dtype with values in ``[0, 1]`` (``round(x * 255)``).
+        batched: whether a leading batch dimension is allowed.
+        name: how error messages name the array.
+
+    Returns:
+        CPU ``uint8`` tensor ``(N, 3, h, w)`` if ``batched`` (a single image gets ``N = 1``), else ``(3, h, w)``.
+
+    Raises:
+        ValueError: another shape or dtype (the message says which call fixes a channels-first
+            array or 16-bit pixels), empty, NaN or infinite values, float values outside ``[0, 1]``.
+    """
+    shape = array.shape
+    if array.ndim == 2:
+        array = array[:, :, None]
+    if array.ndim not in ((3, 4) if batched else (3,)) or array.shape[-1] not in (1, 3):
+        expected = "(h, w, 3), (h, w) or (h, w, 1)" + (", or (N, h, w, 3) or (N, h, w, 1)" if batched else "")
+        fix = ""
+        if array.ndim in (3, 4) and array.shape[-3] in (1, 3):
+            transpose = "x.transpose(1, 2, 0)" if array.ndim == 3 else "x.transpose(0, 2, 3, 1)"
+            fix = f"; channels first (c, h, w)? use {transpose} or pass torch.from_numpy(x)"
+        elif batched and array.ndim == 3:
+            fix = "; a batch of grey images (N, h, w)? use x[..., None]"
+        raise ValueError(f"{name} must have shape {expected} (channels last), got {shape}{fix}")
+    if array.dtype != np.uint8 and not np.issubdtype(array.dtype, np.floating):
+        fix = f"; {array.dtype.itemsize * 8}-bit integers? use x / {np.iinfo(array.dtype).max}" \
+            if np.issubdtype(array.dtype, np.integer) else ""
+        raise ValueError(f"{name} dtype must be uint8 or a float type with values in [0, 1], got {array.dtype}{fix}")
+    native = np.ascontiguousarray(array, dtype=array.dtype.newbyteorder("="))  # torch takes native byte order only
+    return tensor_to_uint8(torch.from_numpy(native).movedim(-1, -3), batched=batched, name=name, grey=True)
 
 
 def chw_to_image(tensor: torch.Tensor) -> Image.Image:

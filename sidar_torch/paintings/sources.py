@@ -2,9 +2,9 @@
 
 A :class:`PaintingSource` gives painting number ``i`` at an exact size as ``(H, W, 3)`` uint8 RGB;
 :func:`make_source` turns whatever the user passes as ``source`` into one: ``None`` the built-in
-:class:`ProceduralPaintings`; a folder, a file or a list of files :class:`ImageFiles`; tensors
-:class:`TensorPaintings`; a list of tensors or PIL images :class:`ImageList`; any indexable dataset of
-images :class:`DatasetPaintings`. Every source accepts any index ``>= 0`` (``index % len(source)``)
+:class:`ProceduralPaintings`; a folder, a file or a list of files :class:`ImageFiles`; a tensor or a
+NumPy array :class:`TensorPaintings`; a list of tensors, NumPy arrays or PIL images :class:`ImageList`;
+any indexable dataset of images :class:`DatasetPaintings`. Every source accepts any index ``>= 0`` (``index % len(source)``)
 and keeps only plain data, so it pickles into ``DataLoader`` workers. Bad images: ``on_bad_image``
 (``"raise"`` or ``"skip"``) and :meth:`ImageFiles.scan`.
 """
@@ -26,8 +26,8 @@ from PIL import Image
 
 from ..config import ON_BAD_IMAGE
 from . import procedural
-from .decode import (CROP_MODES, MAX_IMAGE_PIXELS, PaintingSize, check_choice, check_size, chw_to_image, fit_painting,
-                     load_image, tensor_to_uint8, to_rgb)
+from .decode import (CROP_MODES, MAX_IMAGE_PIXELS, PaintingSize, array_to_uint8, check_choice, check_size,
+                     chw_to_image, fit_painting, load_image, tensor_to_uint8, to_rgb)
 
 __all__ = ["IMAGE_EXTENSIONS", "BadImageWarning", "DatasetPaintings", "ImageFiles", "ImageList", "PaintingSource",
            "ProceduralPaintings", "TensorPaintings", "make_source"]
@@ -283,17 +283,19 @@ class ImageFiles(_ReadingSource):
 
 
 class TensorPaintings(_ImageSource):
-    """Paintings from one image tensor.
+    """Paintings from one image tensor or NumPy array.
 
     Args:
-        images: ``(N, 3, h, w)`` or ``(3, h, w)``; float in ``[0, 1]`` or
-            ``uint8``. Stored as a CPU ``uint8`` copy (``round(x * 255)``).
+        images: a tensor ``(N, 3, h, w)`` or ``(3, h, w)``, or a NumPy array ``(N, h, w, 3)``,
+            ``(h, w, 3)`` or ``(h, w)`` (channels last, :func:`~.decode.array_to_uint8`); float in
+            ``[0, 1]`` or ``uint8``. Stored as a CPU ``uint8`` copy (``round(x * 255)``).
         crop: see :func:`fit_painting`.
     """
 
-    def __init__(self, images: torch.Tensor, *, crop: str = "center") -> None:
+    def __init__(self, images: torch.Tensor | np.ndarray, *, crop: str = "center") -> None:
         super().__init__(crop)
-        self.images = tensor_to_uint8(images, batched=True)
+        self.images = (array_to_uint8(images, batched=True, name="source array") if isinstance(images, np.ndarray)
+                       else tensor_to_uint8(images, batched=True))
 
     def __len__(self) -> int:
         return self.images.shape[0]
@@ -303,14 +305,15 @@ class TensorPaintings(_ImageSource):
 
 
 class ImageList(_ImageSource):
-    """Paintings from a list of ``(3, h, w)`` tensors and/or PIL images (sizes may differ).
+    """Paintings from a list of ``(3, h, w)`` tensors, NumPy images (``(h, w, 3)``, ``(h, w)``,
+    channels last) and/or PIL images (sizes may differ).
 
     Every item is converted to ``uint8`` RGB when the source is built (PIL
-    images with :func:`~.decode.to_rgb`, tensors as in :class:`TensorPaintings`) and
+    images with :func:`~.decode.to_rgb`, tensors and arrays as in :class:`TensorPaintings`) and
     kept as an ``(h, w, 3)`` array.
     """
 
-    def __init__(self, images: Sequence[torch.Tensor | Image.Image], *, crop: str = "center") -> None:
+    def __init__(self, images: Sequence[torch.Tensor | np.ndarray | Image.Image], *, crop: str = "center") -> None:
         super().__init__(crop)
         if len(images) == 0:
             raise ValueError("ImageList needs at least one image, got an empty list")
@@ -328,8 +331,8 @@ class DatasetPaintings(_ReadingSource):
 
     Args:
         dataset: object with ``__len__`` and ``__getitem__``; item ``i`` is a
-            ``(3, h, w)`` tensor, a PIL image, or a tuple/list whose first
-            element is one (e.g. ``(image, label)``).
+            ``(3, h, w)`` tensor, a NumPy image (``(h, w, 3)``, ``(h, w)``), a PIL
+            image, or a tuple/list whose first element is one (e.g. ``(image, label)``).
         crop: see :func:`fit_painting`.
         on_bad_image: ``"raise"`` or ``"skip"``, for an item whose loading
             raises or that is not a valid image (see "Bad input" in the
@@ -355,14 +358,15 @@ class DatasetPaintings(_ReadingSource):
 
 
 def _item_to_image(item: Any, position: int) -> Image.Image:
-    """A ``(3, h, w)`` tensor or PIL image -> PIL RGB image; else ``TypeError``."""
+    """A ``(3, h, w)`` tensor, a NumPy image (channels last) or a PIL image -> PIL RGB image; else ``TypeError``."""
     if isinstance(item, torch.Tensor):
         return chw_to_image(tensor_to_uint8(item, batched=False, name=f"painting item {position}"))
+    if isinstance(item, np.ndarray):
+        return chw_to_image(array_to_uint8(item, batched=False, name=f"painting item {position}"))
     if isinstance(item, Image.Image):
         return to_rgb(item)
-    raise TypeError(
-        f"painting item {position} must be a (3, h, w) torch.Tensor or a PIL image, got {type(item).__name__}"
-    )
+    raise TypeError(f"painting item {position} must be a (3, h, w) torch.Tensor, a NumPy image (h, w, 3) or (h, w), "
+                    f"or a PIL image, got {type(item).__name__}")
 
 
 # --------------------------------------------------------------------------- procedural paintings
@@ -400,9 +404,10 @@ class ProceduralPaintings(PaintingSource):
 
 _ACCEPTED = (
     "None (procedural paintings), a folder or image file path (str or os.PathLike), a list/tuple of image "
-    "paths, a torch.Tensor of shape (N, 3, h, w) or (3, h, w), a list/tuple of (3, h, w) tensors and/or "
-    "PIL images, a PaintingSource, or a dataset with __len__ and __getitem__ whose items are a tensor, "
-    "a PIL image, or a tuple starting with one"
+    "paths, a torch.Tensor of shape (N, 3, h, w) or (3, h, w), a NumPy array of shape (N, h, w, 3), (h, w, 3) "
+    "or (h, w) (channels last), a list/tuple of (3, h, w) tensors, NumPy images and/or PIL images, a "
+    "PaintingSource, or a dataset with __len__ and __getitem__ whose items are a tensor, a NumPy image, a PIL "
+    "image, or a tuple starting with one"
 )
 
 
@@ -424,10 +429,10 @@ def _source_from_sequence(items: Sequence[Any], crop: str, on_bad_image: str, ma
     if all(isinstance(item, (str, os.PathLike)) for item in items):
         _check_files(items)
         return ImageFiles(items, crop=crop, on_bad_image=on_bad_image, max_pixels=max_pixels)
-    if all(isinstance(item, (torch.Tensor, Image.Image)) for item in items):
+    if all(isinstance(item, (torch.Tensor, np.ndarray, Image.Image)) for item in items):
         return ImageList(items, crop=crop)
     raise TypeError(
-        "source list/tuple must hold only image paths or only tensors/PIL images; "
+        "source list/tuple must hold only image paths or only tensors/NumPy arrays/PIL images; "
         f"got element types {sorted({type(item).__name__ for item in items})}. Accepted sources: {_ACCEPTED}"
     )
 
@@ -445,8 +450,8 @@ def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise
     """Build the painting source for ``source`` (see the module docstring for the accepted kinds).
 
     Args:
-        source: ``None``, a path, a list/tuple of paths, tensors or PIL images,
-            a tensor, a :class:`PaintingSource`, or an indexable dataset.
+        source: ``None``, a path, a list/tuple of paths, tensors, NumPy arrays or PIL
+            images, a tensor, a NumPy array, a :class:`PaintingSource`, or an indexable dataset.
         crop: ``"center"`` or ``"none"``, used by image-backed sources built
             here (ignored for ``None`` and for an existing source).
         on_bad_image: ``"raise"`` or ``"skip"``: what sources that read
@@ -461,8 +466,8 @@ def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise
         FileNotFoundError: a path does not exist.
         IsADirectoryError: a path list holds a folder.
         PermissionError: a folder or sub-folder cannot be listed.
-        ValueError: empty folder/list/tensor/dataset, invalid tensor, invalid
-            ``crop`` or ``on_bad_image``.
+        ValueError: empty folder/list/tensor/dataset, invalid tensor or array (the message names
+            the call that fixes an evident layout or range mistake), invalid ``crop`` or ``on_bad_image``.
     """
     crop = check_choice("crop", crop, CROP_MODES)
     on_bad_image = check_choice("on_bad_image", on_bad_image, ON_BAD_IMAGE)
@@ -472,7 +477,7 @@ def make_source(source: Any, *, crop: str = "center", on_bad_image: str = "raise
         return source
     if isinstance(source, (str, os.PathLike)):
         return _source_from_path(source, crop, on_bad_image, max_pixels)
-    if isinstance(source, torch.Tensor):
+    if isinstance(source, (torch.Tensor, np.ndarray)):
         return TensorPaintings(source, crop=crop)
     if isinstance(source, (list, tuple)):
         return _source_from_sequence(source, crop, on_bad_image, max_pixels)
