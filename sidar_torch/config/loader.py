@@ -116,24 +116,20 @@ def _yaml_path(source: str | os.PathLike) -> Path:
     return PRESET_DIR / f"{source}.yaml"
 
 
-def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
-    """Fields of a preset name or YAML path, with its ``base`` chain resolved (base first), each
-    checked alone (:func:`.validation.check_field`): a wrong value names its file and field."""
+def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[str, tuple[Any, Path]]:
+    """``{field: (value, file)}`` of a preset name or YAML path, with its ``base`` chain resolved
+    (a file's values replace its base's), each value with the file it came from."""
     path = _yaml_path(source)
     if path.resolve() in seen:
         raise ValueError(f"config {str(path)!r}: 'base' chain loops back to itself")
     data = _parse(path)
     base = data.pop("base", None)
     check_names(data, SidarConfig, f"field in {str(path)!r}:")
-    for name, value in data.items():
-        try:
-            check_field(SidarConfig.__dataclass_fields__[name], value)
-        except ValueError as error:
-            raise ValueError(f"config file {str(path)!r}: {error}") from None
+    fields = {name: (value, path) for name, value in data.items()}
     if base is None:
-        return data
+        return fields
     base_path = base if str(base) in available_presets() else path.parent / str(base)
-    return {**_read_yaml(base_path, seen + (path.resolve(),)), **data}
+    return {**_read_yaml(base_path, seen + (path.resolve(),)), **fields}
 
 
 def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", **overrides: Any) -> SidarConfig:
@@ -150,20 +146,26 @@ def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", *
             regular file (a FIFO), not UTF-8 text, malformed (naming the file and line) or nested too
             deeply, or a value of any type (a ``Fraction``, a ``Decimal``, an integer of 5000 digits,
             a bool, ...) that is not one the field takes or lies out of its range (the message names
-            the field, and the file the value came from). Nothing else: no ``TypeError`` or
-            ``OverflowError`` for a wrong value.
+            the field, and the file the value came from; a rule between fields names ``preset``'s
+            file). Nothing else: no ``TypeError`` or ``OverflowError`` for a wrong value.
         FileNotFoundError: a YAML path, or a ``base`` it names, does not exist.
     """
     check_names(overrides, SidarConfig, "override")
     if isinstance(preset, SidarConfig):
         return preset.replace(**overrides)
     fields = {} if preset is None else _read_yaml(preset)
-    for name, value in overrides.items():  # each value alone first, so that a file is named only for its own
-        check_field(SidarConfig.__dataclass_fields__[name], value)
+    values = {name: value for name, (value, _) in fields.items()}
+    for name, value in {**values, **overrides}.items():  # each value alone, naming its file if it has one
+        try:
+            check_field(SidarConfig.__dataclass_fields__[name], value)
+        except ValueError as error:
+            if name in overrides:
+                raise
+            raise ValueError(f"config file {str(fields[name][1])!r}: {error}") from None
     try:
-        return SidarConfig(**{**fields, **overrides})
-    except ValueError as error:  # every value passed alone: a rule between fields, some of them the file's
-        if not fields:
+        return SidarConfig(**{**values, **overrides})
+    except ValueError as error:  # every value passed alone: a rule between fields, the file's (and its bases') among them
+        if not fields.keys() - overrides.keys():
             raise
         raise ValueError(f"config file {str(_yaml_path(preset))!r}{' with overrides' if overrides else ''}: "
                          f"{error}") from None

@@ -64,6 +64,16 @@ def test_an_override_is_named_alone_and_a_rule_between_a_file_and_overrides_name
         load_config(path, n_views=64)
 
 
+def test_a_value_names_the_file_it_came_from_in_a_base_chain(tmp_path):
+    (tmp_path / "base.yaml").write_text("base: misaligned\nn_views: 1000\ncamera_xy: 0.5\n")
+    (tmp_path / "child.yaml").write_text("base: base.yaml\nn_views: 3\n")
+    assert load_config(tmp_path / "child.yaml").n_views == 3  # the base's wrong value is replaced, as before
+    (tmp_path / "child.yaml").write_text("base: base.yaml\ncamera_xy: 0.25\n")
+    with pytest.raises(ValueError, match=rf"^config file {str(tmp_path / 'base.yaml')!r}: config field 'n_views'"):
+        load_config(tmp_path / "child.yaml")
+    assert load_config(tmp_path / "child.yaml", n_views=2).n_views == 2
+
+
 def load_in_a_child(path):
     """stderr of ``load_config(path)`` in a child process given 120 s: a blocking ``open`` of a FIFO
     would never return, however loaded the machine, so the bound only tells a hang from a refusal."""
