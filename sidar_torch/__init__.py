@@ -12,6 +12,7 @@ configs, ``homography_pairs`` and ``ExportedDataset`` work on machines without t
 from . import render  # noqa: F401  (sets PYOPENGL_PLATFORM, LP_NUM_THREADS before OpenGL's import; loads no GL)
 from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
+from .augment_step import SidarStep
 from .dataset import SidarDataset
 from .evaluation import evaluate
 from .io import ExportedDataset, export_dataset
@@ -19,6 +20,6 @@ from .pairs import homography_pairs
 from .version import __version__  # noqa: F401  (the package's version, recorded in export manifests)
 
 __all__ = [
-    "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "available_presets", "evaluate",
+    "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "SidarStep", "available_presets", "evaluate",
     "export_dataset", "homography_pairs", "load_config",
 ]
