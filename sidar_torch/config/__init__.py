@@ -6,11 +6,15 @@
   fields (``MAX_CAMERA_DISTANCE``, ``MAX_SCENE_EXTENT``, ``MAX_LIGHT_LEVEL``, ``MAX_VIEWS``,
   ``MAX_SAMPLE_BYTES``), each with how it was derived.
 * ``memory``: :func:`~memory.estimated_sample_bytes`, the memory a sample needs (measured figures).
-* ``numbers``: :func:`as_int` and :func:`as_float`, accepting NumPy and 0-d torch scalars; every
-  layer that takes numbers from users can use them.
+* ``numbers``: :func:`as_int` and :func:`as_float`, accepting NumPy and 0-d torch scalars (and
+  refusing anything else, a ``Fraction`` beyond float's range or a ``Decimal`` included, with a
+  ``ValueError`` naming the value); every layer that takes numbers from users can use them.
 * ``validation``: coercion and checks against the fields' ``bounds`` and ``choices``, errors
   (``ValueError`` only, a wrong type included) naming the field.
-* ``loader``: :func:`load_config` and :func:`available_presets`; presets ship in ``presets/``.
+* ``loader``: :func:`load_config` and :func:`available_presets`; presets ship in ``presets/``; every
+  error of a YAML file names the file.
+* ``files``: reading a user's file safely (a regular file only, opened without blocking, bounded),
+  for config files and the export reader.
 * ``schema``: the table of fields ``python -m sidar_torch schema`` prints.
 """
 

@@ -47,7 +47,9 @@ it ends), and a rerun must keep the seed, source, config and layout recorded in 
 (else ``ValueError``).
 
 The reader reads only regular files inside the export folder, of bounded size, and checks every
-field of ``export.json`` it uses: a damaged or tampered export is a ``ValueError`` naming the file.
+field of ``export.json`` it uses, its ``image_size`` and ``n_views`` against the package's bounds
+(:mod:`.limits`), and each file against them before decoding it (:mod:`.codecs`): a damaged or
+tampered export is a ``ValueError`` naming the file, read in bounded memory.
 """
 
 from .entries import pixel_entries_text
