@@ -74,3 +74,26 @@ def test_shadow_removal_quick(capsys):
     assert baseline["shadowed painting pixels"] > 5 * baseline["all pixels"] > 0
     assert all(math.isfinite(v) for row in results.values() for v in row.values())
     assert "| trained network |" in capsys.readouterr().out
+
+
+def test_webdataset_stream_gives_the_exported_samples_shuffled(tmp_path, capsys):
+    """Issue 34 item 7: the recipe streaming exported shards through webdataset (shuffle buffer, our
+    sample dict). Each streamed sample is ExportedDataset's for its sequence, tensor for tensor."""
+    pytest.importorskip("webdataset")
+    from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_config
+
+    module = load("webdataset_stream")
+    config = load_config("misaligned", image_size=(24, 32), n_views=2, shadow_map_size=256)
+    export_dataset(SidarDataset(config=config, seed=4), tmp_path, 7, shard_size=3, progress=False)
+    read = ExportedDataset(tmp_path)
+    streamed = list(module.stream(tmp_path, buffer=7, seed=1))
+    order = [int(sample["index"]) for sample in streamed]
+    assert sorted(order) == list(range(7)) and order != sorted(order)  # every sequence once, shuffled
+    assert order == [int(s["index"]) for s in module.stream(tmp_path, buffer=7, seed=1)]  # the seed repeats it
+    for sample in streamed:
+        expected = read[read.indices.index(int(sample["index"]))]
+        assert sample.keys() == expected.keys()
+        for key, value in expected.items():
+            assert torch.equal(torch.as_tensor(sample[key]), torch.as_tensor(value)), key
+    batches = module.main(["--quick"])
+    assert sorted(sum(batches, [])) == list(range(8)) and "images (4, 2, 3, 24, 32)" in capsys.readouterr().out
