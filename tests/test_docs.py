@@ -176,6 +176,7 @@ def _parse_script(path: Path, args: list[str]) -> None:
         return
     spec = importlib.util.spec_from_file_location(f"_doc_{path.stem}", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there (examples/train_homography.py)
     spec.loader.exec_module(module)
     original = argparse.ArgumentParser.parse_args
 
