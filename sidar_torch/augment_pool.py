@@ -9,8 +9,8 @@ gives each sequence the values it gets alone (``sample.batch_homographies``), so
 nor the geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
-parent's, or one created and warmed up at its first task, ``sidar_torch.warm_up``; then reused),
-fed one task at a time through its own socket: a process that finishes takes the next task, and
+parent's, or one created and warmed up when the pool starts, ``sidar_torch.warm_up``; then reused),
+fed one task at a time through its own socket pair: a process that finishes takes the next task, and
 results are put back in batch order.
 
 Bounded waits. The parent never blocks on a worker: each message (an 8-byte length, then a pickle)
@@ -23,8 +23,8 @@ their own limit, so a call's ``timeout`` counts no shader compilation.
 
 A worker ends with its parent, whatever it is doing (rendering, waiting, or blocked sending a reply
 no one reads): right after the fork it calls :func:`sidar_torch.orphans.exit_with_parent` and lets
-go of every descriptor it inherited but its own pipe end (the parent's ends of every pipe, its own
-included, and any file of the parent's), see :mod:`sidar_torch.orphans`.
+go of every descriptor it inherited but its own socket end (the parent's ends of every socket pair,
+its own included, and any file of the parent's), see :mod:`sidar_torch.orphans`.
 
 Processes are forked (``fork`` start method): a worker starts in milliseconds, where ``spawn`` or
 ``forkserver`` pay about 2 s of imports each. This is safe after the parent rendered because
