@@ -1,4 +1,4 @@
-"""Command line: ``python -m sidar_torch <command> --help``: preview, export, schema.
+"""Command line: ``python -m sidar_torch <command> --help``: preview, export, evaluate, schema.
 
 Measurements (speed, accuracy, the quality sweep) live outside the package, in the repository's
 ``benchmarks/`` (``python -m benchmarks.bench`` and others, from a clone).
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import json
 import os
 import signal
 import sys
@@ -20,11 +21,14 @@ from PIL import Image
 
 from .config import as_int, available_presets, load_config
 from .config.loader import parse_yaml
+from .baselines import ESTIMATORS, resolve_estimator
 from .dataset import SidarDataset
-from .io import ExportInterrupted, ExportSummary, export_dataset
+from .evaluation import evaluate, format_table
+from .io import LAYOUTS, ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
 from .orphans import process_age
 from .preview import contact_sheet
+from .testsets import available_testsets, export_testset, load_testset
 from .timing import timed
 
 __all__ = ["main", "parse_overrides"]
@@ -164,6 +168,12 @@ def _preview(args: argparse.Namespace, clock: WallClock) -> None:
 
 
 def _export(args: argparse.Namespace, clock: WallClock) -> None:
+    if args.testset is not None:
+        return _export_testset(args, clock)
+    if args.count is None:
+        raise UsageError("--count: required (unless --testset names a test set)")
+    if args.layout is not None and args.ray:
+        raise UsageError(f"--layout {args.layout}: Ray's export writes the folder or shard layout only (drop --ray)")
     if args.ray_address is not None and not args.ray:
         raise UsageError(f"--ray-address {args.ray_address!r}: add --ray to export on a Ray cluster")
     if args.ray and args.workers:
@@ -197,9 +207,70 @@ def _run_export(args: argparse.Namespace, dataset: SidarDataset) -> ExportSummar
             return ray_export(dataset, args.out, args.count, start=args.start, shard_size=args.shard_size,
                               address=args.ray_address, progress=not args.no_progress)
         return export_dataset(dataset, args.out, args.count, start=args.start, shard_size=args.shard_size,
-                              workers=args.workers, progress=not args.no_progress)
+                              workers=args.workers, progress=not args.no_progress, layout=args.layout)
     except (ValueError, OSError, RuntimeError, ImportError) as error:  # bad arguments, refused folder, lock, no Ray
         raise UsageError(str(error)) from error
+
+
+TESTSET_PINS = (("--count", "count", None), ("--start", "start", 0), ("--config", "config", "misaligned"),
+                ("--set", "set", []), ("--source", "source", None), ("--seed", "seed", 0),
+                ("--shard-size", "shard_size", None), ("--layout", "layout", None), ("--ray", "ray", False),
+                ("--workers", "workers", 0))
+"""Export options a test set pins (its definition gives them): ``(option, attribute, default)``."""
+
+
+def _export_testset(args: argparse.Namespace, clock: WallClock) -> None:
+    """``export --testset NAME --out OUT``: render the set and say whether every file matches its digests."""
+    given = [option for option, name, default in TESTSET_PINS if getattr(args, name) != default]
+    if given:
+        raise UsageError(f"{given[0]}: --testset {args.testset} pins the config, seed, sequences and layout (drop it)")
+    try:
+        testset = load_testset(args.testset)
+    except ValueError as error:
+        raise UsageError(str(error)) from error
+    try:
+        with clock.part("export"):
+            check = export_testset(testset, args.out, progress=not args.no_progress)
+    except ExportInterrupted as interrupted:
+        raise _interrupted(f"interrupted after {interrupted.done} of {interrupted.requested} sequences") from None
+    except KeyboardInterrupt:
+        raise _interrupted("interrupted") from None
+    except (ValueError, OSError, RuntimeError) as error:  # a refused folder, the lock
+        raise UsageError(str(error)) from error
+    print(f"{testset.name} in {args.out} (one export per category: "
+          f"{', '.join(c.name for c in testset.categories)}): {check.summary()}")
+
+
+def _evaluate(args: argparse.Namespace, clock: WallClock) -> None:
+    if args.limit is not None and args.limit < 1:
+        raise UsageError(f"--limit {args.limit}: expected at least 1")
+    if args.testset not in available_testsets() and not Path(args.testset).is_dir():
+        raise UsageError(f"--testset {args.testset!r}: expected one of {', '.join(available_testsets())} or a folder")
+    if args.cache is not None and args.testset not in available_testsets():
+        raise UsageError(f"--cache {args.cache!r}: only a named test set is rendered; {args.testset!r} is read as it is")
+    try:
+        name, estimator = resolve_estimator(args.estimator)
+    except (ValueError, ImportError) as error:
+        raise UsageError(f"--{error}" if str(error).startswith("estimator") else str(error)) from error
+    if args.testset in available_testsets():
+        where = args.cache if args.cache is not None else "a temporary folder, deleted afterwards (--cache DIR keeps it)"
+        print(f"rendering {args.testset} into {where} (what is there already is reused)", file=sys.stderr)
+    try:
+        with clock.part("evaluate"):
+            result = evaluate(estimator, testset=args.testset, limit=args.limit, cache=args.cache,
+                              progress=not args.no_progress)
+    except (ImportError, FileNotFoundError) as error:  # a baseline without OpenCV or without its weights
+        raise UsageError(str(error)) from error
+    result["estimator"] = name
+    if result["digests"] is not None:
+        print(f"{args.testset}: {result['digests']['summary']}")
+    print(format_table(result))
+    if args.json is not None:
+        try:
+            Path(args.json).write_text(json.dumps(result, indent=1) + "\n")
+        except OSError as error:
+            raise UsageError(f"--json {args.json!r}: {error}") from error
+        print(f"wrote {args.json}")
 
 
 def _interrupted(what: str) -> SystemExit:
@@ -250,21 +321,28 @@ def _parser() -> argparse.ArgumentParser:
     preview.set_defaults(run=_preview)
     export = commands.add_parser(
         "export", help="write a frozen dataset: the paper's files per sequence, or tar shards (resumable)",
-        description="Render sequences START .. START+COUNT-1 and write them to OUT in the SIDAR paper's "
-                    f"layout: a folder per sequence with the 8-bit PNGs {pixel_entries_text()} (masks: 255 = "
+        description="Render sequences START .. START+COUNT-1 and write them to OUT: a folder per sequence "
+                    f"with the paper's file names, the 8-bit PNGs {pixel_entries_text()} (masks: 255 = "
                     "painting not visible), H_<i>_<j>.mat (homography view i -> view j, Kornia pixels, "
                     "variable H) and cameras.json (K, R, t, image size, homography error); export.json and "
                     "config.yaml at the top. Each sequence appears at once (written to a temporary folder, "
                     "then renamed); rerunning the same command resumes where an interrupted run stopped. "
                     "Read the set back with sidar_torch.ExportedDataset(OUT).")
     export.add_argument("--out", required=True, help="export folder (created if missing; rerun into it to resume)")
-    export.add_argument("--count", type=int, required=True, help="number of sequences to export")
+    export.add_argument("--count", type=int, default=None, help="number of sequences to export (required unless --testset)")
+    export.add_argument("--testset", default=None, metavar="NAME",
+                        help=f"render a shipped test set ({', '.join(available_testsets())}): one export per "
+                             "category in OUT/<category>, checked against the set's recorded SHA-256 digests")
     export.add_argument("--start", type=int, default=0, help="first dataset index (default 0)")
     _dataset_options(export)
     export.add_argument("--shard-size", type=int, default=None, metavar="SEQUENCES",
                         help="write WebDataset-style tar shards shard-00000.tar, ... of SEQUENCES sequences "
                              "each (entries <i>.<file> for the PNGs and cameras.json of a sequence folder, and "
                              "<i>.homographies.npy) instead of one folder per sequence")
+    export.add_argument("--layout", choices=sorted(LAYOUTS), default=None,
+                        help="paper: the SIDAR paper's own files (H_<i>_<j>.mat as np.savetxt text in its pixels, "
+                             "i < j, det = 1; plus homographies.npy and cameras.json); default: folders, or shards "
+                             "with --shard-size")
     export.add_argument("--shards", action=_Renamed, help=argparse.SUPPRESS,
                         new="--shard-size (it gives the sequences per shard, not the number of shards)")
     export.add_argument("--workers", type=int, default=0,
@@ -276,6 +354,22 @@ def _parser() -> argparse.ArgumentParser:
                         help="with --ray: the Ray cluster to join, e.g. auto or ray://head:10001")
     export.add_argument("--no-progress", action="store_true", help="do not print the progress line on stderr")
     export.set_defaults(run=_export)
+    evaluation = commands.add_parser(
+        "evaluate", help="score an estimator on a test set (MACE, success at 1/3/10 px, by category and difficulty)",
+        description="Score an estimator on a shipped test set (rendered into --cache, or a temporary folder) or on "
+                    "a folder (an export of ours, or the SIDAR paper's own sequences); print the tables.")
+    evaluation.add_argument("--testset", default="homography-v1", metavar="NAME_OR_FOLDER",
+                            help=f"{', '.join(available_testsets())} or a folder (default homography-v1)")
+    evaluation.add_argument("--estimator", required=True, metavar="NAME_OR_MODULE:FUNC",
+                            help=f"a baseline ({', '.join(ESTIMATORS)}) or MODULE:FUNCTION, a function of two "
+                                 "(H, W, 3) uint8 views returning a 3x3 homography (source to target pixels) or None")
+    evaluation.add_argument("--limit", type=int, default=None, metavar="N",
+                            help="score the first N pairs only, taken in turn from each category")
+    evaluation.add_argument("--cache", default=None, metavar="DIR",
+                            help="render a named test set into DIR and keep it (default: a temporary folder)")
+    evaluation.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON to OUT")
+    evaluation.add_argument("--no-progress", action="store_true", help="do not print the rendering's progress")
+    evaluation.set_defaults(run=_evaluate)
     schema = commands.add_parser("schema", help="print every config field with its default, allowed values "
                                                  "and meaning (a markdown table)")
     schema.set_defaults(run=_schema)
