@@ -273,7 +273,7 @@ def test_every_command_prints_one_line_for_a_user_mistake_and_exits_2(argv, mess
 def test_every_command_line_option_has_help():
     parser = cli._parser()
     commands = next(action for action in parser._actions if action.dest == "command")
-    assert set(commands.choices) == {"preview", "export", "schema"}  # measurements live in benchmarks/
+    assert set(commands.choices) == {"preview", "export", "schema", "evaluate"}  # measurements live in benchmarks/
     for name, sub in commands.choices.items():
         for action in sub._actions:
             assert action.help and action.help.strip(), f"{name} {action.option_strings}: no help text"
