@@ -44,9 +44,20 @@ def check_recorded_sizes(config: Mapping[str, Any], where: Path) -> None:
                          f"a sample may use: no sidar_torch export holds one")
 
 
-def entry_size_limit(config: Mapping[str, Any]) -> int:
-    """Most bytes one file of a sequence rendered with ``config`` can hold, with a wide margin: four
-    times a view's raw RGB pixels (a PNG adds a few bytes per row and per 32 kB), plus 128 bytes per
-    pair of views (``homographies.npy`` holds 72), plus 1 MiB (``cameras.json``, headers)."""
+JSON_BYTES_PER_VIEW = 4096
+"""Most bytes per view of a sequence's ``.json`` file (``cameras.json``: about 650 to 920 bytes per
+view, ``K``, ``R`` and ``t`` at full float64 precision). JSON text takes about as many bytes again
+in Python objects once parsed, so its own limit keeps that small where a PNG's would not."""
+
+
+def entry_size_limit(config: Mapping[str, Any], name: str = "") -> int:
+    """Most bytes file ``name`` of a sequence rendered with ``config`` can hold, with a wide margin.
+
+    A ``.json`` file (``cameras.json``): 64 KiB plus :data:`JSON_BYTES_PER_VIEW` per view. Any
+    other: four times a view's raw RGB pixels (a PNG adds a few bytes per row and per 32 kB), plus
+    128 bytes per pair of views (``homographies.npy`` holds 72), plus 1 MiB (headers).
+    """
     height, width = config["image_size"]
+    if name.endswith(".json"):
+        return 2**16 + JSON_BYTES_PER_VIEW * config["n_views"]
     return 4 * height * width * 3 + 128 * config["n_views"] ** 2 + 2**20

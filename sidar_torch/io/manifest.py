@@ -23,8 +23,9 @@ FORMAT_VERSION = 1
 RESUME_KEYS = ("format", "format_version", "package_version", "layout", "shard_size", "seed", "source", "config")
 """``export.json`` fields a rerun into an existing export must match."""
 
-MANIFEST_LIMIT = 16 * 2**20
-"""Most bytes an ``export.json`` is read to (a real one holds a config: a few kB)."""
+MANIFEST_LIMIT = 2**20
+"""Most bytes an ``export.json`` is read to (a real one holds a config: a few kB; parsed JSON takes
+about as many bytes again in Python objects)."""
 
 
 OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)

@@ -95,7 +95,7 @@ class ExportedDataset(Dataset):
             FileNotFoundError: no such entry.
             ValueError: a malformed entry, its file (and a shard's entry) named.
         """
-        path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config))
+        path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config, name))
         try:
             value = decode(name, data, shape)
             return value if check is None else check(value)

@@ -203,6 +203,7 @@ FOLDER_FILES = {
     "mat-bomb": ("H_0_1.mat", lambda data: mat_bomb(), "more than the"),  # inflated 200 MB before its shape was seen
     "json-not-json": ("cameras.json", lambda data: b"{", "not valid JSON"),
     "json-long-integer": ("cameras.json", lambda data: b"{\"index\": " + b"9" * 5000 + b"}", "an integer of 5000 digits"),
+    "json-too-large": ("cameras.json", lambda data: b"[" + b"0.5," * 50000 + b"0]", "larger than 73728 bytes"),
 }
 
 
