@@ -25,7 +25,7 @@ RESUME_KEYS = ("format", "format_version", "package_version", "layout", "shard_s
 
 MANIFEST_LIMIT = 2**20
 """Most bytes an ``export.json`` is read to (a real one holds a config: a few kB; parsed JSON takes
-about as many bytes again in Python objects)."""
+up to about 9 times its bytes in Python objects: :data:`.limits.JSON_BYTES_PER_VIEW`)."""
 
 
 OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)
