@@ -205,7 +205,7 @@ def test_uint8_grey_and_float64_batches_give_the_float32_pixels_in_their_own_dty
 
 def test_bad_arguments_are_rejected():
     with pytest.raises(TypeError, match="images"):
-        tiny_augment()(np.zeros((1, 3, *TINY), np.float32))
+        tiny_augment()([np.zeros((*TINY, 3), np.float32)])  # a NumPy array is taken (channels last), a list not
     with pytest.raises(TypeError, match="generator"):
         tiny_augment()(torch.rand(1, 3, *TINY), generator=5)
     with pytest.raises(ValueError, match="seed"):
