@@ -12,8 +12,9 @@ the two ways a block can hang:
   loaded machine still gets its share of a core every scheduler period (a tenth at load 20 on 2
   cores: 0.1 s of CPU in about 1 s), far more than this.
 
-Meant for computations that run in the calling thread of this process (rendering, sampling), not for
-waits on children, whose CPU time is not this process's.
+Meant for computations that run in the calling thread of this process (rendering, sampling). A child
+process's spin is bounded by :func:`cap_cpu` (the kernel counts its CPU time), with
+:data:`CHILD_WALL_SECONDS` of wall time as the backstop for a child that blocks.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ import contextlib
 import faulthandler
 import signal
 import threading
+import resource
 import time
-from typing import Iterator
+from typing import Callable, Iterator
 
 IDLE_SECONDS = 30.0
 """Default wall time with next to no CPU used after which a block counts as blocked, seconds."""
@@ -38,6 +40,19 @@ BACKSTOP_SLOWDOWN = 20
 """Wall time per second of ``cpu_seconds`` after which the process ends with a traceback
 (``faulthandler``) if the ``TimeoutError`` could not be raised (native code that never returns to
 the interpreter): a slowdown of 20, load 40 on 2 cores, still finishes the block first."""
+
+
+CHILD_WALL_SECONDS = 600
+"""Wall-time limit (``subprocess.run(timeout=)``) for a child whose CPU time :func:`cap_cpu` bounds:
+importing ``sidar_torch`` alone takes 2-4 s of CPU time, 20-40 s of wall time at load 20 on 2 cores."""
+
+
+def cap_cpu(seconds: int) -> Callable[[], None]:
+    """A ``preexec_fn`` for ``subprocess`` that ends the child once it has used ``seconds`` of its own
+    CPU time (``RLIMIT_CPU``: ``SIGXCPU``, exit status -24), however slowly the machine runs it."""
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_CPU, (seconds, seconds + 1))
+    return limit
 
 
 class _Watchdog(threading.Thread):

@@ -3,6 +3,7 @@ call that blocks, and lets a slow but progressing computation on a loaded machin
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from hang_guard import no_hang
+from hang_guard import cap_cpu, no_hang
 
 TESTS = Path(__file__).resolve().parent
 
@@ -40,7 +41,6 @@ def test_a_blocking_call_is_caught_after_the_idle_time(block):
 
 
 def test_the_guard_leaves_the_signal_handler_and_nothing_running():
-    import signal
     before = signal.getsignal(signal.SIGALRM)
     threads = threading.active_count()
     with no_hang(5):
@@ -54,7 +54,7 @@ def test_the_guard_leaves_the_signal_handler_and_nothing_running():
 SLOW = """
 import json, sys, time
 sys.path.insert(0, {tests!r})
-from hang_guard import no_hang
+from hang_guard import cap_cpu, no_hang
 wall, cpu = time.monotonic(), time.process_time()
 with no_hang(1.0):
     total = 0
@@ -81,3 +81,9 @@ def test_a_slow_but_progressing_computation_on_a_loaded_machine_is_not_caught():
     assert run.returncode == 0, run.stderr
     measured = json.loads(run.stdout)
     assert measured["wall"] > 1.0, measured  # the load made it slower than its CPU allowance
+
+
+def test_a_child_that_spins_ends_after_its_cpu_time():
+    start = time.monotonic()
+    run = subprocess.run([sys.executable, "-S", "-c", "while True: pass"], preexec_fn=cap_cpu(1), timeout=300)
+    assert run.returncode == -signal.SIGXCPU and time.monotonic() - start < 300

@@ -8,6 +8,7 @@ import sys
 import time
 
 from conftest import alive
+from hang_guard import CHILD_WALL_SECONDS, cap_cpu
 
 from sidar_torch.orphans import open_descriptors, release_inherited_descriptors
 
@@ -48,7 +49,7 @@ def test_a_child_ends_when_its_parent_is_killed_with_or_without_the_death_signal
 def test_a_child_whose_parent_died_before_the_call_ends_at_once():
     run = subprocess.run([sys.executable, "-c", "import os\nfrom sidar_torch.orphans import exit_with_parent\n"
                           "exit_with_parent(os.getppid() + 1)\nprint('still here')"],
-                         capture_output=True, text=True, timeout=60)
+                         capture_output=True, text=True, preexec_fn=cap_cpu(60), timeout=CHILD_WALL_SECONDS)
     assert run.returncode == 1 and "still here" not in run.stdout
 
 

@@ -23,6 +23,7 @@ from sidar_torch.io import files
 from sidar_torch.io.reader import entry_size_limit
 
 from conftest import TINY
+from hang_guard import CHILD_WALL_SECONDS, cap_cpu
 from test_export import tiny_dataset, tree
 
 pytestmark = pytest.mark.gl  # renders
@@ -186,12 +187,16 @@ def replace_with(path, kind, tmp_path):
 
 def read_in_a_capped_process(out):
     """stderr of ``ExportedDataset(out)[0]`` run in a child limited to 4 GiB of address space and
-    60 s, so that a reader that reads without bound cannot take the machine's memory."""
+    60 s of CPU time, so that a reader that reads without bound cannot take the machine's memory."""
     cap = 4 * 2**30
+
+    def limits():
+        resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+        cap_cpu(60)()
+
     result = subprocess.run([sys.executable, "-c", "import sys; from sidar_torch import ExportedDataset\n"
                              "ExportedDataset(sys.argv[1])[0]", str(out)],
-                            preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (cap, cap)),
-                            capture_output=True, text=True, timeout=60)
+                            preexec_fn=limits, capture_output=True, text=True, timeout=CHILD_WALL_SECONDS)
     assert result.returncode != 0
     return result.stderr
 
