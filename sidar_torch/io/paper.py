@@ -43,7 +43,7 @@ from PIL import Image
 from ..sample import SampleArrays
 from .codecs import encode, png_size
 from .entries import CAMERAS, sample_entries
-from .files import read_inside
+from .files import open_inside
 from .folders import FolderLayout
 from .layout import MANIFEST
 
@@ -132,7 +132,7 @@ class PaperLayout(FolderLayout):
             FileNotFoundError: no such entry; ValueError: as :meth:`FolderLayout.read`.
         """
         if name == CAMERAS and not (where / CAMERAS).exists():
-            return where / CAMERAS, _unknown_cameras(out, where, limit)
+            return where / CAMERAS, _unknown_cameras(out, where)
         path, data = super().read(out, where, name, limit)
         if name.endswith(".png"):
             return path, _ours(path, name, data)
@@ -172,12 +172,13 @@ def _ours(path: Path, name: str, data: bytes) -> bytes:
     return encode({name: pixels})[name]
 
 
-def _unknown_cameras(out: Path, where: Path, limit: int) -> bytes:
+def _unknown_cameras(out: Path, where: Path) -> bytes:
     """A ``cameras.json`` for a sequence of the paper's (which has none): NaN cameras for each view."""
     n_views = 0
     while (where / f"{n_views}.png").exists():
         n_views += 1
-    size = png_size(read_inside(where / LABEL, out, limit))
+    with open_inside(where / LABEL, out) as f:
+        size = png_size(f.read(24))  # the header alone: the limit is cameras.json's
     nan3 = np.full((n_views, 3, 3), np.nan).tolist()
     cameras = {"index": None, "image_size": list(size or (0, 0)), "K": nan3, "R": nan3,
                "t": np.full((n_views, 3), np.nan).tolist(), "homography_error": float("nan")}
