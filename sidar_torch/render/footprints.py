@@ -7,7 +7,7 @@ rectangles (:class:`PaintingPart`), each drawn under a scissor with only the loo
 occluders keep all of them.
 
 Why a part's pixels are the same as with every lookup. The shader adds the spot lights' groups in
-their order in three loops (``shader_patches`` quirks 6 and 13): groups in ``[0, begin)`` without a
+their order in three loops (``programs`` quirks 6 and 13): groups in ``[0, begin)`` without a
 lookup, ``[begin, end)`` with one, ``[end, n)`` without. A group adds its shade times its emitters'
 summed visibility with a lookup, times its number of emitters without. A lookup that reads no
 caster's texel returns "lit": a shadow factor of exactly ``1 - 0.25 * 4 = 0`` and a transmittance

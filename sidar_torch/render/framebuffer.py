@@ -21,7 +21,7 @@ pass (masks, opacity, label) draws single-sampled, exactly as without antialiasi
 
 With ``outputs = 2`` (``shadow_free``) each buffer has a second colour attachment: a pass begun with
 two outputs writes its fragment shader's ``location = 1`` output there (the shadow-free colour,
-``shader_patches`` quirk 10), and :meth:`Framebuffer.end_drawing` resolves and reads both.
+``programs`` quirk 10), and :meth:`Framebuffer.end_drawing` resolves and reads both.
 
 The single-sampled buffers have a stencil: the lit colour pass can leave in it which pixels show
 the painting (:meth:`Framebuffer.read_stencil`), from which the renderer takes the mask.

@@ -1,14 +1,14 @@
-"""The spot lights' uniforms as one std140 uniform block (``shader_patches`` quirk 14).
+"""The spot lights' uniforms as one std140 uniform block (``programs`` quirk 14).
 
 pyrender declares ``uniform SpotLight spot_lights[MAX_SPOT_LIGHTS]`` and sets every member of
 every light as a uniform of its own, in every program that shades: about 90 GL calls per program,
-three programs per lit pass, 0.5 ms of a 192 x 256 view. The patched shader declares the array
+three programs per lit pass, 0.5 ms of a 192 x 256 view. Our shader (``shaders/surface.frag``) declares the array
 as a uniform block instead (``layout(std140) uniform SpotLights``), so a pass packs its lights
 once into a buffer (:class:`LightBlocks`) that every program of the pass reads.
 
 std140 (GLSL 4.60, 7.6.2.2) places a scalar on 4 bytes, a ``vec3`` and a ``vec4`` on 16, a
 ``mat4`` as four column ``vec4`` (column major), and pads a structure to a multiple of 16 bytes,
-the stride of an array of them; :func:`struct_layout` applies these rules to the patched
+the stride of an array of them; :func:`struct_layout` applies these rules to our
 ``SpotLight``. Programs with spot-light shadows have two more members (``shadow_layer``,
 ``light_matrix``), so two layouts exist, each with its own buffer and binding point
 (:data:`BINDINGS`). A program checks its block's size against the layout when it is linked.
@@ -29,7 +29,7 @@ from ..render_choices import MAX_SHADOWED_LIGHTS
 __all__ = ["BINDINGS", "BLOCK_NAME", "LightBlocks", "bind_program_block", "block_size", "struct_layout"]
 
 BLOCK_NAME = "SpotLights"
-"""The uniform block's name in the patched ``mesh.frag``."""
+"""The uniform block's name in ``shaders/surface.frag``."""
 
 BINDINGS = {False: 1, True: 2}
 """Uniform buffer binding point of each layout, by whether it has the shadow members."""
@@ -38,7 +38,7 @@ _MEMBERS = (("color", "vec3"), ("intensity", "float"), ("range", "float"), ("pos
             ("direction", "vec3"), ("light_angle_scale", "float"), ("light_angle_offset", "float"),
             ("smooth_falloff", "float"), ("soft_depth", "vec4"), ("soft_reach", "float"),
             ("group_position", "vec3"), ("group_direction", "vec3"), ("group_size", "int"))
-"""The patched ``SpotLight``'s members in declaration order (pyrender's and ``shader_patches``')."""
+"""``shaders/surface.frag``'s ``SpotLight`` members in declaration order."""
 
 _SHADOW_MEMBERS = (("shadow_layer", "int"), ("light_matrix", "mat4"))
 """The members only programs with spot-light shadows declare, after the others."""

@@ -1,4 +1,4 @@
-"""The painting seen in reflective occluders and through glass ones (quirk 8 in ``shader_patches``).
+"""The painting seen in reflective occluders and through glass ones (quirk 8 in ``programs``).
 
 The world is black but for the painting (a textured rectangle in z = 0, facing +z) and the
 occluders, so what a ray leaving an occluder's surface meets is the painting or nothing. The lit
@@ -23,7 +23,7 @@ __all__ = ["MIRROR_DEFINES", "PaintingMirror", "SurfaceMaterial", "mirror_define
 REFLECTION = "PAINTING_REFLECTION"
 REFRACTION = "PAINTING_REFRACTION"
 MIRROR_DEFINES = (REFLECTION, REFRACTION)
-"""The lit shader's program defines of quirk 8 (see ``shader_patches.PATCH_DEFINES``)."""
+"""The lit shader's program defines of quirk 8 (``programs`` quirk 8)."""
 
 
 def mirror_define(material: Material) -> str | None:

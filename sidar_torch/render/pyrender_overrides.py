@@ -2,44 +2,39 @@
 
 * :class:`GLRenderer` (a ``pyrender.Renderer``): a long-lived context drawing many small scenes
   into its own framebuffer, with pooled uploads, every spot light shading, any power-of-two shadow
-  map, fitted shadow frusta, transmittance maps for transparent casters, and no GL call at
-  garbage collection (its docstring lists each change);
-* :class:`ProgramCache` and its programs: the program cache fix (pyrender's never hits on OSMesa),
-  linking without PyOpenGL's validation, and pyrender's shaders patched as ``shader_patches``
-  says (quirks 1-7 there);
+  map, fitted shadow frusta, transmittance maps for transparent casters, our own shader programs
+  (``render.programs``: the cache, our GLSL and its quirks) and no GL call at garbage collection
+  (its docstring lists each change);
 * :class:`RankedNode`: scene nodes hashed by insertion rank, so lights are summed in a fixed order
-  (:func:`ranked`).
+  (:func:`ranked`); :class:`ShadowedSpotLight`: a spot light with a layer of the shadow-map array.
 
-Nothing else in the package subclasses or patches pyrender.
+``scene_graph.FlatScene`` and ``mirror.SurfaceMaterial`` subclass pyrender's scene and material too.
 """
 
 from __future__ import annotations
 
 import ctypes
-import os
 from collections import defaultdict
 from typing import Any, Sequence
 
 import numpy as np
 import pyrender
 from OpenGL import GL
-from OpenGL.GL import shaders as gl_shaders
 from pyrender.constants import MAX_N_LIGHTS, ProgramFlags, RenderFlags
-from pyrender.shader_program import ShaderProgram, ShaderProgramCache
 
 from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .footprints import PaintingPart
 from .framebuffer import FLIP_Y, Framebuffer
 from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
-from .shader_patches import SHADER_SOURCES, glsl, patch_source
+from .programs import Program, ProgramCache
 from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps, vertex_defines
-from .light_block import LightBlocks, bind_program_block
+from .light_block import LightBlocks
 from .uniforms import set_uniform_array
 from .visibility import bounds_corners, map_texel_box
 
-__all__ = ["UNROLLED_LIGHT_GROUPS", "GLRenderer", "ProgramCache", "RankedNode", "ShadowedSpotLight", "add_node",
+__all__ = ["UNROLLED_LIGHT_GROUPS", "GLRenderer", "RankedNode", "ShadowedSpotLight", "add_node",
            "frustum_projection", "light_group_count", "ranked"]
 
 
@@ -64,7 +59,7 @@ _BOTTOM_ROW = (0.0, 0.0, 0.0, 1.0)
 
 UNROLLED_LIGHT_GROUPS = 4
 """The most light groups the painting's program without lookups adds written out rather than in a loop
-(the copies in ``shaders/unshadowed_spot_loop.glsl``); a view with more gets the loop. A renderer takes
+(the copies under ``#elif defined(LIGHT_GROUPS)`` in ``shaders/surface.frag``); a view with more gets the loop. A renderer takes
 it at construction (``GLRenderer.unrolled_light_groups``)."""
 
 
@@ -179,119 +174,10 @@ def _posed_primitives(scene: pyrender.Scene,
     return [(primitive, scene.get_pose(node)) for node in nodes for primitive in node.mesh.primitives]
 
 
-class _PatchedProgram(ShaderProgram):
-    """A pyrender shader program built from patched sources and linked without validation, its
-    lights' uniform block bound to its layout's binding point (``light_block``)."""
-
-    def _load(self, shader_filename: str) -> str:
-        name = os.path.basename(shader_filename)
-        if name in SHADER_SOURCES:
-            return glsl(name)
-        return patch_source(name, super()._load(shader_filename), self.defines)
-
-    def _add_to_context(self) -> None:
-        if self._program_id is not None:
-            raise ValueError("Shader program already in context")
-        stages = [(self.vertex_shader, GL.GL_VERTEX_SHADER), (self.fragment_shader, GL.GL_FRAGMENT_SHADER),
-                  (self.geometry_shader, GL.GL_GEOMETRY_SHADER)]
-        shader_ids = [gl_shaders.compileShader(self._load(path), kind) for path, kind in stages if path]
-        self._vao_id = GL.glGenVertexArrays(1)
-        GL.glBindVertexArray(self._vao_id)  # a VAO must be bound while linking (PyOpenGL)
-        self._program_id = gl_shaders.compileProgram(*shader_ids, validate=False)
-        GL.glBindVertexArray(0)
-        bind_program_block(self._program_id, "SPOT_LIGHT_SHADOWS" in self.defines)
-        self._locations: dict[str, int] = {}
-
-    def set_uniform(self, name: str, value: Any, unsigned: bool = False) -> None:
-        """pyrender's ``set_uniform``, with each uniform's location asked of GL once per program.
-
-        pyrender looks the location up at every call (about 230 calls per lit view; a third of
-        the call's cost); a linked program's locations never change. Arrays go to GL through
-        :func:`~.uniforms.set_uniform_array` (no PyOpenGL array handling). As in pyrender, a name
-        the compiler removed (location -1) is ignored; unlike it, a value of a type or shape GL
-        has no uniform for raises instead of being dropped silently.
-
-        Args:
-            name: the uniform's name in the program (``"spot_lights[2].color"``).
-            value: a Python ``float``/``int``/``bool``, or a 1-D (vector) or 2-D (matrix, row
-                major) NumPy array; integer arrays go to ``int`` uniforms, others to ``float``.
-            unsigned: integers go to ``uint`` uniforms.
-        """
-        location = self._locations.get(name)
-        if location is None:
-            location = self._locations[name] = GL.glGetUniformLocation(self._program_id, name)
-        if location == -1:
-            return
-        if isinstance(value, np.ndarray):
-            kind = "u" if unsigned or value.dtype.kind == "u" else "i" if value.dtype.kind == "i" else "f"
-            set_uniform_array(location, value, kind)
-        elif isinstance(value, float):
-            GL.glUniform1f(location, value)
-        elif isinstance(value, (int, bool)):
-            (GL.glUniform1ui if unsigned else GL.glUniform1i)(location, int(value))
-        else:
-            raise TypeError(f"uniform {name!r}: no GL uniform for a value of type {type(value).__name__}")
-
-
-class ProgramCache(ShaderProgramCache):
-    """pyrender's program cache for a single GL context: keyed by shader files and defines only.
-
-    ``len(cache)`` is the number of distinct programs built, which stays constant over a long run.
-
-    While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant
-    that also reads the transmittance maps (define ``TRANSMITTANCE_SHADOWS``, quirk 7). While
-    :attr:`mirror` names a define of ``mirror.MIRROR_DEFINES``, lit programs are that variant
-    (the painting reflected or refracted, quirk 8; set per primitive by ``GLRenderer``). While
-    :attr:`shadow_fraction` is true, lit programs output the fraction of the direct light the
-    occluders block instead of a colour (define ``SHADOW_FRACTION``, quirk 9). While
-    :attr:`shadow_free` is true, lit programs also output the colour with no light blocked (define
-    ``SHADOW_FREE``, quirk 10). Both are set only for draws with spot-light shadows, whose painting
-    parts without a lookup use the program without them (``GLRenderer._draw_parts``). While
-    :attr:`light_groups` is set (the painting's draws, with at most :data:`UNROLLED_LIGHT_GROUPS` light
-    groups), lit programs without spot-light shadows add that many groups written out instead of in
-    a loop (define ``LIGHT_GROUPS``; quirk 6): a variant per count, for the painting only.
-
-    Args:
-        shadow_taps: 4 (3 x 3 tent filter) or 1 (2 x 2 filter) depth-compare taps per shadow lookup.
-    """
-
-    def __init__(self, shadow_taps: int = 4):
-        super().__init__()
-        self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
-        self.transmittance = False
-        self.mirror: str | None = None
-        self.shadow_fraction = False
-        self.shadow_free = False
-        self.light_groups: int | None = None
-
-    def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
-        defines = {**(defines or {}), **self._extra_defines}
-        if self.transmittance and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" in defines:
-            defines["TRANSMITTANCE_SHADOWS"] = 1
-        if self.mirror and fragment_shader == "mesh.frag":
-            defines[self.mirror] = 1
-        if self.shadow_fraction and fragment_shader == "mesh.frag":
-            defines["SHADOW_FRACTION"] = 1
-        if self.shadow_free and fragment_shader == "mesh.frag":
-            defines["SHADOW_FREE"] = 1
-        if self.light_groups is not None and fragment_shader == "mesh.frag" and "SPOT_LIGHT_SHADOWS" not in defines:
-            defines["LIGHT_GROUPS"] = self.light_groups
-        names = tuple(os.path.basename(s) for s in (vertex_shader, fragment_shader, geometry_shader) if s)
-        key = names + tuple(sorted(defines.items()))
-        if key not in self._program_cache:
-            paths = [os.path.join(self.shader_dir, s) if s else None
-                     for s in (vertex_shader, fragment_shader, geometry_shader)]
-            self._program_cache[key] = _PatchedProgram(*paths, defines=defines)
-        return self._program_cache[key]
-
-    def __len__(self) -> int:
-        return len(self._program_cache)
-
-
 class GLRenderer(pyrender.Renderer):
     """pyrender's renderer, adapted to a long-lived context that draws many small scenes.
 
-    * programs come from :class:`ProgramCache` (stable key, patched shaders);
+    * programs come from ``programs.ProgramCache`` (one per context, our shaders);
     * :meth:`_update_context` uploads what is new and frees only textures no longer used (the
       previous painting, once a draw uses another); pooled meshes and shadow maps stay uploaded
       until :meth:`delete`;
@@ -349,7 +235,7 @@ class GLRenderer(pyrender.Renderer):
         self._pass_lighting: tuple[list, list, list] | None = None  # see _bind_lighting
         self._light_blocks = LightBlocks()
         self._filled_blocks: set[bool] = set()  # the light block layouts (shadows or not) filled this pass
-        self._lit_programs: set[ShaderProgram] = set()
+        self._lit_programs: set[Program] = set()
         self.painting: PaintingMirror | None = None
         """The painting that reflective and glass occluders show in the next lit draws."""
         self._mirror_sampler = GL.glGenSamplers(1)  # trilinear whatever the painting's own filter

@@ -8,7 +8,7 @@ shared renderers, or creates its own; see :func:`shared_renderer`).
 Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry``):
 
 * the **view**: the painting under the view's ambient level and lights, with occluders and
-  shadows; 8-bit sRGB (the shader's output encoding is exact sRGB, see ``shader_patches``);
+  shadows; 8-bit sRGB (the shader's output encoding is exact sRGB, see ``programs``);
   with ``settings.antialias`` > 1 drawn multisampled and resolved (``framebuffer``), the only
   pass that is;
 * the **mask**: a segmentation draw of the painting (white) and the camera-visible occluders
@@ -42,7 +42,7 @@ work that cannot change a pixel is skipped there and here, each skip with its re
 
 The pieces: ``settings`` (what to draw), ``plan`` and ``visibility`` (what each view needs),
 ``scene_graph`` (pyrender scenes), ``meshes``, ``shadow_maps``, ``unlit`` (label and opacity),
-``transmittance``, and ``pyrender_overrides`` (every pyrender override; shaders in ``shader_patches`` and
+``transmittance``, and ``pyrender_overrides`` (every pyrender override; shaders in ``programs`` and
 ``shaders/``), ``context`` and ``framebuffer`` (the GL context and what it draws into).
 """
 
@@ -156,6 +156,11 @@ class SceneRenderer:
     def program_count(self) -> int:
         """Number of shader programs built so far (constant once every variant has been used)."""
         return len(self._gl._program_cache)
+
+    @property
+    def program_variants(self) -> list[dict[str, int]]:
+        """The defines of every shader program built so far, in the order they were built (``programs``)."""
+        return self._gl._program_cache.variants
 
     @property
     def shadow_map_count(self) -> int:

@@ -16,10 +16,9 @@ from ..geometry import plane_corners
 from ..scene import CAMERA_CLEARANCE, Camera, Material
 from .pyrender_overrides import add_node
 from .mirror import SurfaceMaterial, mirror_define
-from .shader_patches import surface_factors
 
 __all__ = ["GL_FROM_CV", "PAINTING_SAMPLERS", "FlatScene", "clip_range", "gl_camera", "gl_material", "gl_pose", "new_scene",
-           "transmission_factors"]
+           "surface_factors", "transmission_factors"]
 
 GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
@@ -123,6 +122,12 @@ def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, floa
     cos_corner = f / np.hypot(f, corner)
     nearest = min(float(camera.position[2]), CAMERA_CLEARANCE) * cos_corner
     return min(zfar / 2000.0, nearest / 2), zfar
+
+
+def surface_factors(specular: float, coat: float, coat_roughness: float) -> np.ndarray:
+    """The ``(3,)`` float32 value of a material's ``emissiveFactor`` that ``shaders/surface.frag`` reads
+    as specular level, clear-coat weight and clear-coat roughness (all in [0, 1]; ``programs`` quirk 5)."""
+    return np.array([specular, coat, coat_roughness], dtype=np.float32)
 
 
 def gl_material(material: Material, texture: pyrender.Texture | None = None) -> SurfaceMaterial:

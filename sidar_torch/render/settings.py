@@ -52,9 +52,9 @@ class RenderSettings:
         highlight_spill: over-exposed light spills into the other channels, a blown-out red turning
             white; false: each channel clips at white on its own (config ``highlight_spill``).
         light_radius: every emitter's radius, painting units: above 0, soft shadows (percentage-closer
-            soft shadows, ``shader_patches`` quirk 12) instead of ``shadow_filter`` (config ``light_radius``).
+            soft shadows, ``programs`` quirk 12) instead of ``shadow_filter`` (config ``light_radius``).
         group_emitters: the emitters of a light are shaded once, from their centre, and dimmed by the
-            mean of their shadow lookups (``shader_patches`` quirk 13; config ``area_light_shading``
+            mean of their shadow lookups (``programs`` quirk 13; config ``area_light_shading``
             ``"per_light"``); false: each emitter is shaded on its own.
         mirrors: draw the painting reflected in reflective occluders and refracted through glass
             ones (``render.mirror``); off, they are drawn as before it existed (benchmarks

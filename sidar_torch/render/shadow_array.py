@@ -1,7 +1,7 @@
 """The spot lights' shadow maps of one GL context: the layers of one depth-compare texture array.
 
 The lit shader reads spot light ``k``'s map as layer ``spot_lights[k].shadow_layer`` of one
-``sampler2DArrayShadow`` (``shader_patches``, quirk 3), so every map is on one texture unit and
+``sampler2DArrayShadow`` (``programs``, quirk 3), so every map is on one texture unit and
 the layer is a texture coordinate. pyrender gives each light its own ``sampler2D``: the shader's
 light loop then picks a sampler by a run-time index, which llvmpipe compiles to a switch over
 every sampler of the array at every lookup, and the renderer had to bind a map to every one of

@@ -9,7 +9,7 @@ from the light's view with the same light matrix:
   ``T = (1 - a_F) * rgb / max(rgb)``: ``rgb`` is the caster's linear base colour, so its hue and
   saturation tint the light while its brightness does not darken it; ``a_F`` is its alpha raised
   towards 1 with the Schlick-Fresnel reflectance at the light's incidence (4 % head-on), as
-  ``shader_patches`` raises the opacity the camera sees. Clear glass gives a light, uncoloured shadow,
+  ``programs`` raises the opacity the camera sees. Clear glass gives a light, uncoloured shadow,
   coloured glass a tinted one, and alpha -> 1 a black one, like an opaque caster.
 * **A** keeps the nearest caster's distance along the light's axis (clip ``w``, painting units;
   blending ``GL_MIN``), so the lookup (``shaders/spot_shadow.glsl``) tints only what lies beyond it.

@@ -1,6 +1,6 @@
 """The unlit draws: the label (the painting as the reference camera sees it) and each view's
 opacity (the fraction of the painting hidden at each pixel). Both use pyrender's flat shader
-(``RenderFlags.FLAT``), patched to output the lit draw's Fresnel opacity (``shader_patches``).
+(``RenderFlags.FLAT``), whose ``shaders/unlit.frag`` outputs the lit draw's Fresnel opacity (``programs`` quirk 5).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def render_opacity(gl: GLRenderer, scene: pyrender.Scene, plane: pyrender.Node, 
     painting is seen unobstructed, and ``255 (1 - prod_k (1 - a_k))`` where transparent
     occluders ``k`` cover it, ``a_k`` being the opacity the colour draw blends them with: the
     material's alpha raised towards 1 by the Schlick-Fresnel reflectance of the view (4 % at
-    normal incidence, all at grazing angles; ``shader_patches`` quirk 5). The colour draw also makes
+    normal incidence, all at grazing angles; ``programs`` quirk 5). The colour draw also makes
     a transparent occluder more opaque under its specular highlights; that light-dependent part
     is left out here (it would need a lit draw), so under a highlight the value is lower.
 

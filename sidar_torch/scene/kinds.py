@@ -217,7 +217,7 @@ MATERIAL_KINDS: dict[str, Callable[[np.random.Generator, SidarConfig], Material]
     "principled": _principled,
 }
 """``SidarConfig.occluder_materials`` name -> ``(rng, config) -> Material``. Transparent and glass
-materials also get more opaque towards grazing angles (``render.shader_patches``, quirk 5)."""
+materials also get more opaque towards grazing angles (``render.programs``, quirk 5)."""
 
 
 # --------------------------------------------------------------------------- occluder shapes

@@ -40,13 +40,13 @@ def test_the_block_layout_is_gls_in_every_lit_program():
     renderer = shared_renderer(RenderSettings.from_config(config))
     renderer._platform.make_current()
     seen = set()
-    for program in renderer._gl._program_cache._program_cache.values():
-        if program._program_id is None or GL.glGetUniformBlockIndex(program._program_id, BLOCK_NAME) == GL.GL_INVALID_INDEX:
+    for program in renderer._gl._program_cache.programs:
+        if program.id is None or GL.glGetUniformBlockIndex(program.id, BLOCK_NAME) == GL.GL_INVALID_INDEX:
             continue
         shadows = "SPOT_LIGHT_SHADOWS" in program.defines
         layout, stride = struct_layout(shadows)
         expected = {f"spot_lights[{k}].{member}": k * stride + offset
                     for k in range(MAX_SHADOWED_LIGHTS) for member, (offset, _) in layout.items()}
-        assert block_offsets(program._program_id) == expected, program.defines
+        assert block_offsets(program.id) == expected, program.defines
         seen.add(shadows)
     assert seen == {False, True}

@@ -13,11 +13,6 @@ from conftest import small_config, textured_painting
 pytestmark = pytest.mark.gl  # renders
 
 
-def program_defines(renderer):
-    """The defines of every program ``renderer`` has built, as dicts."""
-    return [dict(item for item in key if isinstance(item, tuple)) for key in renderer._gl._program_cache._program_cache]
-
-
 @pytest.mark.parametrize("shading", ["per_light", "per_emitter"])
 def test_groups_written_out_give_the_bytes_of_the_loop(shading):
     """Views of 1 to 5 lights (area lights of 3 emitters among them), with and without casters and the
@@ -39,9 +34,9 @@ def test_groups_written_out_give_the_bytes_of_the_loop(shading):
                     assert np.array_equal(getattr(a, name), getattr(b, name)), (n, seed, name)
     finally:
         looped.close()
-    counts = {defines.get("LIGHT_GROUPS") for defines in program_defines(unrolled)}
+    counts = {defines.get("LIGHT_GROUPS") for defines in unrolled.program_variants}
     assert {1, 2, 3, 4} <= counts  # the painting's variants (per_emitter: 3 emitters of an area light are 3 groups)
-    assert not any("LIGHT_GROUPS" in defines for defines in program_defines(looped))
+    assert not any("LIGHT_GROUPS" in defines for defines in looped.program_variants)
 
 
 def test_a_light_group_count_steps_over_each_group():

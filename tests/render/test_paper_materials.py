@@ -25,7 +25,7 @@ pytestmark = pytest.mark.gl  # renders
 
 def shader_terms(base, metallic, specular):
     """The lit shader's diffuse colour and normal-incidence reflectance (pyrender's ``c_diff`` and
-    ``f0``, with ``shader_patches``' specular level) of a base colour ``base (3,)``."""
+    ``f0``, with ``programs``' specular level) of a base colour ``base (3,)``."""
     return 0.96 * base * (1 - metallic), 0.08 * specular * (1 - metallic) + metallic * base
 
 

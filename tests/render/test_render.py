@@ -13,7 +13,7 @@ import torch
 
 import sidar_torch.render
 from sidar_torch import SidarDataset, geometry
-from sidar_torch.render import RenderSettings, SceneRenderer, shader_patches, shared_renderer
+from sidar_torch.render import RenderSettings, SceneRenderer, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
 from conftest import SMALL, WHITE, small_config, textured_painting
@@ -168,20 +168,6 @@ def test_a_camera_a_thousandth_above_a_wide_painting_still_sees_it():
     s = SidarDataset(config=cfg, seed=0).sample(0)
     assert float(s["masks"][0].mean()) == 0.0  # the reference view is all painting
     assert float(s["masks"][1:].mean()) < 0.5
-
-
-def test_compiling_out_the_unused_point_and_directional_light_loops_changes_no_pixel(monkeypatch):
-    cfg = small_config("misaligned", n_views=3, n_occluders=(2, 3))
-    painting = textured_painting(SMALL)
-    sequences = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(3)]
-    fast = [SceneRenderer(RenderSettings(SMALL)).render(seq, painting) for seq in sequences]
-    loops = [(old, new) for old, new in shader_patches.SHADER_PATCHES["mesh.frag"] if "// none (quirk 6)" in new]
-    assert len(loops) == 2
-    kept = [patch for patch in shader_patches.SHADER_PATCHES["mesh.frag"] if patch not in loops]
-    monkeypatch.setitem(shader_patches.SHADER_PATCHES, "mesh.frag", kept)
-    renderer = SceneRenderer(RenderSettings(SMALL))  # a new program cache: compiled without those two patches
-    for seq, expected in zip(sequences, fast):
-        assert np.array_equal(renderer.render(seq, painting).views, expected.views)
 
 
 def test_bilinear_shadow_filter_sharpens_shadow_edges_only():

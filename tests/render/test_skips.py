@@ -104,8 +104,7 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
     assert lookup_free > 0
     # Only the parts without a lookup draw with a program that has no spot-light shadows yet outputs
     # the shadow-free view (views without a shadowed light output one colour).
-    programs = [dict(item for item in key if isinstance(item, tuple))
-                for key in shared_renderer(settings)._gl._program_cache._program_cache]
+    programs = shared_renderer(settings).program_variants
     assert any("SHADOW_FREE" in defines and "SPOT_LIGHT_SHADOWS" not in defines for defines in programs)
 
 

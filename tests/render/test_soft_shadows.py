@@ -1,4 +1,4 @@
-"""Soft shadows (config ``light_radius``, ``shader_patches`` quirk 12): a penumbra that grows with the
+"""Soft shadows (config ``light_radius``, ``programs`` quirk 12): a penumbra that grows with the
 distance from the caster, as a light of that radius casts, and hard shadows at radius 0."""
 
 import numpy as np
