@@ -71,12 +71,12 @@ def variant_signature(material: Material) -> tuple[str | None, bool, bool]:
 
 
 def light_group_counts(config: SidarConfig) -> tuple[int, ...]:
-    """The numbers of light groups (``render.pyrender_overrides.light_group_count``) whose painting
-    programs the warm-up draws: each count from one to ``pyrender_overrides.UNROLLED_LIGHT_GROUPS``
+    """The numbers of light groups (``render.passes.light_group_count``) whose painting
+    programs the warm-up draws: each count from one to ``passes.UNROLLED_LIGHT_GROUPS``
     that a view of ``config`` may have (a program each), then one above if a view may have more (the
     program with the loop). A light is one group with ``area_light_shading: per_light``, each of its
     emitters one with ``per_emitter``."""
-    from .render.pyrender_overrides import UNROLLED_LIGHT_GROUPS  # imports pyrender: at the first warm-up
+    from .render.passes import UNROLLED_LIGHT_GROUPS  # imports OpenGL: at the first warm-up
 
     most = config.n_lights[1] if config.area_light_shading == "per_light" else shadowed_emitters(config)
     counts = tuple(range(max(config.n_lights[0], 1), min(most, UNROLLED_LIGHT_GROUPS) + 1))

@@ -1,4 +1,4 @@
-"""Unit occluder primitives (trimesh) and the painting's plane, as pyrender meshes.
+"""Unit occluder primitives (trimesh) and the painting's plane, as GPU meshes (``gpu.GpuMesh``).
 
 Each unit primitive is centred at the origin and lies within the box ``|x_k| <= 1`` (the
 scene sampler's bounding sphere relies on it): half-extent 1 along x and y for the sphere,
@@ -20,11 +20,11 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-import pyrender
 import trimesh
 
 from .. import geometry
 from ..scene import Occluder, ViewScene
+from .gpu import GpuMesh
 from .settings import RenderSettings
 from .visibility import ball_pixel_radius, ball_shadow_pixel_radii
 
@@ -199,13 +199,12 @@ def _revolution_normals(mesh: trimesh.Trimesh, slope: float) -> tuple[np.ndarray
     return faces.reshape(-1, 3).astype(np.float32), normals.reshape(-1, 3).astype(np.float32)
 
 
-def _gl_mesh(shape: str, variant: int, level: int) -> pyrender.Mesh:
-    """The pyrender mesh of a unit primitive, with the normals its shape is shaded with."""
+def _gl_mesh(shape: str, variant: int, level: int) -> GpuMesh:
+    """The GPU mesh of a unit primitive, with the normals its shape is shaded with."""
     mesh, spec = unit_primitive(shape, variant, level), MESHES[shape]
     if spec.side_slope is not None:
-        positions, normals = _revolution_normals(mesh, spec.side_slope)
-        return pyrender.Mesh([pyrender.Primitive(positions=positions, normals=normals)])
-    return pyrender.Mesh.from_trimesh(mesh, smooth=spec.smooth)
+        return GpuMesh(*_revolution_normals(mesh, spec.side_slope))
+    return GpuMesh.from_trimesh(mesh, smooth=spec.smooth)
 
 
 def unit_primitive(shape: str, variant: int = 0, level: int = FIXED_LEVEL) -> trimesh.Trimesh:
@@ -261,33 +260,28 @@ def mesh_level(occ: Occluder, view: ViewScene, settings: RenderSettings) -> int:
 
 
 class MeshPool:
-    """pyrender meshes of each shape, created on demand and reused (one GL upload each).
+    """GPU meshes of each shape, created on demand and reused (one GL upload each).
 
     ``take(shape, variant, k, level)`` returns the ``k``-th mesh of that shape, variant and level
-    of detail, so a view with two spheres uses two distinct meshes (each carries its own
-    material), and a level chosen again in a later view is neither rebuilt nor uploaded again.
+    of detail, so a view with two spheres uses two distinct meshes (shadow-map keys name meshes),
+    and a level chosen again in a later view is neither rebuilt nor uploaded again.
     """
 
     def __init__(self) -> None:
-        self._meshes: dict[tuple[str, int, int], list[pyrender.Mesh]] = defaultdict(list)
+        self._meshes: dict[tuple[str, int, int], list[GpuMesh]] = defaultdict(list)
 
-    def take(self, shape: str, variant: int, k: int, level: int = FIXED_LEVEL) -> pyrender.Mesh:
+    def take(self, shape: str, variant: int, k: int, level: int = FIXED_LEVEL) -> GpuMesh:
         meshes = self._meshes[shape, variant, level]
         while len(meshes) <= k:
             meshes.append(_gl_mesh(shape, variant, level))
         return meshes[k]
 
 
-def plane_mesh(image_size: tuple[int, int]) -> pyrender.Mesh:
+def plane_mesh(image_size: tuple[int, int]) -> GpuMesh:
     """The painting: a rectangle in z = 0 facing +z, textured so that image row 0 is at the top
     (world +y) and column 0 at the left (world -x). Its material is set per view."""
     corners = geometry.plane_corners(image_size)  # top-left, top-right, bottom-right, bottom-left
-    # pyrender flips textures vertically on upload: t = 1 is the image's first row.
+    # The texture is uploaded flipped (gpu.PaintingTexture): t = 1 is the image's first row.
     uv = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
-    primitive = pyrender.Primitive(
-        positions=corners.astype(np.float32),
-        normals=np.tile(geometry.PLANE_NORMAL, (4, 1)).astype(np.float32),
-        texcoord_0=uv.astype(np.float32),
-        indices=np.array([[0, 3, 2], [0, 2, 1]], dtype=np.uint32),  # counter-clockwise seen from +z
-    )
-    return pyrender.Mesh([primitive])
+    return GpuMesh(corners, np.tile(geometry.PLANE_NORMAL, (4, 1)), uv,
+                   faces=np.array([[0, 3, 2], [0, 2, 1]]))  # counter-clockwise seen from +z

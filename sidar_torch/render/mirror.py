@@ -13,12 +13,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pyrender
 
 from ..geometry import plane_size
 from ..scene import Material
+from .gpu import PaintingTexture
 
-__all__ = ["MIRROR_DEFINES", "PaintingMirror", "SurfaceMaterial", "mirror_define", "painting_diffuse"]
+__all__ = ["MIRROR_DEFINES", "PaintingMirror", "mirror_define", "painting_diffuse"]
 
 REFLECTION = "PAINTING_REFLECTION"
 REFRACTION = "PAINTING_REFRACTION"
@@ -55,30 +55,20 @@ def painting_diffuse(material: Material) -> float:
     return float(diffuse * (1.0 - material.transmission))
 
 
-class SurfaceMaterial(pyrender.MetallicRoughnessMaterial):
-    """pyrender's material with the program variant (:func:`mirror_define`) and index of refraction
-    of the occluder it belongs to."""
-
-    def __init__(self, mirror: str | None = None, ior: float = 1.0, **kwargs):
-        super().__init__(**kwargs)
-        self.mirror = mirror
-        self.ior = float(ior)
-
-
 @dataclass(frozen=True)
 class PaintingMirror:
     """What the lit shader needs about the painting to reflect or refract it in one view.
 
     Attributes:
-        texture: the painting's texture (the plane's base colour; pyrender builds its mipmaps).
+        texture: the painting's texture (the plane's base colour, with mipmaps).
         half_size: ``(2,)`` float32 half width and height of the painting, painting units.
         diffuse: :func:`painting_diffuse` of the view's painting material.
     """
 
-    texture: pyrender.Texture
+    texture: PaintingTexture
     half_size: np.ndarray
     diffuse: float
 
     @classmethod
-    def of_view(cls, texture: pyrender.Texture, image_size: tuple[int, int], material: Material) -> "PaintingMirror":
+    def of_view(cls, texture: PaintingTexture, image_size: tuple[int, int], material: Material) -> "PaintingMirror":
         return cls(texture, np.array(plane_size(image_size), np.float32) / 2, painting_diffuse(material))

@@ -11,9 +11,9 @@ Every shader is a file of ours in ``shaders/``; none is pyrender's, and nothing 
 
 A program is a pair of files and a set of **defines** (``#define NAME value`` lines after the
 ``#version`` line, :func:`program_source`): the vertex attributes a mesh has (``NORMAL_LOC``...),
-the material's textures, and the variants below, each chosen per draw because a uniform switch
-would cost every fragment (quirk 6). :class:`ProgramCache` compiles each (files, defines) once per
-context; warm-up compiles every one a config can meet (``sidar_torch.warm_up``).
+the material's texture, and the variants below, each chosen per draw by ``render.passes`` because a
+uniform switch would cost every fragment (quirk 6). :class:`ProgramCache` compiles each (files,
+defines) once per context; warm-up compiles every one a config can meet (``sidar_torch.warm_up``).
 
 The quirks the shaders and the cache handle, numbered as the code refers to them:
 
@@ -64,7 +64,7 @@ The quirks the shaders and the cache handle, numbered as the code refers to them
      in one loop: the same additions in the same order. It draws the views without a shadowed
      light, and the painting's parts whose range is empty (most of its pixels);
    * the painting's program without lookups is a variant per number of light groups up to 4
-     (define ``LIGHT_GROUPS``, ``pyrender_overrides.UNROLLED_LIGHT_GROUPS``), which writes the
+     (define ``LIGHT_GROUPS``, ``passes.UNROLLED_LIGHT_GROUPS``), which writes the
      groups out with no loop left (left to the compiler's own unrolling, the loop's cost went at 2
      and 3 groups but not at 4 or 8);
    * a group's emitters are counted by products, not loops (quirk 13);
@@ -137,17 +137,10 @@ from OpenGL.GL import shaders as gl_shaders
 from .light_block import bind_program_block
 from .uniforms import set_uniform_array
 
-__all__ = ["SHADER_DIR", "SHADER_FILES", "Program", "ProgramCache", "glsl", "program_source"]
+__all__ = ["SHADER_DIR", "Program", "ProgramCache", "glsl", "program_source"]
 
 SHADER_DIR = Path(__file__).resolve().parent / "shaders"
 """Our GLSL: whole shaders (``*.vert``, ``*.frag``) and the pieces they include (``*.glsl``)."""
-
-SHADER_FILES = {"mesh.vert": "surface.vert", "mesh.frag": "surface.frag", "flat.vert": "surface.vert",
-                "flat.frag": "unlit.frag", "mesh_depth.vert": "depth.vert", "mesh_depth.frag": "depth.frag",
-                "segmentation.vert": "depth.vert", "segmentation.frag": "segmentation.frag",
-                "transmittance.frag": "transmittance.frag"}
-"""Our shader file for each shader name a pass asks for (pyrender's forward and shadow passes ask
-by pyrender's file names; ``transmittance.frag`` is ours by name)."""
 
 _INCLUDE = '#include "'
 
@@ -167,14 +160,11 @@ def program_source(name: str, defines: dict[str, int]) -> str:
 
 
 class Program:
-    """One linked GL program of our shaders, with its uniforms' locations asked of GL once.
+    """One GL program of our shaders, linked at first use, with its uniforms' locations asked of GL once.
 
     Args:
         shaders: our shader files, vertex then fragment (names in ``shaders/``).
         defines: ``{name: int}``, declared in both stages (:func:`program_source`).
-
-    The methods with pyrender's names (``_bind``, ``_unbind``, ``_in_context``, ``_add_to_context``,
-    ``delete``) are what pyrender's forward and shadow passes call on a program.
     """
 
     def __init__(self, shaders: tuple[str, str], defines: dict[str, int]):
@@ -182,41 +172,33 @@ class Program:
         self.defines = dict(defines)
         self.id: int | None = None
         """The GL program's name, once linked (else None)."""
-        self._vao_id: int | None = None
         self._locations: dict[str, int] = {}
 
-    def _in_context(self) -> bool:
-        return self.id is not None
-
-    def _add_to_context(self) -> None:
-        """Compile and link in the current context (quirk 2: without PyOpenGL's validation), and
+    def link(self) -> None:
+        """Compile and link in the current context, once (quirk 2: without PyOpenGL's validation), and
         point its lights' uniform block at its layout's binding point (``light_block``).
 
         Raises:
             RuntimeError: a compile or link error (PyOpenGL's message, with the shader's log).
         """
         if self.id is not None:
-            raise ValueError("program already linked")
+            return
         stages = (GL.GL_VERTEX_SHADER, GL.GL_FRAGMENT_SHADER)
         shader_ids = [gl_shaders.compileShader(program_source(name, self.defines), stage)
                       for name, stage in zip(self.shaders, stages)]
-        self._vao_id = GL.glGenVertexArrays(1)
-        GL.glBindVertexArray(self._vao_id)  # a VAO must be bound while linking (PyOpenGL)
+        vao = GL.glGenVertexArrays(1)
+        GL.glBindVertexArray(vao)  # a VAO must be bound while linking (PyOpenGL)
         self.id = gl_shaders.compileProgram(*shader_ids, validate=False)
         GL.glBindVertexArray(0)
+        GL.glDeleteVertexArrays(1, [vao])
         bind_program_block(self.id, "SPOT_LIGHT_SHADOWS" in self.defines)
 
-    def _bind(self) -> None:
+    def use(self) -> None:
+        """Make it the current program (linked)."""
         GL.glUseProgram(self.id)
 
-    def _unbind(self) -> None:
-        GL.glUseProgram(0)
-
-    def delete(self) -> None:
-        """Nothing: a program lives as long as its context, which frees it (``SceneRenderer.close``)."""
-
     def set_uniform(self, name: str, value: Any, unsigned: bool = False) -> None:
-        """Set a uniform of this (bound) program; a name the compiler removed (location -1) is ignored.
+        """Set a uniform of this (current) program; a name the compiler removed (location -1) is ignored.
 
         Args:
             name: the uniform's name in the program (``"material.base_color_factor"``).
@@ -236,80 +218,47 @@ class Program:
         if isinstance(value, np.ndarray):
             kind = "u" if unsigned or value.dtype.kind == "u" else "i" if value.dtype.kind == "i" else "f"
             set_uniform_array(location, value, kind)
-        elif isinstance(value, float):
-            GL.glUniform1f(location, value)
-        elif isinstance(value, (int, bool)):
+        elif isinstance(value, (float, np.floating)):
+            GL.glUniform1f(location, float(value))
+        elif isinstance(value, (int, bool, np.integer)):
             (GL.glUniform1ui if unsigned else GL.glUniform1i)(location, int(value))
         else:
             raise TypeError(f"uniform {name!r}: no GL uniform for a value of type {type(value).__name__}")
 
 
 class ProgramCache:
-    """The programs of one GL context, keyed by shader files and defines (quirk 1).
-
-    ``len(cache)`` is the number of distinct programs built, which stays constant over a long run;
-    :attr:`variants` lists their defines.
-
-    While :attr:`transmittance` is true, lit programs with spot-light shadows are the variant that
-    also reads the transmittance maps (quirk 7). While :attr:`mirror` names a define of
-    ``mirror.MIRROR_DEFINES``, lit programs are that variant (quirk 8). While
-    :attr:`shadow_fraction` is true, lit programs output the fraction of the direct light the
-    occluders block (quirk 9); while :attr:`shadow_free` is true, they also output the colour with no
-    light blocked (quirk 10). While :attr:`light_groups` is set (the painting's draws, with at most
-    ``UNROLLED_LIGHT_GROUPS`` light groups), lit programs without spot-light shadows add that many
-    groups written out (define ``LIGHT_GROUPS``; quirk 6).
+    """The programs of one GL context, keyed by shader files and defines (quirk 1): ``len(cache)`` is
+    the number of distinct programs, which stays constant over a long run; :attr:`variants` lists
+    their defines.
 
     Args:
         shadow_taps: 4 (3 x 3 tent filter), 1 (2 x 2 filter) or 0 (soft) depth-compare taps per
-            shadow lookup (define ``SIDAR_SHADOW_TAPS``, quirk 3).
+            shadow lookup: the define ``SIDAR_SHADOW_TAPS`` of every program (quirk 3).
     """
 
     def __init__(self, shadow_taps: int = 4):
         self._programs: dict[tuple, Program] = {}
-        self._extra_defines = {"SIDAR_SHADOW_TAPS": shadow_taps}
-        self.transmittance = False
-        self.mirror: str | None = None
-        self.shadow_fraction = False
-        self.shadow_free = False
-        self.light_groups: int | None = None
+        self._common = {"SIDAR_SHADOW_TAPS": shadow_taps}
 
-    def get_program(self, vertex_shader: str, fragment_shader: str, geometry_shader: str | None = None,
-                    defines: dict[str, int] | None = None) -> Program:
-        """The program of the shaders a pass names (keys of :data:`SHADER_FILES`) with ``defines`` and
-        the variants set on this cache, created at first use (linked by its ``_add_to_context``)."""
-        if geometry_shader is not None:
-            raise ValueError(f"no geometry shaders here; got {geometry_shader!r}")
-        defines = {**(defines or {}), **self._extra_defines}
-        if fragment_shader == "mesh.frag":
-            if self.transmittance and "SPOT_LIGHT_SHADOWS" in defines:
-                defines["TRANSMITTANCE_SHADOWS"] = 1
-            if self.mirror:
-                defines[self.mirror] = 1
-            if self.shadow_fraction:
-                defines["SHADOW_FRACTION"] = 1
-            if self.shadow_free:
-                defines["SHADOW_FREE"] = 1
-            if self.light_groups is not None and "SPOT_LIGHT_SHADOWS" not in defines:
-                defines["LIGHT_GROUPS"] = self.light_groups
-        shaders = (SHADER_FILES[vertex_shader], SHADER_FILES[fragment_shader])
-        key = shaders + tuple(sorted(defines.items()))
-        if key not in self._programs:
-            self._programs[key] = Program(shaders, defines)
-        return self._programs[key]
+    def get(self, shaders: tuple[str, str], defines: dict[str, int]) -> Program:
+        """The program of ``shaders`` (vertex, fragment: files of ``shaders/``) with ``defines``,
+        created at first use (not linked: :meth:`Program.link`)."""
+        defines = {**defines, **self._common}
+        key = (*shaders, *sorted(defines.items()))
+        program = self._programs.get(key)
+        if program is None:
+            program = self._programs[key] = Program(shaders, defines)
+        return program
 
     @property
     def variants(self) -> list[dict[str, int]]:
-        """The defines of every program built so far, in the order they were built."""
+        """The defines of every program created so far, in the order they were created."""
         return [program.defines for program in self._programs.values()]
 
     @property
     def programs(self) -> list[Program]:
-        """Every program built so far, in the order they were built."""
+        """Every program created so far, in the order they were created."""
         return list(self._programs.values())
-
-    def clear(self) -> None:
-        """Forget every program (their GL objects die with the context)."""
-        self._programs = {}
 
     def __len__(self) -> int:
         return len(self._programs)

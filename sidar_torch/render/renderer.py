@@ -30,7 +30,7 @@ occluders (the texture as the reference camera samples it).
 
 ``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
 (``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``opacity``, ``label``, ``readback``; see
-:meth:`.pyrender_overrides.GLRenderer.draw` for how GL time is attributed).
+``render.passes`` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
@@ -41,9 +41,10 @@ What each view draws (which occluders, which emitters get shadows) is planned in
 work that cannot change a pixel is skipped there and here, each skip with its reason.
 
 The pieces: ``settings`` (what to draw), ``plan`` and ``visibility`` (what each view needs),
-``scene_graph`` (pyrender scenes), ``meshes``, ``shadow_maps``, ``unlit`` (label and opacity),
-``transmittance``, and ``pyrender_overrides`` (every pyrender override; shaders in ``programs`` and
-``shaders/``), ``context`` and ``framebuffer`` (the GL context and what it draws into).
+``draws`` (a view's draw list) built by ``scene_graph`` from the scene description, ``meshes`` and
+``gpu`` (what is uploaded), ``passes`` (the passes, with ``programs`` and ``shaders/``),
+``shadow_maps``, ``transmittance``, ``unlit`` (label and opacity), ``context`` and ``framebuffer``
+(the GL context and what it draws into). pyrender opens the context and does nothing else.
 """
 
 from __future__ import annotations
@@ -55,20 +56,20 @@ from dataclasses import dataclass
 from typing import Hashable
 
 import numpy as np
-import pyrender
 from OpenGL import GL
-from pyrender.constants import RenderFlags
 
 from ..geometry import is_reference_camera
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
-from .pyrender_overrides import GLRenderer, add_node
 from .context import GL_PLATFORM, open_context
+from .draws import Surface, ViewDraws, world_pose
 from .framebuffer import size_limits
+from .gpu import PaintingTexture
 from .meshes import MeshPool, mesh_level, plane_mesh
 from .mirror import PaintingMirror
+from .passes import Passes
 from .plan import ViewPlan, plan_views
-from .scene_graph import PAINTING_SAMPLERS, gl_material, new_scene
+from .scene_graph import PAINTING_FILTERS, gl_material, view_draws
 from .settings import RenderSettings
 from .shadow_maps import ShadowMaps
 from .unlit import render_label, render_opacity
@@ -140,33 +141,32 @@ class SceneRenderer:
         self.gl_limits = size_limits()
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
-        self._gl = GLRenderer(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
+        self._passes = Passes(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
                               outputs=2 if settings.shadow_free else 1,
                               clear_written_texels=settings.clear_written_texels,
                               highlight_spill=settings.highlight_spill, light_radius=settings.light_radius)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
-        self._shadows = ShadowMaps(self._gl, settings)
-        self._painting: np.ndarray | None = None
-        self._texture: pyrender.Texture | None = None
+        self._shadows = ShadowMaps(self._passes, settings)
+        self._texture: PaintingTexture | None = None
         self._warmed_up: set[Hashable] = set()
 
     @property
     def program_count(self) -> int:
         """Number of shader programs built so far (constant once every variant has been used)."""
-        return len(self._gl._program_cache)
+        return len(self._passes.programs)
 
     @property
     def program_variants(self) -> list[dict[str, int]]:
         """The defines of every shader program built so far, in the order they were built (``programs``)."""
-        return self._gl._program_cache.variants
+        return self._passes.programs.variants
 
     @property
     def shadow_map_count(self) -> int:
-        """Number of pooled spot lights, each with its own ``shadow_map_size``-square float32
-        shadow map: grows to the most emitters one view has used, then stays."""
-        return len(self._shadows.lights)
+        """Number of ``shadow_map_size``-square shadow maps (one per emitter rank): grows to the most
+        emitters one view has used, then stays."""
+        return self._shadows.layers
 
     def render(self, sequence: SceneSequence, painting: np.ndarray,
                timings: dict[str, float] | None = None) -> RenderedSequence:
@@ -176,7 +176,7 @@ class SceneRenderer:
             sequence: the scenes; its ``image_size`` must be this renderer's.
             painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel).
             timings: if given, seconds spent are added to its keys ``"upload"`` (painting
-                texture and meshes), ``"graph"`` (building pyrender scenes), ``"shadow"``,
+                texture and meshes), ``"graph"`` (building the draw lists), ``"shadow"``,
                 ``"colour"``, ``"mask"``, ``"opacity"`` and ``"label"`` (draw passes) and
                 ``"readback"``; the pixels are the same either way.
         """
@@ -208,7 +208,7 @@ class SceneRenderer:
             with timed(timings, "label"):
                 label = painting.copy()
         else:
-            label = render_label(self._gl, reference, self._plane, texture, self.image_size, timings)
+            label = render_label(self._passes, reference, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 np.stack(hidden) if self.settings.opacities else None,
@@ -255,16 +255,16 @@ class SceneRenderer:
         self._release.detach()
         _DISOWNED.append(self)
 
-    def _painting_texture(self, painting: np.ndarray) -> pyrender.Texture:
-        """The painting's texture, created (and uploaded at first draw) once per painting."""
-        if self._texture is None or not np.array_equal(painting, self._painting):
-            rgba = np.concatenate([painting, np.full((*painting.shape[:2], 1), 255, np.uint8)], axis=2)
-            self._texture = pyrender.Texture(source=rgba, source_channels="RGBA",
-                                             sampler=PAINTING_SAMPLERS[self.settings.texture_filter])
-            self._painting = painting.copy()
+    def _painting_texture(self, painting: np.ndarray) -> PaintingTexture:
+        """The painting's texture, created (and uploaded at first draw) once per painting; the
+        previous painting's texture is freed."""
+        if self._texture is None or not np.array_equal(painting, self._texture.rgb):
+            if self._texture is not None:
+                self._texture.delete()
+            self._texture = PaintingTexture(painting.copy(), PAINTING_FILTERS[self.settings.texture_filter])
         return self._texture
 
-    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: pyrender.Texture,
+    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
                      timings: dict[str, float] | None = None
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
         """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool, with
@@ -272,76 +272,72 @@ class SceneRenderer:
         ``(H, W)`` uint8, else None), and with ``settings.shadow_free`` the view with no light blocked
         (``(H, W, 3)`` uint8, else None), drawing what ``plan`` says."""
         with timed(timings, "graph"):
-            scene, plane = new_scene(view.camera, view.ambient, self._plane, view.plane_material, texture,
-                                     self.image_size)
-            self._gl.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
-                                 if self.settings.mirrors else None)
-            # Every occluder is added, culled or not: the scene's bounds set the depth range of the
-            # shadow cameras (pyrender's ``scene.scale``). A culled one is just never drawn.
-            nodes = []
+            draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size)
+            self._passes.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
+                                     if self.settings.mirrors else None)
+            # Every occluder is listed, culled or not: they set the depth range of the cone-fitted
+            # shadow cameras (``ViewDraws.scale``). A culled one is just never drawn.
             counts: dict[tuple[str, int], int] = {}
             for occ in view.occluders:
                 key = (occ.shape, occ.variant, mesh_level(occ, view, self.settings))
                 mesh = self._meshes.take(*key[:2], counts.setdefault(key, 0), key[2])
                 counts[key] += 1
-                mesh.primitives[0].material = gl_material(occ.material)
-                nodes.append(add_node(scene, occ.object_to_world(), mesh=mesh))
-            self.skipped["occluders_culled"] += len(nodes) - len(plan.drawn | plan.casters)
-            shadowed = self._shadows.add_lights(scene, view, plan.order, plan.n_shadowed)
-            casters = {nodes[i] for i in plan.casters}
-            transmitting = {nodes[i] for i in plan.casters
-                            if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow}
-            self._gl.shadow_frusta = self._shadows.frusta(shadowed, view, sequence)
-            map_keys = self._shadows.map_keys(scene, shadowed, casters - transmitting)
+                draws.occluders.append(Surface(mesh, world_pose(occ.object_to_world()), gl_material(occ.material)))
+            self.skipped["occluders_culled"] += len(draws.occluders) - len(plan.drawn | plan.casters)
+            shadowed = self._shadows.add_lights(draws, view, plan.order, plan.n_shadowed)
+            casters = [draws.occluders[i] for i in sorted(plan.casters)]
+            transmitting = [draws.occluders[i] for i in sorted(plan.casters)
+                            if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow]
+            self._passes.shadow_frusta = self._shadows.frusta(shadowed, view, sequence)
+            map_keys = self._shadows.map_keys(draws, shadowed, [s for s in casters if not any(s is t for t in transmitting)])
             stale = self._shadows.stale(map_keys)
             self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
-        drawn = {nodes[i] for i in plan.drawn}
+        drawn = [draws.occluders[i] for i in sorted(plan.drawn)]
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
-        # caster), the unshadowed draw gives the same pixels without the shadow passes.
-        flags = RenderFlags.SHADOWS_SPOT if shadowed else RenderFlags.NONE
+        # caster), the lit draw without lookups gives the same pixels without the shadow passes.
         # The shadow-free view comes from the same draw (a second output, quirk 10); without a
         # shadowed light the view is its own shadow-free view.
         both = self.settings.shadow_free and bool(shadowed)
         # The colour pass leaves the mask's answer in the stencil whenever it can (single-sampled):
         # always, so that its programs meet the same GL state in every view (one llvmpipe variant each).
         stencil = self.settings.masks_from_stencil and self.settings.antialias == 1
-        with self._gl._target.multisampled():  # settings.antialias samples; the other passes single-sampled
-            image = self._gl.draw(scene, flags, seen={plane} | drawn, casters=casters, transmitting=transmitting,
-                                  shadowed=shadowed, timings=timings, step="colour", stale=stale,
-                                  painting_parts=(plane, plan.painting_parts), shadow_free=both, stencil=stencil)
+        with self._passes.target.multisampled():  # settings.antialias samples; the other passes single-sampled
+            image = self._passes.draw(draws, "lit", [draws.painting, *drawn], casters=casters, transmitting=transmitting,
+                                      shadowed=shadowed, stale=stale, painting_parts=plan.painting_parts,
+                                      shadow_free=both, stencil=stencil, timings=timings, step="colour")
         if both:
             image, unshadowed = image[0], image[1, ..., :3]
         else:
             unshadowed = image[..., :3] if self.settings.shadow_free else None
         self._shadows.drawn(map_keys)
-        masked = {nodes[i] for i in plan.drawn
-                  if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity}
+        masked = [draws.occluders[i] for i in sorted(plan.drawn)
+                  if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity]
         if not masked and self.settings.masks_from_outline:
             # Only the painting would be drawn: its pixels are those whose centre sees it, which is
             # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
             self.skipped["masks_from_outline"] += 1
             with timed(timings, "mask"):
                 mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
-        elif stencil and masked == drawn:
+        elif stencil and len(masked) == len(drawn):
             # The mask's draw would draw what the colour pass drew, in the same order with the same
             # depth test: the painting is visible where its fragment kept the depth, which the colour
             # pass marked in the stencil.
             self.skipped["masks_from_stencil"] += 1
             with timed(timings, "mask"):
-                mask = self._gl._target.read_stencil() != 1
+                mask = self._passes.target.read_stencil() != 1
         else:
-            seg_map = {plane: 255, **{node: 0 for node in masked}}
-            seg = self._gl.draw(scene, RenderFlags.SEG, seen={plane} | masked, seg_node_map=seg_map,
-                                timings=timings, step="mask")
+            grey = {id(draws.painting): 255, **{id(s): 0 for s in masked}}
+            seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey,
+                                    timings=timings, step="mask")
             mask = seg[..., 0] < 128
-        opacity = render_opacity(self._gl, scene, plane, drawn, mask, timings) if self.settings.opacities else None
+        opacity = render_opacity(self._passes, draws, drawn, mask, timings) if self.settings.opacities else None
         shadow = None
         if self.settings.shadow_masks:
-            shadow = self._render_shadow_mask(scene, plane, plan, casters, transmitting, shadowed, mask, timings)
+            shadow = self._render_shadow_mask(draws, plan, casters, transmitting, shadowed, mask, timings)
         return image, mask, opacity, shadow, unshadowed
 
-    def _render_shadow_mask(self, scene: pyrender.Scene, plane: pyrender.Node, plan: ViewPlan, casters: set,
-                            transmitting: set, shadowed: set, mask: np.ndarray,
+    def _render_shadow_mask(self, draws: ViewDraws, plan: ViewPlan, casters: list[Surface],
+                            transmitting: list[Surface], shadowed: list, mask: np.ndarray,
                             timings: dict[str, float] | None) -> np.ndarray:
         """``(H, W)`` uint8: 255 times the fraction of the direct light on the visible painting that
         occluders block, 0 where ``mask`` (painting not visible) is true.
@@ -355,10 +351,9 @@ class SceneRenderer:
         parts = [part for part in plan.painting_parts if part.begin < part.end]
         if not shadowed or (plan.painting_parts and not parts):
             return np.zeros(self.image_size, np.uint8)
-        fraction = self._gl.draw(scene, RenderFlags.SHADOWS_SPOT, seen={plane}, casters=casters,
-                                 transmitting=transmitting, shadowed=shadowed, timings=timings,
-                                 step="shadow_mask", stale=set(), painting_parts=(plane, parts),
-                                 shadow_fraction=True)
+        fraction = self._passes.draw(draws, "lit", [draws.painting], casters=casters, transmitting=transmitting,
+                                     shadowed=shadowed, painting_parts=parts, shadow_fraction=True,
+                                     timings=timings, step="shadow_mask")
         return np.where(mask, 0, fraction[..., 0]).astype(np.uint8)
 
 

@@ -43,7 +43,7 @@ class ShadowMapArray:
     Args:
         size: side of each map, texels (a power of two).
 
-    Pass an instance to pyrender's texture binding like a texture (it has ``_bind``).
+    The lit shader reads it as ``sampler2DArrayShadow`` (bound by :meth:`bind`).
     """
 
     def __init__(self, size: int):
@@ -61,7 +61,8 @@ class ShadowMapArray:
         GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, 0)
         self.reserve(1)  # a complete texture, so every lit draw can bind it
 
-    def _bind(self) -> None:
+    def bind(self) -> None:
+        """Bind the maps' texture to the active texture unit."""
         GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, self._texture)
 
     def reserve(self, layers: int) -> bool:
@@ -69,7 +70,7 @@ class ShadowMapArray:
         texels; returns whether it did."""
         if layers <= self.layers:
             return False
-        self._bind()
+        self.bind()
         GL.glTexImage3D(GL.GL_TEXTURE_2D_ARRAY, 0, GL.GL_DEPTH_COMPONENT, self.size, self.size, layers, 0,
                         GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT, None)
         GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, 0)

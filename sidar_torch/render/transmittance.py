@@ -32,33 +32,21 @@ the most shadowed lights a view with a transparent caster has had, and reused. L
 
 from __future__ import annotations
 
-import ctypes
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
-import pyrender
 from OpenGL import GL
-from pyrender.constants import BufFlags
 
 from .shadow_array import TexelBox, clear_box
 
-__all__ = ["TransmittanceMaps", "vertex_defines"]
+if TYPE_CHECKING:
+    from .draws import Surface
+    from .programs import Program
+
+__all__ = ["TransmittanceMaps"]
 
 FAR = 60000.0
 """Distance stored where no transparent caster covers a texel (float16 holds up to 65504)."""
-
-_ATTRIBUTES = ("NORMAL", "TANGENT", "TEXCOORD_0", "TEXCOORD_1", "COLOR_0", "JOINTS_0", "WEIGHTS_0")
-"""pyrender's vertex buffers after the position, in the order of their attribute locations."""
-
-
-def vertex_defines(primitive: pyrender.Primitive) -> dict[str, int]:
-    """The attribute locations pyrender's ``mesh.vert`` needs for ``primitive``'s vertex buffers
-    (``NORMAL_LOC`` ..., ``INST_M_LOC``), as pyrender assigns them."""
-    present = [name for name in _ATTRIBUTES if primitive.buf_flags & getattr(BufFlags, name)]
-    defines = {f"{name}_LOC": k + 1 for k, name in enumerate(present)}
-    defines["INST_M_LOC"] = len(present) + 1
-    return defines
-
 
 class TransmittanceMaps:
     """The transmittance maps of one GL context: tile ``k`` belongs to the view's ``k``-th spot light.
@@ -66,8 +54,8 @@ class TransmittanceMaps:
     Args:
         tile: side of each light's map, texels.
 
-    Pass an instance to pyrender's ``_bind_texture`` like a texture (it has ``_bind``); the
-    shader reads it as ``sampler2D`` with ``texelFetch`` and needs :attr:`layout`.
+    The lit shader reads it as ``sampler2D`` with ``texelFetch`` (bound by :meth:`bind`) and needs
+    :attr:`layout`.
     """
 
     def __init__(self, tile: int):
@@ -90,7 +78,8 @@ class TransmittanceMaps:
         """``(tile, rows)``: tile side in texels and tiles per column, as the shader reads them."""
         return self.tile, self.rows
 
-    def _bind(self) -> None:
+    def bind(self) -> None:
+        """Bind the tiles' texture to the active texture unit."""
         GL.glBindTexture(GL.GL_TEXTURE_2D, self._texture)
 
     def reserve(self, tiles: int) -> None:
@@ -105,18 +94,16 @@ class TransmittanceMaps:
             self._written = [(0, 0, self.tile, self.tile)] * tiles  # new storage: undefined texels
 
     def draw_tile(self, k: int, V: np.ndarray, P: np.ndarray, light_position: np.ndarray,
-                  casters: list[tuple[pyrender.Primitive, np.ndarray]],
-                  program_for: Callable[[pyrender.Primitive], object], writes: TexelBox) -> None:
+                  casters: list[Surface], program_for: Callable[[Surface], Program], writes: TexelBox) -> None:
         """Clear tile ``k`` and draw ``casters`` into it from a light.
 
         Args:
             k: ``0 <= k < self.tiles``.
             V, P: ``(4, 4)`` the light's world-to-camera (OpenGL frame) and projection matrices.
             light_position: ``(3,)`` world position of the light.
-            casters: ``(primitive, pose)`` pairs, ``pose`` the ``(4, 4)`` object-to-world matrix;
-                the primitive's material gives the colour and alpha. Drawn in this order (the
-                float16 product rounds in that order).
-            program_for: the uploaded transmittance program for a primitive (its vertex layout).
+            casters: the transparent surfaces (``draws.Surface``); each one's material gives the
+                colour and alpha. Drawn in this order (the float16 product rounds in that order).
+            program_for: the linked transmittance program for a surface (its vertex layout).
             writes: the tile's texels (tile coordinates) the casters may cover: the next draw
                 into the tile clears only these (the whole tile: ``(0, 0, tile, tile)``).
         """
@@ -136,23 +123,17 @@ class TransmittanceMaps:
         GL.glEnable(GL.GL_CULL_FACE)
         GL.glCullFace(GL.GL_FRONT)  # back faces only: see the module docstring
         GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
-        for primitive, pose in casters:
-            program = program_for(primitive)
-            program._bind()
+        for surface in casters:
+            program = program_for(surface)
+            program.use()
             program.set_uniform("V", V)
             program.set_uniform("P", P)
-            program.set_uniform("M", pose)
+            program.set_uniform("M", surface.pose)
             program.set_uniform("light_position", light_position)
-            program.set_uniform("base_color", primitive.material.baseColorFactor)
-            primitive._bind()
-            if primitive.indices is None:  # flat-shaded meshes are unindexed
-                GL.glDrawArraysInstanced(primitive.mode, 0, len(primitive.positions), 1)
-            else:
-                GL.glDrawElementsInstanced(primitive.mode, primitive.indices.size, GL.GL_UNSIGNED_INT,
-                                           ctypes.c_void_p(0), 1)
-            primitive._unbind()
-            program._unbind()
-        # Leave the state pyrender assumes: it sets blend functions and culling, never these.
+            program.set_uniform("base_color", surface.material.base_color)
+            surface.mesh.draw()
+        GL.glUseProgram(0)
+        # Leave the state the other passes assume: they set blend functions and culling, never these.
         GL.glBlendEquation(GL.GL_FUNC_ADD)
         GL.glDisable(GL.GL_SCISSOR_TEST)
         GL.glCullFace(GL.GL_BACK)

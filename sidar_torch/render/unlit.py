@@ -1,34 +1,34 @@
 """The unlit draws: the label (the painting as the reference camera sees it) and each view's
-opacity (the fraction of the painting hidden at each pixel). Both use pyrender's flat shader
-(``RenderFlags.FLAT``), whose ``shaders/unlit.frag`` outputs the lit draw's Fresnel opacity (``programs`` quirk 5).
+opacity (the fraction of the painting hidden at each pixel). Both are the ``"unlit"`` pass of
+``render.passes``, whose ``shaders/unlit.frag`` outputs the lit draw's Fresnel opacity (``programs`` quirk 5).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pyrender
-from pyrender.constants import RenderFlags
 
 from ..scene import Camera, Material
 from ..timing import timed
-from .pyrender_overrides import GLRenderer
-from .scene_graph import gl_material, new_scene
+from .draws import Surface, ViewDraws
+from .gpu import GpuMesh, PaintingTexture
+from .passes import Passes
+from .scene_graph import gl_material, view_draws
 
 __all__ = ["render_label", "render_opacity"]
 
 
-def render_label(gl: GLRenderer, camera: Camera, painting: pyrender.Mesh, texture: pyrender.Texture,
+def render_label(passes: Passes, camera: Camera, painting: GpuMesh, texture: PaintingTexture,
                  image_size: tuple[int, int], timings: dict[str, float] | None = None) -> np.ndarray:
     """The label: ``(H, W, 3)`` uint8, the ``painting`` mesh with its ``texture`` as ``camera`` sees
     it, unlit (white, opaque), with nothing else in the scene."""
     plain = Material(np.ones(4), 0.0, 1.0)
     with timed(timings, "graph"):
-        scene, plane = new_scene(camera, 1.0, painting, plain, texture, image_size)
-    return gl.draw(scene, RenderFlags.FLAT, seen={plane}, timings=timings, step="label")[..., :3]
+        draws = view_draws(camera, 1.0, painting, plain, texture, image_size)
+    return passes.draw(draws, "unlit", [draws.painting], timings=timings, step="label")[..., :3]
 
 
-def render_opacity(gl: GLRenderer, scene: pyrender.Scene, plane: pyrender.Node, visible: set[pyrender.Node],
-                   mask: np.ndarray, timings: dict[str, float] | None = None) -> np.ndarray:
+def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mask: np.ndarray,
+                   timings: dict[str, float] | None = None) -> np.ndarray:
     """The view's opacity: ``(H, W)`` uint8, 255 times the fraction of the painting hidden.
 
     That is 255 outside the painting (background) and behind opaque occluders, 0 where the
@@ -39,11 +39,10 @@ def render_opacity(gl: GLRenderer, scene: pyrender.Scene, plane: pyrender.Node, 
     a transparent occluder more opaque under its specular highlights; that light-dependent part
     is left out here (it would need a lit draw), so under a highlight the value is lower.
 
-    An unlit draw of the ``scene`` the colour draw used (its materials are replaced; every view
-    sets its own): the painting white and opaque, the ``visible`` occluders black with their
-    alpha and blend mode, so each transparent layer multiplies what shows of the painting by
-    ``1 - a_k`` whatever the order, and an opaque one zeroes it. pyrender sorts and
-    depth-tests the occluders as in the colour draw (a transparent surface hides transparent
+    An unlit draw of the view the colour draw drew, its materials replaced: the painting white and
+    opaque, the ``visible`` occluders black with their alpha and blend mode, so each transparent
+    layer multiplies what shows of the painting by ``1 - a_k`` whatever the order, and an opaque one
+    zeroes it. The pass sorts and depth-tests the occluders as in the colour draw (a transparent surface hides transparent
     surfaces behind it drawn later, as it does there), and occluder parts behind the painting
     fail the depth test. The framebuffer holds 8 bits, rounded after each blended layer: within
     1/255 of the exact value per transparent layer.
@@ -54,10 +53,8 @@ def render_opacity(gl: GLRenderer, scene: pyrender.Scene, plane: pyrender.Node, 
     if not visible:
         return mask.astype(np.uint8) * 255
     with timed(timings, "graph"):
-        plane.mesh.primitives[0].material = gl_material(Material(np.ones(4), 0.0, 1.0))
-        for node in visible:
-            primitive = node.mesh.primitives[0]
-            black = np.array([0.0, 0.0, 0.0, primitive.material.baseColorFactor[3]])
-            primitive.material = gl_material(Material(black, 0.0, 1.0))
-    shown = gl.draw(scene, RenderFlags.FLAT, seen={plane} | visible, timings=timings, step="opacity")
+        white = Surface(draws.painting.mesh, draws.painting.pose, gl_material(Material(np.ones(4), 0.0, 1.0)))
+        black = [Surface(s.mesh, s.pose, gl_material(Material(np.array([0.0, 0.0, 0.0, s.material.base_color[3]]), 0.0, 1.0)))
+                 for s in visible]
+    shown = passes.draw(draws, "unlit", [white, *black], timings=timings, step="opacity")
     return 255 - shown[..., 0]
