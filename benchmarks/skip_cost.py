@@ -72,7 +72,7 @@ def cleared_texels(config) -> tuple[np.ndarray, np.ndarray]:
     from sidar_torch.render import RenderSettings, shared_renderer
 
     settings = RenderSettings.from_config(config)
-    on, off = (shared_renderer(replace(settings, clear_written_texels=flag))._gl for flag in (True, False))
+    on, off = (shared_renderer(replace(settings, clear_written_texels=flag))._passes for flag in (True, False))
     return tuple(np.array([gl.shadow_maps.cleared_texels, gl.transmittance.cleared_texels]) for gl in (on, off))
 
 

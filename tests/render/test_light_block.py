@@ -40,7 +40,7 @@ def test_the_block_layout_is_gls_in_every_lit_program():
     renderer = shared_renderer(RenderSettings.from_config(config))
     renderer._platform.make_current()
     seen = set()
-    for program in renderer._gl._program_cache.programs:
+    for program in renderer._passes.programs.programs:
         if program.id is None or GL.glGetUniformBlockIndex(program.id, BLOCK_NAME) == GL.GL_INVALID_INDEX:
             continue
         shadows = "SPOT_LIGHT_SHADOWS" in program.defines

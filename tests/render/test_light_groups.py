@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from sidar_torch.render import RenderSettings, SceneRenderer, shared_renderer
-from sidar_torch.render.pyrender_overrides import ShadowedSpotLight, add_node, light_group_count
+from sidar_torch.render.draws import SpotEmitter
+from sidar_torch.render.passes import light_group_count
 from sidar_torch.scene import sample_sequence
 
 from conftest import small_config, textured_painting
@@ -24,7 +25,7 @@ def test_groups_written_out_give_the_bytes_of_the_loop(shading):
     settings = RenderSettings.from_config(cfg)
     unrolled = shared_renderer(settings)
     looped = SceneRenderer(settings)  # its own renderer: a program cache of its own
-    looped._gl.unrolled_light_groups = 0
+    looped._passes.unrolled_light_groups = 0
     try:
         for n in range(1, 6):
             for seed in range(2):
@@ -40,12 +41,7 @@ def test_groups_written_out_give_the_bytes_of_the_loop(shading):
 
 
 def test_a_light_group_count_steps_over_each_group():
-    import pyrender
-
-    scene = pyrender.Scene()
     # Groups of 3, 1 and 2 emitters: only a group's first light's size counts.
-    for rank, size in enumerate([3, 0, 0, 1, 2, 0]):
-        light = ShadowedSpotLight(rank)
-        light.group_size = size
-        add_node(scene, np.eye(4), light=light)
-    assert light_group_count(scene) == 3
+    lights = [SpotEmitter(np.eye(4), np.ones(3, np.float32), 1.0, 0.1, 0.2, rank, group_size=size)
+              for rank, size in enumerate([3, 0, 0, 1, 2, 0])]
+    assert light_group_count(lights) == 3

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from OpenGL import GL
 
-from sidar_torch.render import RenderSettings, SceneRenderer, pyrender_overrides
+from sidar_torch.render import RenderSettings, SceneRenderer, passes
 from sidar_torch.render.context import GL_PLATFORM
 from sidar_torch.scene import sample_sequence
 
@@ -175,11 +175,11 @@ def test_own_framebuffer_gives_the_pixels_of_osmesas_buffer(monkeypatch):
     assert len(settings) == 1  # the presets' renderer, at one sample per pixel, spilling highlights, hard shadows
     ours = SceneRenderer(*settings)
     theirs = SceneRenderer(replace(*settings, masks_from_stencil=False))  # OSMesa's buffer has no stencil
-    theirs._gl._target = OSMesaOwnBuffer(*SMALL)
+    theirs._passes.target = OSMesaOwnBuffer(*SMALL)
     for seq, painting in sequences:
         expected = ours.render(seq, painting)
         with monkeypatch.context() as patch:
-            patch.setattr(pyrender_overrides, "FLIP_Y", np.eye(4))
+            patch.setattr(passes, "FLIP_Y", np.eye(4))
             got = theirs.render(seq, painting)
         for name in ("views", "masks", "label"):
             assert np.array_equal(getattr(got, name), getattr(expected, name)), name

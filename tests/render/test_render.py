@@ -267,27 +267,3 @@ def test_sizes_beyond_the_gl_limits_name_the_field_and_the_limit():
     with pytest.raises(ValueError, match="shadow_map_size: 1024 .* = 1000: expected a power of two <= 512"):
         RenderSettings((96, 128)).check_gl_limits(4096, 1000)
     RenderSettings((96, 128), 1024).check_gl_limits(1024, 1024)  # at the limit: fine
-
-
-def test_a_ranked_node_keeps_its_pose_and_derives_pyrenders_decomposition_on_demand():
-    import pyrender
-
-    from sidar_torch.render.pyrender_overrides import RankedNode
-
-    R, t = geometry.look_at(np.array([0.3, -0.2, 1.5]))
-    pose = np.eye(4)
-    pose[:3, :3], pose[:3, 3] = R.T * np.array([1.0, 2.0, 0.5]), -R.T @ t  # a rotation, a scale per axis
-    ours, theirs = RankedNode(0, matrix=pose), pyrender.Node(matrix=pose)
-    assert np.array_equal(ours.matrix, pose)
-    for field in ("rotation", "scale", "translation"):
-        assert np.array_equal(getattr(ours, field), getattr(theirs, field)), field
-    ours.translation = theirs.translation = np.array([1.0, 2.0, 3.0])
-    assert np.allclose(ours.matrix, theirs.matrix) and np.allclose(ours.matrix[:3, 3], [1.0, 2.0, 3.0])
-    for row in ([1.0, 1.0, 1.0, 1.0], [0.0, 0.0, 0.0, np.nan], [0.0, 1e-7, 0.0, 1.0]):
-        bad = pose.copy()
-        bad[3] = row
-        with pytest.raises(ValueError, match="bottom row"):
-            RankedNode(1, matrix=bad)
-    close = pose.copy()
-    close[3] = [1e-9, 0.0, 0.0, 1.0 + 1e-6]  # within np.allclose's tolerances, as before
-    assert np.array_equal(RankedNode(1, matrix=close).matrix, close)

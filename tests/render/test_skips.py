@@ -13,7 +13,6 @@ import pytest
 
 from sidar_torch import geometry
 from sidar_torch.render import RenderSettings, shared_renderer, visibility
-from sidar_torch.render.pyrender_overrides import RankedNode, ranked
 from sidar_torch.render.plan import plan_views
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
@@ -63,12 +62,10 @@ def test_skipping_shadows_that_cannot_reach_the_view_changes_no_pixel(preset, li
 
 
 def test_lights_are_summed_in_rank_order_so_the_shadowed_ones_come_first():
-    """A set of ranks 5..8 iterates as 8, 5, 6, 7: the shader's light order must not come from set
-    iteration, or a shadowed emitter lands past ``n_shadowed`` and loses its shadow (a view with 3
-    occluders and 4 emitters did: 6 pixels lit that the unskipped render shadows)."""
-    nodes = {RankedNode(rank) for rank in (5, 6, 7, 8)}
-    assert [hash(n) for n in nodes] != [5, 6, 7, 8]  # what made it necessary
-    assert [hash(n) for n in ranked(nodes)] == [5, 6, 7, 8]
+    """The shader's light order is the draw list's, shadowed emitters first: were it another (pyrender's
+    set of nodes iterated ranks 5..8 as 8, 5, 6, 7), a shadowed emitter would land past ``n_shadowed`` and
+    lose its shadow (a view with 3 occluders and 4 emitters did: 6 pixels lit that the unskipped render
+    shadows)."""
     cfg = small_config(image_size=(48, 64), n_occluders=(3, 4), n_lights=(1, 3), light_types=("spot", "point"))
     seq = sample_sequence(cfg, np.random.default_rng(11))
     assert_same_pixels(*render_both(RenderSettings.from_config(cfg), seq, textured_painting((48, 64)),
@@ -152,7 +149,7 @@ def test_clearing_only_the_texels_a_map_had_written_changes_no_pixel(preset):
     cfg = small_config(preset, n_views=3, n_occluders=(1, 4))
     settings = RenderSettings.from_config(cfg)
     painting = textured_painting(SMALL)
-    gl = {flag: shared_renderer(replace(settings, clear_written_texels=flag))._gl for flag in (True, False)}
+    gl = {flag: shared_renderer(replace(settings, clear_written_texels=flag))._passes for flag in (True, False)}
 
     def counts(flag):  # so far: transmittance tiles drawn, depth and transmittance texels cleared
         return np.array([gl[flag].transmittance.passes, gl[flag].shadow_maps.cleared_texels,
@@ -309,9 +306,9 @@ def test_masks_from_the_colour_pass_stencil_are_the_drawn_masks(preset, override
 def test_a_stencil_mask_needs_a_single_sampled_pass_and_the_painting():
     renderer = shared_renderer(RenderSettings(SMALL, antialias=4))
     with pytest.raises(ValueError, match="stencil: needs a single-sampled colour pass; .* 4 samples per pixel"):
-        renderer._gl.draw(None, 0, set(), stencil=True)
+        renderer._passes.draw(None, "lit", [], stencil=True)
     with pytest.raises(ValueError, match="stencil: needs painting_parts"):
-        shared_renderer(RenderSettings(SMALL))._gl.draw(None, 0, set(), stencil=True)
+        shared_renderer(RenderSettings(SMALL))._passes.draw(None, "lit", [], stencil=True)
 
 
 def test_shadow_maps_shared_by_the_views_are_drawn_once():

@@ -102,12 +102,12 @@ def test_views_without_transparent_casters_skip_the_maps_and_glass_behind_the_pa
     renderer = shared_renderer(RenderSettings(SMALL))  # the renderer of ``render``
     lights = [side_spot(-1.0)]
     solid = cube([0.2, 0.1, 0.25])
-    passes = renderer._gl.transmittance.passes
+    passes = renderer._passes.transmittance.passes
     opaque_only, _ = render([solid], lights, ambient=0.1, painting=WHITE)
-    assert renderer._gl.transmittance.passes == passes  # skipped
+    assert renderer._passes.transmittance.passes == passes  # skipped
     glass_below = sphere(Material(np.array([0.8, 0.1, 0.1, 0.3]), 0.0, 1.0), height=-0.3)
     with_glass, _ = render([solid, glass_below], lights, ambient=0.1, painting=WHITE)
-    assert renderer._gl.transmittance.passes == passes + 1  # drawn, for the one shadowed light
+    assert renderer._passes.transmittance.passes == passes + 1  # drawn, for the one shadowed light
     assert np.array_equal(with_glass, opaque_only)
 
 
