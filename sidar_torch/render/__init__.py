@@ -44,7 +44,7 @@ def _renderer():
 
 
 def preload() -> None:
-    """Import the renderer's modules (pyrender, PyOpenGL, trimesh) now, if the GL libraries are there.
+    """Import the renderer's modules (PyOpenGL, trimesh, pyrender's platform) now, if the GL libraries are there.
 
     Processes forked afterwards (DataLoader workers, a render pool) inherit them instead of
     importing them at their first render, about 1 s each. It creates no GL context, so forking
@@ -52,7 +52,7 @@ def preload() -> None:
     says what to install.
     """
     try:
-        _renderer()
+        _renderer().import_platform()
     except RuntimeError:
         pass
 

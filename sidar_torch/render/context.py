@@ -143,6 +143,15 @@ def _address(handle) -> int | None:
     return ctypes.cast(handle, ctypes.c_void_p).value
 
 
+def import_platform() -> None:
+    """Import the platform's module (pyrender's ``platforms``, which loads pyrender, about 1 s) without
+    opening a context, so that processes forked afterwards inherit it."""
+    if GL_PLATFORM == "osmesa":
+        import pyrender.platforms.osmesa  # noqa: F401
+    elif GL_PLATFORM == "egl":
+        import pyrender.platforms.egl  # noqa: F401
+
+
 def open_context(width: int, height: int):
     """Create and make current an offscreen context of ``width`` x ``height`` pixels.
 

@@ -42,7 +42,8 @@ from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps
 from .visibility import map_texel_box
 
-__all__ = ["UNROLLED_LIGHT_GROUPS", "Passes", "frustum_projection", "light_group_count", "light_matrices"]
+__all__ = ["UNROLLED_LIGHT_GROUPS", "Passes", "frustum_projection", "light_group_count", "light_matrices",
+           "shadow_depth_range"]
 
 UNROLLED_LIGHT_GROUPS = 4
 """The most light groups the painting's program without lookups adds written out rather than in a loop
@@ -69,6 +70,12 @@ def frustum_projection(frustum: np.ndarray) -> np.ndarray:
     ])
 
 
+def shadow_depth_range(scale: float) -> tuple[float, float]:
+    """Near and far planes of a default shadow camera in a view of ``scale`` (``ViewDraws.scale``):
+    1 % and 10x of it, pyrender's (the near plane is closer than any caster)."""
+    return 0.01 * scale, 10 * scale
+
+
 def light_matrices(light: SpotEmitter, scale: float, frustum: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """The shadow map's view and projection ``(4, 4)`` of ``light`` (computed once, then kept on it).
 
@@ -83,7 +90,7 @@ def light_matrices(light: SpotEmitter, scale: float, frustum: np.ndarray | None)
     """
     if light.matrices is None:
         V = np.linalg.inv(light.pose)
-        near, far = 0.01 * scale, 10 * scale
+        near, far = shadow_depth_range(scale)
         if frustum is None:
             t = np.tan(float(np.clip(2 * light.outer_cone + np.pi / 16.0, 0.0, np.pi)) / 2.0)
             P = np.zeros((4, 4))

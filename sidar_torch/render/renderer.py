@@ -61,7 +61,7 @@ from OpenGL import GL
 from ..geometry import is_reference_camera
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
-from .context import GL_PLATFORM, open_context
+from .context import GL_PLATFORM, import_platform, open_context
 from .draws import Surface, ViewDraws, world_pose
 from .framebuffer import size_limits
 from .gpu import PaintingTexture
@@ -75,7 +75,7 @@ from .shadow_maps import ShadowMaps
 from .unlit import render_label, render_opacity
 from .visibility import painting_mask
 
-__all__ = ["RenderedSequence", "SceneRenderer", "shared_renderer"]
+__all__ = ["RenderedSequence", "SceneRenderer", "import_platform", "shared_renderer"]
 
 
 @dataclass(frozen=True)

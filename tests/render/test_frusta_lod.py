@@ -7,11 +7,11 @@ import math
 from dataclasses import replace
 
 import numpy as np
-import pyrender
 import pytest
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.render import RenderSettings, SceneRenderer, visibility
+from sidar_torch.render import RenderSettings, SceneRenderer, passes, visibility
+from sidar_torch.render.draws import ViewDraws
 from sidar_torch.render.meshes import FIXED_LEVEL, detail_level, level_gap, mesh_level, unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 
@@ -128,8 +128,8 @@ def test_no_acne_on_occluders_and_a_tight_near_plane_would_give_it(monkeypatch):
     assert differing(4096, "fitted") <= 0.01 * on_occluders.sum()
     for smap in (256, 1024):
         assert differing(smap, "fitted") < differing(smap, "cone")  # 25 < 209 and 3 < 33 here
-    far_near = pyrender.PerspectiveCamera(yfov=1.0, znear=100.0, zfar=1e3, aspectRatio=1.0)  # min(near, fitted): fitted
-    monkeypatch.setattr(pyrender.SpotLight, "_get_shadow_camera", lambda self, scale: far_near)
+    # A near plane far beyond every caster: min(near, fitted) is then the fitted one.
+    monkeypatch.setattr(passes, "shadow_depth_range", lambda scale: (100.0, 1e3))
     assert differing(1024, "fitted") > 0.05 * on_occluders.sum()  # 222 pixels here, against 3
 
 
@@ -163,10 +163,10 @@ def test_shared_lights_get_one_frustum_over_the_views():
     try:
         frusta = []
         for view in sequence.views:
-            scene = pyrender.Scene()
+            draws = ViewDraws(np.eye(4), np.eye(4), np.zeros(3, np.float32), None)
             order = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
-            nodes = renderer._shadows.add_lights(scene, view, order, len(order))
-            frusta.append(sorted(map(tuple, renderer._shadows.frusta(nodes, view, sequence).values())))
+            lights = renderer._shadows.add_lights(draws, view, order, len(order))
+            frusta.append(sorted(map(tuple, renderer._shadows.frusta(lights, view, sequence).values())))
         assert frusta[0] and all(f == frusta[0] for f in frusta)
     finally:
         renderer.close()

@@ -2,12 +2,12 @@
 draw hides, it agrees with ``masks`` where both are binary, and switching it on changes nothing else."""
 
 import numpy as np
-import pyrender
 import pytest
 import torch
 from PIL import Image
 
 from sidar_torch import ExportedDataset, SidarAugment, SidarDataset, export_dataset, geometry, load_config
+from sidar_torch.render.gpu import PaintingTexture
 from sidar_torch.scene import Camera, Material, Occluder
 
 from conftest import SMALL, TINY, assert_same_sample, render_flat_painting, sample_digest, small_config
@@ -143,9 +143,11 @@ def test_a_bad_switch_value_raises_naming_the_field():
 def test_the_opacity_draw_keeps_the_painting_uploaded(monkeypatch):
     # The opacity draw uses no texture; the renderer must not free the painting's and upload it
     # again for the next view (pixels would not change, only the time).
-    uploads = []
-    upload = pyrender.Texture._add_to_context
-    monkeypatch.setattr(pyrender.Texture, "_add_to_context", lambda t: (uploads.append(t), upload(t))[1])
     config = small_config(n_views=3, n_occluders=(2, 3), opacity_output=True)
-    SidarDataset(config=config, seed=9).sample(0)
-    assert len([t for t in uploads if t.source is not None]) == 1  # the painting, once
+    dataset = SidarDataset(config=config, seed=9)
+    dataset.warm_up()  # its grey painting is uploaded before counting (the test passes in any order)
+    uploads = []
+    upload = PaintingTexture.upload
+    monkeypatch.setattr(PaintingTexture, "upload", lambda t: (upload(t) and uploads.append(t)) or False)
+    dataset.sample(0)
+    assert len(uploads) == 1  # the painting, once
