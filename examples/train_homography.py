@@ -2,6 +2,7 @@
 
     python examples/train_homography.py            # the full run (about 5 minutes on 2 cores)
     python examples/train_homography.py --quick    # a smoke run (seconds)
+    python examples/train_homography.py --save ~/.cache/sidar_torch/homographynet.pt  # keep the weights
 
 Two copies of one small HomographyNet-style regressor (DeTone et al. 2016: two 64 x 64 grey
 patches in, the four corners' displacements out) are trained from scratch, on
@@ -19,7 +20,9 @@ Both train on the same number of pairs, drawn once from the same paintings, and 
 evaluated on fixed held-out pairs of each kind, from paintings and scenes not used in training.
 It prints the mean corner error (pixels, the mean over the four corners of the distance between
 the predicted and true displacement) of each model on each test set, with the medians, and that
-of predicting no motion. Rendering runs once, into memory, in 2 DataLoader workers.
+of predicting no motion. Rendering runs once, into memory, in 2 DataLoader workers. With ``--save
+PATH`` the weights of the model trained on SIDAR pairs are written to PATH: the ``homographynet``
+baseline of ``python -m sidar_torch evaluate`` loads them (``SIDAR_TORCH_HOMOGRAPHYNET=PATH``).
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import kornia
 import torch
@@ -34,6 +38,7 @@ from torch import nn
 from torch.utils.data import DataLoader, Dataset
 
 from sidar_torch import SidarDataset, homography_pairs, load_config
+from sidar_torch.baselines import homography_net
 
 PATCH = 64
 RHO = 16
@@ -119,16 +124,6 @@ def network_input(patch_a: torch.Tensor, patch_b: torch.Tensor) -> torch.Tensor:
     return (grey - mean) / (std + 1e-3)
 
 
-def homography_net() -> nn.Module:
-    """Four conv-BN-ReLU-pool blocks (8, 16, 32, 64 channels) and two linear layers: ``(N, 2, 64, 64)`` ->
-    ``(N, 8)``, the corner displacements divided by 16 (157k parameters, 4.2M multiply-adds per pair)."""
-    layers, channels = [], 2
-    for out in (8, 16, 32, 64):
-        layers += [nn.Conv2d(channels, out, 3, padding=1), nn.BatchNorm2d(out), nn.ReLU(), nn.MaxPool2d(2)]
-        channels = out
-    return nn.Sequential(*layers, nn.Flatten(), nn.Linear(64 * 4 * 4, 128), nn.ReLU(), nn.Linear(128, 8))
-
-
 def train(inputs: torch.Tensor, offsets: torch.Tensor, settings: Settings, seed: int) -> nn.Module:
     """Train a fresh network on pairs ``inputs`` ``(N, 2, 64, 64)``, ``offsets`` ``(N, 4, 2)``: mean
     squared error on the displacements / 16, Adam with a cosine learning-rate decay."""
@@ -161,7 +156,9 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     """Run the comparison and print the table; returns ``{row: {test set: mean corner error}}``."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="a smoke run: a few paintings, one epoch")
-    settings = QUICK if parser.parse_args(argv).quick else Settings()
+    parser.add_argument("--save", metavar="PATH", help="write the SIDAR-trained weights to PATH (a state dict)")
+    args = parser.parse_args(argv)
+    settings = QUICK if args.quick else Settings()
     start = time.perf_counter()
 
     train_batch = render(0, settings.train_paintings, settings.workers)
@@ -183,6 +180,10 @@ def main(argv: list[str] | None = None) -> dict[str, dict[str, float]]:
     print(f"cut {len(training['trained on SIDAR pairs'][0])} training and {len(tests['SIDAR test pairs'][0])} test "
           f"pairs of each kind in {paired - rendered:.0f} s")
     models = {row: train(*pairs, settings, seed=0) for row, pairs in training.items()}
+    if args.save:
+        Path(args.save).expanduser().parent.mkdir(parents=True, exist_ok=True)
+        torch.save(models["trained on SIDAR pairs"].state_dict(), Path(args.save).expanduser())
+        print(f"wrote the weights of the model trained on SIDAR pairs to {args.save}")
     models["no motion (predicts 0)"] = None
     print(f"trained two models ({settings.epochs} epochs) in {time.perf_counter() - paired:.0f} s")
 
