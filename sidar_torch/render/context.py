@@ -15,7 +15,7 @@ from __future__ import annotations
 import ctypes
 import os
 
-__all__ = ["GL_PLATFORM", "check_platform_libraries", "open_context"]
+__all__ = ["GL_PLATFORM", "EglContext", "check_platform_libraries", "import_platform", "open_context"]
 
 GL_PLATFORM = os.environ["PYOPENGL_PLATFORM"]
 """The PyOpenGL platform in use, fixed when ``sidar_torch.render`` was first imported."""
@@ -118,24 +118,66 @@ def _egl_device():
     return devices[int(text)]
 
 
-def _egl_platform(width: int, height: int):
-    """pyrender's EGL platform on :func:`_egl_device`, with a ``delete_context`` that keeps the
-    display: EGL has one display per device and process, shared by every renderer on it, and
-    pyrender's ``eglTerminate`` there destroys the other renderers' contexts too."""
-    from OpenGL import EGL
-    from pyrender.platforms.egl import EGLPlatform
+class EglContext:
+    """An OpenGL 4.1 core context on an EGL device, without a surface (the renderer draws into its own
+    framebuffer), with the methods the renderer calls on a platform (``make_current``, ``delete_context``).
 
-    class SharedDisplayEGLPlatform(EGLPlatform):
-        def delete_context(self) -> None:
-            if self._egl_context is None:
-                return
-            if _address(EGL.eglGetCurrentContext()) == _address(self._egl_context):
-                # A destroyed context that is still current lives on until released.
-                EGL.eglMakeCurrent(self._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
-            EGL.eglDestroyContext(self._egl_display, self._egl_context)
-            self._egl_context = None
+    EGL has one display per device and process, shared by every renderer on it: deleting a context
+    keeps the display (``eglTerminate`` there would destroy the other renderers' contexts too).
 
-    return SharedDisplayEGLPlatform(width, height, device=_egl_device())
+    Args:
+        device: an EGL device of pyrender's ``query_devices`` (its display).
+
+    Raises:
+        OSError: EGL refuses to initialise the display, choose a config or create the context.
+    """
+
+    def __init__(self, device):
+        from OpenGL import EGL, arrays
+
+        # pyrender's platform: an off-screen display, 8-bit RGB and 24-bit depth, OpenGL 4.1 core.
+        config_attributes = arrays.GLintArray.asArray([
+            EGL.EGL_SURFACE_TYPE, EGL.EGL_PBUFFER_BIT, EGL.EGL_BLUE_SIZE, 8, EGL.EGL_RED_SIZE, 8,
+            EGL.EGL_GREEN_SIZE, 8, EGL.EGL_DEPTH_SIZE, 24, EGL.EGL_COLOR_BUFFER_TYPE, EGL.EGL_RGB_BUFFER,
+            EGL.EGL_RENDERABLE_TYPE, EGL.EGL_OPENGL_BIT, EGL.EGL_CONFORMANT, EGL.EGL_OPENGL_BIT, EGL.EGL_NONE])
+        context_attributes = arrays.GLintArray.asArray([
+            EGL.EGL_CONTEXT_MAJOR_VERSION, 4, EGL.EGL_CONTEXT_MINOR_VERSION, 1,
+            EGL.EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL.EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL.EGL_NONE])
+        display = os.environ.pop("DISPLAY", None)  # an X display would make EGL pick it
+        try:
+            self._display = device.get_display()
+        finally:
+            if display is not None:
+                os.environ["DISPLAY"] = display
+        major, minor, count = ctypes.c_long(), ctypes.c_long(), ctypes.c_long()
+        configs = (EGL.EGLConfig * 1)()
+        if not EGL.eglInitialize(self._display, major, minor):
+            raise OSError(f"eglInitialize failed on {device}")
+        if not EGL.eglChooseConfig(self._display, config_attributes, configs, 1, count) or count.value < 1:
+            raise OSError(f"eglChooseConfig found no RGB8, depth-24 OpenGL config on {device}")
+        if not EGL.eglBindAPI(EGL.EGL_OPENGL_API):
+            raise OSError("eglBindAPI(EGL_OPENGL_API) failed")
+        self._context = EGL.eglCreateContext(self._display, configs[0], EGL.EGL_NO_CONTEXT, context_attributes)
+        if _address(self._context) is None:
+            raise OSError(f"eglCreateContext: no OpenGL 4.1 core context on {device}")
+
+    def make_current(self) -> None:
+        from OpenGL import EGL
+
+        if not EGL.eglMakeCurrent(self._display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, self._context):
+            raise RuntimeError("eglMakeCurrent failed")
+
+    def delete_context(self) -> None:
+        """Destroy the context (once), releasing it first if it is current; keep the display."""
+        from OpenGL import EGL
+
+        if self._context is None:
+            return
+        if _address(EGL.eglGetCurrentContext()) == _address(self._context):
+            # A destroyed context that is still current lives on until released.
+            EGL.eglMakeCurrent(self._display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE, EGL.EGL_NO_CONTEXT)
+        EGL.eglDestroyContext(self._display, self._context)
+        self._context = None
 
 
 def _address(handle) -> int | None:
@@ -155,7 +197,8 @@ def import_platform() -> None:
 def open_context(width: int, height: int):
     """Create and make current an offscreen context of ``width`` x ``height`` pixels.
 
-    Returns pyrender's platform object (``make_current()``, ``delete_context()``).
+    Returns the platform object (pyrender's ``OSMesaPlatform`` or :class:`EglContext`: ``make_current()``,
+    ``delete_context()``).
 
     Raises:
         RuntimeError: the platform's library is missing or refuses to create a context; the
@@ -168,11 +211,11 @@ def open_context(width: int, height: int):
             from pyrender.platforms.osmesa import OSMesaPlatform
 
             platform = OSMesaPlatform(width, height)
+            platform.init_context()
         elif GL_PLATFORM == "egl":
-            platform = _egl_platform(width, height)
+            platform = EglContext(_egl_device())
         else:
             raise RuntimeError(f"PYOPENGL_PLATFORM={GL_PLATFORM!r}: expected 'osmesa' or 'egl'")
-        platform.init_context()
         platform.make_current()
     except (ImportError, AttributeError, OSError, AssertionError) as error:
         raise _cannot_open(repr(error)) from error
