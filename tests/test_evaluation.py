@@ -86,11 +86,11 @@ def test_evaluate_scores_estimators_on_a_folder_per_category_and_difficulty(tmp_
 
 
 def test_evaluate_reads_an_export_of_a_testset_as_its_categories(tmp_path):
-    export(tmp_path / "clean", count=1)
+    export(tmp_path / "clean", count=2)
     export(tmp_path / "shadows", count=2)
-    result = evaluate(lambda a, b: H_TRUE, testset=tmp_path, limit=5)
-    assert list(result["by_category"]) == ["clean", "shadows"]  # in turn: clean 0, shadows 0, shadows 1
-    assert [result["by_category"][c]["pairs"] for c in ("clean", "shadows")] == [2, 3]
+    result = evaluate(lambda a, b: H_TRUE, testset=tmp_path, limit=5)  # 2 pairs per sequence
+    assert list(result["by_category"]) == ["clean", "shadows"]  # in turn: clean 0, shadows 0, clean 1 (one pair)
+    assert [result["by_category"][c]["pairs"] for c in ("clean", "shadows")] == [3, 2]
 
 
 def test_the_shadow_removal_rmse_is_zero_outside_the_shadow_and_grows_with_it(tmp_path):

@@ -88,7 +88,12 @@ def test_a_folder_of_the_papers_sequences_reads_with_its_homographies_in_kornia_
     assert torch.equal(sample["images"][1], expected)
     assert sample["masks"][:, 0, :, :3].tolist() == [[[1, 1, 0]] * 6, [[1, 1, 1]] * 6]
     H = sample["homographies"].double()
-    np.testing.assert_allclose(H[0, 1].numpy(), kornia_from_paper(H_paper, SIZE), rtol=1e-6)
+    h, w = SIZE
+    paper_points = np.array([[0.0, 0.0], [w - 1, 0], [2.0, 3.0]])  # the paper's pixels: image edges at 0 and W-1
+    scale = np.array([w / (w - 1), h / (h - 1)])  # paper -> Kornia pixels: x_k = x_p W / (W - 1) - 1/2
+    np.testing.assert_allclose(corners_after(H[0, 1].numpy(), paper_points * scale - 0.5),
+                               corners_after(H_paper, paper_points) * scale - 0.5, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.det(H[0, 1].numpy()), 1.0, rtol=1e-6)
     np.testing.assert_allclose((H[1, 0] @ H[0, 1]).numpy(), np.eye(3), atol=1e-6)
     assert torch.isnan(sample["K"]).all() and np.isnan(sample["homography_error"])
 
