@@ -17,6 +17,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable
 
+import kornia
 import numpy as np
 import torch
 from torch import nn
@@ -131,8 +132,6 @@ def homographynet(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     Raises:
         FileNotFoundError: no weights there (the message says how to make them).
     """
-    import kornia
-
     path = Path(os.environ.get(HOMOGRAPHYNET_WEIGHTS, Path.home() / ".cache" / "sidar_torch" / "homographynet.pt"))
     if str(path) not in _NETWORKS:
         if not path.is_file():

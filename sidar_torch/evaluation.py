@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+import kornia
 import numpy as np
 import torch
 
@@ -267,8 +268,6 @@ def _homography_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
 def _lab(image: np.ndarray) -> np.ndarray:
     """``(H, W, 3)`` uint8 sRGB -> ``(H, W, 3)`` float64 CIELAB (L in [0, 100])."""
     tensor = torch.from_numpy(image).permute(2, 0, 1).float()[None] / 255
-    import kornia
-
     return kornia.color.rgb_to_lab(tensor)[0].permute(1, 2, 0).double().numpy()
 
 

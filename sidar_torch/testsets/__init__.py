@@ -164,11 +164,11 @@ class DigestCheck:
                 f"({', '.join(kinds)} files; first: {', '.join(self.differing[:3])})")
         if self.unknown:
             text += f"; {len(self.unknown)} files have no recorded digest (first: {self.unknown[0]})"
-        if self.renderer is not None and self.renderer != self.recorded_on:
-            text += (f". The digests were recorded on GL renderer {self.recorded_on!r}, this export was rendered on "
-                     f"{self.renderer!r}: pixels may differ between renderers (by how much cannot be known without "
-                     f"the reference files), and float64 geometry in its last bits. The ground truth is read from "
-                     f"these files, so `evaluate` on them is valid; scores compare with others' only approximately")
+        here = "an unknown renderer (not rendered by this call)" if self.renderer is None else repr(self.renderer)
+        text += (f". The digests were recorded on GL renderer {self.recorded_on!r}, these files on {here}: pixels "
+                 f"may differ between renderers (by how much cannot be known without the reference files, which "
+                 f"are not shipped), and float64 geometry in its last bits. The ground truth is read from these "
+                 f"files, so `evaluate` on them is valid; its scores compare with others' only approximately")
         return text
 
 
