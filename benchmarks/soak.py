@@ -8,7 +8,7 @@ them in each rendering process: this one, or with ``--workers W`` each of W Data
 draws indices ``k, k + W, ...``). Every ``--every`` of its samples a process reports its resident
 memory, glibc's heap (``mallinfo2``: bytes in use by ``malloc`` and free in its arenas; with
 ``--trim`` also the resident memory after ``malloc_trim(0)`` gave free pages back), the shader
-programs of its renderer, and the GL textures and buffers alive in its context. Memory growth is
+programs and pooled shadow maps of its renderer, and the GL textures and buffers alive in its context. Memory growth is
 measured from the end of the warm-up (``--warmup`` samples, by which time every shader variant has
 been compiled and the allocators have reached their working size) to the last sample.
 
@@ -22,9 +22,9 @@ live Python memory grew most from the end of the warm-up to the last sample (slo
 
 The last line of output is a JSON summary (``growth_mb`` and ``max_growth_mb``, the largest over
 the processes; ``changed``; per report ``worker``, ``rss_mb``, ``heap_used_mb``, ``heap_free_mb``,
-``programs``, ``gl_textures``, ``gl_buffers``, with ``--trim`` ``rss_trimmed_mb``). The exit code is 1
+``programs``, ``shadow_maps``, ``gl_textures``, ``gl_buffers``, with ``--trim`` ``rss_trimmed_mb``). The exit code is 1
 if the memory of a process grew by more than ``--max-growth-mb`` after the warm-up, or its program
-count changed after it, or (with ``--distinct``) its texture or buffer count did; else 0.
+count changed after it, or (with ``--distinct``) its shadow map, texture or buffer count did; else 0.
 
     python -m benchmarks.soak --samples 10000 --size 96x128 --every 500
     python -m benchmarks.soak --samples 1000 --size 192x256 --workers 2 --every 100 --warmup 200 --trim
@@ -118,6 +118,7 @@ def report(samples: int, renderer, started: float, trim: bool) -> dict:
         "heap_used_mb": round(used, 1),
         "heap_free_mb": round(free, 1),
         "programs": renderer.program_count,
+        "shadow_maps": renderer.shadow_map_count,
         "gl_textures": count_gl_names(GL.glIsTexture, GL.glGenTextures, GL.glDeleteTextures),
         "gl_buffers": count_gl_names(GL.glIsBuffer, GL.glGenBuffers, GL.glDeleteBuffers),
         "seconds": round(time.perf_counter() - started, 1),
@@ -220,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"soak: {args.samples} samples of {args.config!r} at {size_label(config.image_size)} (H x W), "
           f"{config.n_views} views, seed {args.seed}, {where}; warm-up {args.warmup}", flush=True)
     columns = ("worker", "samples", "rss_mb", "heap_used_mb", "heap_free_mb") + ("rss_trimmed_mb",) * args.trim \
-        + ("programs", "gl_textures", "gl_buffers", "seconds")
+        + ("programs", "shadow_maps", "gl_textures", "gl_buffers", "seconds")
     print(" ".join(f"{c:>{max(len(c), 7)}}" for c in columns))
     stream = SoakStream(dataset, args)
     if args.workers:
@@ -234,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
             print(" ".join(f"{r[c]:>{max(len(c), 7)}}" for c in columns), flush=True)
     per_worker = {w: [r for r in reports if r["worker"] == w] for w in sorted({r["worker"] for r in reports})}
     grown = {w: growth(rs, args.warmup) for w, rs in per_worker.items()}
-    changed = sorted({key for rs in per_worker.values() for key in ("programs", "gl_textures", "gl_buffers")
+    changed = sorted({key for rs in per_worker.values() for key in ("programs", "shadow_maps", "gl_textures", "gl_buffers")
                       if len({r[key] for r in rs if r["samples"] >= args.warmup}) > 1})
     failed = [key for key in changed if key == "programs" or args.distinct]
     for w, (last, largest) in grown.items():
