@@ -15,9 +15,20 @@ import numpy as np
 from ..config.numbers import shown
 from ..sample import KEYS, SampleArrays, SampleKey, present_keys
 
-__all__ = ["CAMERAS", "pixel_entries_text", "pixel_shape", "read_cameras", "sample_entries", "sample_from_entries"]
+__all__ = ["CAMERAS", "CAMERA_KEYS", "camera_shape", "pixel_entries_text", "pixel_shape", "read_cameras",
+           "sample_entries", "sample_from_entries"]
 
 CAMERAS = "cameras.json"
+
+_NOT_IN_CAMERAS = {
+    "homographies": "each layout writes them its own way (H_i_j.mat files, homographies.npy)",
+    "index": "the sequence's folder or shard entry names it",
+}
+"""The keys without a file of their own that ``cameras.json`` does not hold, and why."""
+
+CAMERA_KEYS: tuple[SampleKey, ...] = tuple(key for key in KEYS if key.entry is None and key.name not in _NOT_IN_CAMERAS)
+"""The keys of :data:`sidar_torch.sample.KEYS` that ``cameras.json`` holds as JSON numbers (float64
+when read): every key without a file of its own (``entry``), except :data:`_NOT_IN_CAMERAS`."""
 
 
 def sample_entries(arrays: SampleArrays) -> dict[str, Any]:
@@ -56,6 +67,12 @@ def pixel_shape(key: SampleKey, image_size: tuple[int, int]) -> tuple[int, ...]:
     return (*image_size, 3) if channels == "3" else tuple(image_size)
 
 
+def camera_shape(key: SampleKey, n_views: int) -> tuple[int, ...]:
+    """The shape of key ``key`` (a row of :data:`CAMERA_KEYS`) in a sequence of ``n_views`` views: its
+    table shape with ``V = n_views`` (``"(V, 3, 3)"`` -> ``(n_views, 3, 3)``, ``"()"`` -> ``()``)."""
+    return tuple(n_views if axis == "V" else int(axis) for axis in key.shape.strip("()").split(", ") if axis)
+
+
 def _numbers(cameras: dict[str, Any], name: str, shape: tuple[int, ...]) -> np.ndarray:
     """``cameras[name]`` as a float64 array of ``shape`` (``()``: one number), from nested JSON lists
     of numbers (NaN allowed: the paper's sequences have no cameras); ``ValueError`` naming the field
@@ -79,7 +96,8 @@ def read_cameras(cameras: Any, config: Mapping[str, Any]) -> dict[str, Any]:
     ``t`` ``(V, 3)`` numbers for the recorded ``n_views`` ``V`` and a number ``homography_error``.
 
     Returns:
-        ``{"K", "R", "t"}`` float64 arrays and ``homography_error`` a float.
+        ``{name: float64 array}`` for each key of :data:`CAMERA_KEYS`, of :func:`camera_shape` (``K``,
+        ``R``, ``t``; ``homography_error`` 0-d).
 
     Raises:
         ValueError: the first field that is missing or wrong, by name (not the file's: the caller's).
@@ -93,9 +111,7 @@ def read_cameras(cameras: Any, config: Mapping[str, Any]) -> dict[str, Any]:
     K = cameras.get("K")
     if isinstance(K, list) and len(K) != views:
         raise ValueError(f"field 'K': the cameras of {len(K)} views, but the recorded config field 'n_views' is {views}")
-    return {"K": _numbers(cameras, "K", (views, 3, 3)), "R": _numbers(cameras, "R", (views, 3, 3)),
-            "t": _numbers(cameras, "t", (views, 3)),
-            "homography_error": float(_numbers(cameras, "homography_error", ()))}
+    return {key.name: _numbers(cameras, key.name, camera_shape(key, views)) for key in CAMERA_KEYS}
 
 
 def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[str, Any],

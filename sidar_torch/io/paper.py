@@ -42,7 +42,7 @@ from PIL import Image
 
 from ..sample import SampleArrays
 from .codecs import encode, png_size
-from .entries import CAMERAS, sample_entries
+from .entries import CAMERA_KEYS, CAMERAS, camera_shape, sample_entries
 from .files import open_inside
 from .folders import FolderLayout
 from .layout import MANIFEST
@@ -173,15 +173,15 @@ def _ours(path: Path, name: str, data: bytes) -> bytes:
 
 
 def _unknown_cameras(out: Path, where: Path) -> bytes:
-    """A ``cameras.json`` for a sequence of the paper's (which has none): NaN cameras for each view."""
+    """A ``cameras.json`` for a sequence of the paper's (which has none): NaN for every number of
+    :data:`.entries.CAMERA_KEYS` (the cameras of each view, ``homography_error``)."""
     n_views = 0
     while (where / f"{n_views}.png").exists():
         n_views += 1
     with open_inside(where / LABEL, out) as f:
         size = png_size(f.read(24))  # the header alone: the limit is cameras.json's
-    nan3 = np.full((n_views, 3, 3), np.nan).tolist()
-    cameras = {"index": None, "image_size": list(size or (0, 0)), "K": nan3, "R": nan3,
-               "t": np.full((n_views, 3), np.nan).tolist(), "homography_error": float("nan")}
+    cameras = {"index": None, "image_size": list(size or (0, 0)),
+               **{key.name: np.full(camera_shape(key, n_views), np.nan).tolist() for key in CAMERA_KEYS}}
     return json.dumps(cameras).encode()
 
 
