@@ -1,5 +1,5 @@
 """Long runs, shortened for CI: ``python -m benchmarks.soak`` over 150 samples must keep memory, shader
-programs and GL objects flat once warm (the full 10,000-sample soak is in the README)."""
+programs and GL objects flat once warm (the long soaks: docs/speed.md, "Memory over long runs")."""
 
 import json
 import subprocess
