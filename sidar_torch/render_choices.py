@@ -7,9 +7,10 @@ names live here, under both: this module imports nothing, loads no GL, and ``con
 them for users.
 """
 
+from dataclasses import dataclass
+
 __all__ = ["ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
-           "SHADOW_FILTERS",
-           "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
+           "OUTPUTS", "OptionalOutput", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
@@ -54,3 +55,48 @@ def shadow_map_side(size: int | str, image_size: tuple[int, int]) -> int:
 ANTIALIAS_SAMPLES = (1, 2, 4, 8)
 """Samples per pixel of a view's colour pass (``SidarConfig.antialias``); the GL context must offer
 the count (llvmpipe offers only 4 besides 1), which the renderer checks when it is created."""
+
+
+@dataclass(frozen=True)
+class OptionalOutput:
+    """An optional per-view image output, as every floor sees it: one row of :data:`OUTPUTS`.
+
+    Attributes:
+        name: its name everywhere: the sample key (``sample.KEYS``), the ``SampleArrays`` field, the key of
+            ``RenderedSequence.outputs`` and of ``RenderSettings.outputs``.
+        switch: the boolean config field that turns it on.
+        channels: 1 (an ``(H, W)`` uint8 array per view) or 3 (``(H, W, 3)`` sRGB).
+        entry: its export file per view (``{v}`` the view's number).
+        description: what ``export.json`` says of its files.
+        view_pixel_bytes: memory it adds per view and pixel (``config.memory``: its uint8 array and
+            float32 tensor; 0 where the measured per-view figure already counts it).
+        target_pixel_bytes: bytes per pixel and sample of a render target of its own (the colour pass's
+            second output), 0 for none.
+        view_effects: the view effects (background, exposure, noise, JPEG: ``sidar_torch.effects``) apply
+            to it as to the views, with the same draws (an image of the view); false: it is left as drawn.
+    """
+
+    name: str
+    switch: str
+    channels: int
+    entry: str
+    description: str
+    view_pixel_bytes: int = 0
+    target_pixel_bytes: int = 0
+    view_effects: bool = False
+
+
+OUTPUTS = {row.name: row for row in (
+    OptionalOutput("opacities", "opacity_output", 1, "{v}-o.png",
+                   "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"),
+    OptionalOutput("shadow_masks", "shadow_mask_output", 1, "{v}-s.png",
+                   "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
+                   "(0 off the painting and where it is hidden)", view_pixel_bytes=5),
+    OptionalOutput("shadow_free", "shadow_free_output", 3, "{v}-f.png",
+                   "<i>-f.png: the view with no light blocked (the target of shadow removal)",
+                   view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True),
+)}
+"""The optional outputs, by name. Adding one: a row here, its switch in ``config/fields.py``, its key in
+``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and the pass or render target that
+draws it in ``render/`` (``docs/architecture.md``). Memory, the manifest, export, the reader, Ray and the
+render settings follow the row. Opacities' memory is in the measured per-view figure (``config.memory``)."""

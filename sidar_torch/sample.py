@@ -6,8 +6,9 @@ Every consumer goes through this module: :class:`sidar_torch.SidarDataset` and
 :class:`sidar_torch.SidarAugment` hand out :meth:`SampleArrays.to_tensors`, export writes a
 :class:`SampleArrays` and :class:`sidar_torch.ExportedDataset` rebuilds one from the files and
 calls the same :meth:`SampleArrays.to_tensors`, so a set read back equals the rendered samples by
-construction. Adding an output means a row of :data:`KEYS`, a field of :class:`SampleArrays`, a
-line of :meth:`~SampleArrays.to_tensors` and of :func:`render_arrays` (and the renderer's pass).
+construction. An optional output is a row of ``render_choices.OUTPUTS`` (its switch, channels, file,
+memory), its row of :data:`KEYS` (shape, dtype, meaning) and a field of :class:`SampleArrays`; the
+checks, the tensors and :func:`render_arrays` follow the rows (and the renderer draws it).
 
 Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) adds a leading ``B``.
 """
@@ -23,6 +24,7 @@ import torch
 from . import geometry
 from .effects import apply_effects, draw_effects
 from .config import SidarConfig
+from .render_choices import OUTPUTS
 from .scene import SceneSequence
 from .timing import timed
 from .warm_up import warm_renderer
@@ -53,6 +55,13 @@ class SampleKey:
     switch: str | None = None
     entry: str | None = None
 
+    @classmethod
+    def optional(cls, name: str, dtype: str, meaning: str) -> "SampleKey":
+        """The key of the optional output ``name`` (a row of ``render_choices.OUTPUTS``, which gives its
+        switch, export entry and channels: the shape ``(V, C, H, W)``)."""
+        row = OUTPUTS[name]
+        return cls(name, f"(V, {row.channels}, H, W)", dtype, meaning, switch=row.switch, entry=row.entry)
+
 
 KEYS: tuple[SampleKey, ...] = (
     SampleKey("images", "(V, 3, H, W)", "float32 in [0, 1], multiples of 1/255",
@@ -60,23 +69,21 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey("masks", "(V, 1, H, W)", "float32 in {0, 1}",
               "1 where the painting is not visible (an occluder, or off the painting), 0 where it is",
               entry="{v}-m.png"),
-    SampleKey("opacities", "(V, 1, H, W)", "float32 in [0, 1], multiples of 1/255",
+    SampleKey.optional("opacities", "float32 in [0, 1], multiples of 1/255",
               "the fraction of the painting hidden at each pixel, a soft mask: 1 off the painting and behind "
               "opaque occluders, 0 where the painting is seen unobstructed, 1 - prod_k (1 - a_k) where "
               "transparent occluders k cover it, a_k the opacity the view blends them with (material alpha "
               "raised by Fresnel towards grazing views; their highlights are left out). Every visible occluder "
-              "counts, whatever mask_min_opacity is", switch="opacity_output", entry="{v}-o.png"),
-    SampleKey("shadow_masks", "(V, 1, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "counts, whatever mask_min_opacity is"),
+    SampleKey.optional("shadow_masks", "float32 in [0, 1], multiples of 1/255",
               "the fraction of the direct light falling on the visible painting that occluders block: each "
               "light weighted by its irradiance there (luminance; a transparent occluder's coloured shadow "
               "counts by its luminance); 0 exactly where no occluder blocks any light (any blocked light gives at "
               "least 1/255), off the painting and where the painting is hidden (masks); ambient light counts for "
-              "nothing",
-              switch="shadow_mask_output", entry="{v}-s.png"),
-    SampleKey("shadow_free", "(V, 3, H, W)", "float32 in [0, 1], multiples of 1/255",
+              "nothing"),
+    SampleKey.optional("shadow_free", "float32 in [0, 1], multiples of 1/255",
               "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
-              "blocked: the target of shadow removal; equal to images wherever no shadow falls",
-              switch="shadow_free_output", entry="{v}-f.png"),
+              "blocked: the target of shadow removal; equal to images wherever no shadow falls"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -121,11 +128,8 @@ class SampleArrays:
         homography_error: pixels.
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
-        opacities: ``(V, H, W)`` uint8, 255 times the fraction of the painting hidden, or None
-            (not rendered).
-        shadow_masks: ``(V, H, W)`` uint8, 255 times the fraction of the direct light occluders
-            block, or None (not rendered).
-        shadow_free: ``(V, H, W, 3)`` uint8 sRGB, the views with no light blocked, or None.
+        opacities, shadow_masks, shadow_free: the optional outputs (``render_choices.OUTPUTS``), each
+            ``(V, H, W)`` uint8 (one channel) or ``(V, H, W, 3)`` (three), or None (not rendered).
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -152,11 +156,9 @@ class SampleArrays:
         expected = {"images": ((V, H, W, 3), np.uint8), "masks": ((V, H, W), np.uint8),
                     "label": ((H, W, 3), np.uint8), "homographies": ((V, V, 3, 3), np.float64),
                     "K": ((V, 3, 3), np.float64), "R": ((V, 3, 3), np.float64), "t": ((V, 3), np.float64)}
-        for name in ("opacities", "shadow_masks"):
+        for name, row in OUTPUTS.items():
             if getattr(self, name) is not None:
-                expected[name] = ((V, H, W), np.uint8)
-        if self.shadow_free is not None:
-            expected["shadow_free"] = ((V, H, W, 3), np.uint8)
+                expected[name] = ((V, H, W, 3) if row.channels == 3 else (V, H, W), np.uint8)
         for name, (shape, dtype) in expected.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
@@ -303,20 +305,20 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     rendered = warm_renderer(config).render(sequence, painting, timings)
-    views, shadow_free = rendered.views, rendered.shadow_free
+    views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed(timings, "effects"):
             views = apply_effects(views, rendered.background, effects)
-            if shadow_free is not None:  # the same draws: the same exposure, noise and JPEG
-                shadow_free = apply_effects(shadow_free, rendered.background, effects)
+            for name in [name for name in outputs if OUTPUTS[name].view_effects]:  # the same draws
+                outputs[name] = apply_effects(outputs[name], rendered.background, effects)
     if homographies is None:
         with timed(timings, "homographies"):
             homographies = sequence_homographies(sequence)
     homographies, homography_error = homographies
     K, R, t = sequence.cameras()
-    return SampleArrays(views, rendered.masks.astype(np.uint8) * np.uint8(255), rendered.label,
-                        homographies.numpy(), homography_error, K, R, t, index, rendered.opacities,
-                        rendered.shadow_masks, shadow_free)
+    return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
+                        homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
+                        index=index, **outputs)
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

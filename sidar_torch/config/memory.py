@@ -10,9 +10,10 @@ up:
   painting's texture and mipmaps, the label): :data:`FRAME_PIXEL_BYTES`;
 * per pixel and sample of a multisampled pass (``antialias`` > 1), 8 bytes (RGBA8 colour and
   24-bit depth, measured 31 bytes per pixel at 4 samples): :data:`MULTISAMPLE_PIXEL_BYTES`;
-* the shadow outputs, counted rather than measured: per view and pixel, a uint8 array and a float32
-  tensor of each (``shadow_free`` 3 channels, ``shadow_masks`` 1), and ``shadow_free``'s second RGBA8
-  colour buffer per pixel and sample: :data:`SHADOW_OUTPUT_PIXEL_BYTES`;
+* the optional outputs (``render_choices.OUTPUTS``), counted rather than measured: per view and pixel,
+  a uint8 array and a float32 tensor of each (``shadow_free`` 3 channels, ``shadow_masks`` 1; opacities are
+  in the measured figure above), and per pixel and sample a render target of its own (``shadow_free``'s
+  second RGBA8 colour buffer): each row's ``view_pixel_bytes`` and ``target_pixel_bytes``;
 * per ordered pair of views, 28.9 KB measured (the homography fit and its 17 x 17 lattice check,
   64 to 256 views): :data:`VIEW_PAIR_BYTES`;
 * per shadow-map texel and shadowed emitter, a float32 depth texel and a quarter of an RGBA16F
@@ -23,7 +24,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from ..render_choices import shadow_map_side
+from ..render_choices import OUTPUTS, shadow_map_side
 from .allowed import LIGHT_EMITTERS
 
 __all__ = ["estimated_sample_bytes", "output_bytes", "shadowed_emitters"]
@@ -33,8 +34,6 @@ FRAME_PIXEL_BYTES = 96
 MULTISAMPLE_PIXEL_BYTES = 8
 VIEW_PAIR_BYTES = 32 * 1024
 SHADOW_TEXEL_BYTES = 6
-SHADOW_OUTPUT_PIXEL_BYTES = {"shadow_free_output": 15, "shadow_mask_output": 5}
-"""Config switch -> bytes per view and pixel of its output (uint8 array and float32 tensor)."""
 
 
 def shadowed_emitters(config: Any) -> int:
@@ -52,25 +51,27 @@ def estimated_sample_bytes(config: Any) -> int:
     ``H * W * (V * 32 + 96 + 8 * antialias) + V**2 * 32768 + maps * shadow_map_size**2 * 6`` for
     ``V`` views of ``(H, W)`` pixels (the ``8 * antialias`` term only when ``antialias`` > 1) and
     ``maps`` shadow maps of side ``shadow_map_size`` (``auto`` resolved: ``render_choices.shadow_map_side``;
-    at least the one map the renderer always holds), plus ``H * W * V * 15`` and
-    ``H * W * 4 * (1 + antialias)`` (``H * W * 4`` without antialiasing) with ``shadow_free_output``, ``H * W * V * 5`` with
-    ``shadow_mask_output``; the module docstring says how each figure was obtained.
+    at least the one map the renderer always holds), plus, for each optional output switched on (a row of
+    ``render_choices.OUTPUTS``), ``H * W * V * view_pixel_bytes`` and ``H * W * target_pixel_bytes *
+    (1 + antialias)`` (``(1)`` without antialiasing): with ``shadow_free_output`` ``H * W * V * 15`` and
+    ``H * W * 4 * (1 + antialias)``, with ``shadow_mask_output`` ``H * W * V * 5``; the module docstring says
+    how each figure was obtained.
     """
     h, w = config.image_size
     views = config.n_views
     multisample = MULTISAMPLE_PIXEL_BYTES * config.antialias if config.antialias > 1 else 0
     maps = max(1, shadowed_emitters(config) if config.shadows else 0)
     samples = 1 + (config.antialias if config.antialias > 1 else 0)  # the single- and multisampled buffers
-    second_output = 4 * samples if config.shadow_free_output else 0
-    outputs = {field: getattr(config, field) for field in SHADOW_OUTPUT_PIXEL_BYTES}
-    return (output_bytes(config.image_size, views, outputs) + h * w * (multisample + second_output)
+    outputs = {row.switch: getattr(config, row.switch) for row in OUTPUTS.values()}
+    targets = sum(row.target_pixel_bytes * samples for row in OUTPUTS.values() if outputs[row.switch])
+    return (output_bytes(config.image_size, views, outputs) + h * w * (multisample + targets)
             + views * views * VIEW_PAIR_BYTES
             + maps * shadow_map_side(config.shadow_map_size, config.image_size)**2 * SHADOW_TEXEL_BYTES)
 
 
 def output_bytes(image_size: tuple[int, int], n_views: int, outputs: Mapping[str, Any]) -> int:
     """The part of :func:`estimated_sample_bytes` that only the image size, the view count and the
-    output switches set: ``H * W * (V * (32 + shadow outputs) + 96)`` bytes (the views and masks as
+    output switches set: ``H * W * (V * (32 + optional outputs) + 96)`` bytes (the views and masks as
     arrays and tensors, the frame's buffers and label). A lower bound of the estimate of any config
     with these fields, so a sample over :data:`~.allowed.MAX_SAMPLE_BYTES` by it is refused
     whatever the other fields hold; the export reader bounds a recorded export with it.
@@ -78,9 +79,9 @@ def output_bytes(image_size: tuple[int, int], n_views: int, outputs: Mapping[str
     Args:
         image_size: ``(H, W)`` pixels, integers.
         n_views: ``V``, an integer.
-        outputs: the switches of :data:`SHADOW_OUTPUT_PIXEL_BYTES` (``shadow_free_output``,
-            ``shadow_mask_output``), true or false; a missing one counts as false.
+        outputs: the switches of ``render_choices.OUTPUTS`` (``opacity_output``, ``shadow_mask_output``,
+            ``shadow_free_output``), true or false; a missing one counts as false.
     """
     h, w = image_size
-    per_view = VIEW_PIXEL_BYTES + sum(b for field, b in SHADOW_OUTPUT_PIXEL_BYTES.items() if outputs.get(field))
+    per_view = VIEW_PIXEL_BYTES + sum(row.view_pixel_bytes for row in OUTPUTS.values() if outputs.get(row.switch))
     return h * w * (n_views * per_view + FRAME_PIXEL_BYTES)

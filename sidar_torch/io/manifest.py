@@ -12,6 +12,7 @@ import yaml
 
 from ..sample import GEOMETRY_DTYPES, KEYS
 from ..paintings import PaintingSource
+from ..render_choices import OUTPUTS
 from ..version import __version__
 from .codecs import read_json
 from .files import LOCK, is_own_temporary, read_inside, replace_file
@@ -30,15 +31,6 @@ up to about 9 times its bytes in Python objects: :data:`.limits.JSON_BYTES_PER_V
 
 OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)
 """The sample keys a config switch turns on (:data:`~sidar_torch.sample.KEYS`, column ``switch``)."""
-
-FILE_DESCRIPTIONS = {
-    "opacities": "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)",
-    "shadow_masks": "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
-                    "(0 off the painting and where it is hidden)",
-    "shadow_free": "<i>-f.png: the view with no light blocked (the target of shadow removal)",
-}
-"""What the manifest says of the files of each of :data:`OPTIONAL_KEYS` an export holds."""
-
 
 def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
     """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
@@ -63,7 +55,8 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
                         "pixel at (0, 0)); det = 1; float64",
         "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
     }
-    manifest.update({key.name: FILE_DESCRIPTIONS[key.name] for key in OPTIONAL_KEYS if config.get(key.switch)})
+    # What the files of each optional output it holds are (render_choices.OUTPUTS).
+    manifest.update({key.name: OUTPUTS[key.name].description for key in OPTIONAL_KEYS if config.get(key.switch)})
     if (out / MANIFEST).exists():
         old = read_manifest(out)
         differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS

@@ -20,7 +20,7 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   colour pass is single-sampled, that pass drew what this draw would, in the same order with the
   same depth test: it marks in the stencil the pixels whose depth the painting's fragments kept,
   and the mask is read from there, without its own draw (``tests/render/test_skips.py``);
-* the **opacity** (only with ``settings.opacities``): an unlit draw of the painting (white, opaque) and every
+* the **opacity** (only with ``"opacities"`` in ``settings.outputs``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
   through (see :func:`.unlit.render_opacity`).
@@ -52,7 +52,7 @@ from __future__ import annotations
 import os
 import weakref
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Hashable
 
 import numpy as np
@@ -91,21 +91,19 @@ class RenderedSequence:
             positive alpha, except transparent material without refraction of opacity under about
             0.06 over the background, whose blended alpha rounds to 0 in 8 bits (refracting glass
             writes alpha 1: it blends with the painting it shows itself, see ``render.mirror``).
-        opacities: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
-            painting hidden at each pixel (see :meth:`SceneRenderer._render_opacity`).
-        shadow_masks: ``(V, H, W)`` uint8 or None (not asked for): 255 times the fraction of the
-            direct light on the visible painting that occluders block (:meth:`SceneRenderer._render_shadow_mask`).
-        shadow_free: ``(V, H, W, 3)`` uint8 sRGB or None (not asked for): the views with no light
-            blocked, drawn by :meth:`SceneRenderer._render_view` right after each view.
+        outputs: the optional outputs asked for (``RenderSettings.outputs``), by name
+            (``render_choices.OUTPUTS``): ``"opacities"`` ``(V, H, W)`` uint8, 255 times the fraction of
+            the painting hidden at each pixel (``unlit.render_opacity``); ``"shadow_masks"`` ``(V, H, W)``
+            uint8, 255 times the fraction of the direct light on the visible painting that occluders
+            block (:meth:`SceneRenderer._render_shadow_mask`); ``"shadow_free"`` ``(V, H, W, 3)`` uint8
+            sRGB, the views with no light blocked, from the colour pass's second output.
     """
 
     views: np.ndarray
     masks: np.ndarray
     label: np.ndarray
     background: np.ndarray
-    opacities: np.ndarray | None = None
-    shadow_masks: np.ndarray | None = None
-    shadow_free: np.ndarray | None = None
+    outputs: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 class SceneRenderer:
@@ -142,7 +140,7 @@ class SceneRenderer:
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
         self._passes = Passes(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
-                              outputs=2 if settings.shadow_free else 1,
+                              outputs=2 if "shadow_free" in settings.outputs else 1,
                               clear_written_texels=settings.clear_written_texels,
                               highlight_spill=settings.highlight_spill, light_radius=settings.light_radius)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
@@ -191,14 +189,13 @@ class SceneRenderer:
             texture = self._painting_texture(painting)
         with timed(timings, "graph"):
             plans = plan_views(sequence, self.settings)
-        views, masks, hidden, shadow_masks, shadow_free = [], [], [], [], []
+        views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
         for view, plan in zip(sequence.views, plans):
-            image, mask, opacity, shadow, unshadowed = self._render_view(view, plan, sequence, texture, timings)
+            image, mask, extra = self._render_view(view, plan, sequence, texture, timings)
             views.append(image)
             masks.append(mask)
-            hidden.append(opacity)
-            shadow_masks.append(shadow)
-            shadow_free.append(unshadowed)
+            for name, array in extra.items():
+                outputs[name].append(array)
         reference = sequence.views[0].camera
         if self.settings.label_from_painting and is_reference_camera(reference.K, reference.R, reference.t,
                                                                      self.image_size):
@@ -211,9 +208,7 @@ class SceneRenderer:
             label = render_label(self._passes, reference, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
-                                np.stack(hidden) if self.settings.opacities else None,
-                                np.stack(shadow_masks) if self.settings.shadow_masks else None,
-                                np.stack(shadow_free) if self.settings.shadow_free else None)
+                                {name: np.stack(arrays) for name, arrays in outputs.items()})
 
     def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
         """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
@@ -266,11 +261,9 @@ class SceneRenderer:
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
                      timings: dict[str, float] | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
-        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool, with
-        ``settings.opacities`` its opacity and with ``settings.shadow_masks`` its shadow mask (each
-        ``(H, W)`` uint8, else None), and with ``settings.shadow_free`` the view with no light blocked
-        (``(H, W, 3)`` uint8, else None), drawing what ``plan`` says."""
+                     ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+        """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and its
+        optional outputs (``settings.outputs``, see :class:`RenderedSequence`), drawing what ``plan`` says."""
         with timed(timings, "graph"):
             draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size)
             self._passes.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
@@ -297,7 +290,8 @@ class SceneRenderer:
         # caster), the lit draw without lookups gives the same pixels without the shadow passes.
         # The shadow-free view comes from the same draw (a second output, quirk 10); without a
         # shadowed light the view is its own shadow-free view.
-        both = self.settings.shadow_free and bool(shadowed)
+        outputs = self.settings.outputs
+        both = "shadow_free" in outputs and bool(shadowed)
         # The colour pass leaves the mask's answer in the stencil whenever it can (single-sampled):
         # always, so that its programs meet the same GL state in every view (one llvmpipe variant each).
         stencil = self.settings.masks_from_stencil and self.settings.antialias == 1
@@ -305,10 +299,11 @@ class SceneRenderer:
             image = self._passes.draw(draws, "lit", [draws.painting, *drawn], casters=casters, transmitting=transmitting,
                                       shadowed=shadowed, stale=stale, painting_parts=plan.painting_parts,
                                       shadow_free=both, stencil=stencil, timings=timings, step="colour")
+        extra = {}
         if both:
-            image, unshadowed = image[0], image[1, ..., :3]
-        else:
-            unshadowed = image[..., :3] if self.settings.shadow_free else None
+            image, extra["shadow_free"] = image[0], image[1, ..., :3]
+        elif "shadow_free" in outputs:
+            extra["shadow_free"] = image[..., :3]
         self._shadows.drawn(map_keys)
         masked = [draws.occluders[i] for i in sorted(plan.drawn)
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity]
@@ -330,11 +325,11 @@ class SceneRenderer:
             seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey,
                                     timings=timings, step="mask")
             mask = seg[..., 0] < 128
-        opacity = render_opacity(self._passes, draws, drawn, mask, timings) if self.settings.opacities else None
-        shadow = None
-        if self.settings.shadow_masks:
-            shadow = self._render_shadow_mask(draws, plan, casters, transmitting, shadowed, mask, timings)
-        return image, mask, opacity, shadow, unshadowed
+        if "opacities" in outputs:
+            extra["opacities"] = render_opacity(self._passes, draws, drawn, mask, timings)
+        if "shadow_masks" in outputs:
+            extra["shadow_masks"] = self._render_shadow_mask(draws, plan, casters, transmitting, shadowed, mask, timings)
+        return image, mask, extra
 
     def _render_shadow_mask(self, draws: ViewDraws, plan: ViewPlan, casters: list[Surface],
                             transmitting: list[Surface], shadowed: list, mask: np.ndarray,

@@ -14,7 +14,7 @@ import operator
 from dataclasses import dataclass
 from typing import Any
 
-from ..render_choices import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, shadow_map_side
+from ..render_choices import ANTIALIAS_SAMPLES, OUTPUTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, shadow_map_side
 
 __all__ = ["RenderSettings"]
 
@@ -43,12 +43,9 @@ class RenderSettings:
         antialias: samples per pixel of each view's lit colour pass (1: none; 2, 4 or 8:
             multisampled, then resolved to one colour per pixel). Masks, opacities and the label are
             drawn single-sampled either way (config ``antialias``).
-        opacities: also render each view's opacity (``RenderedSequence.opacities``); the other
-            outputs are the same either way (config ``opacity_output``).
-        shadow_masks: also render each view's shadow mask (``RenderedSequence.shadow_masks``); the
-            other outputs are the same either way (config ``shadow_mask_output``).
-        shadow_free: also render each view with no light blocked (``RenderedSequence.shadow_free``);
-            the other outputs are the same either way (config ``shadow_free_output``).
+        outputs: the optional outputs to render too (names of ``render_choices.OUTPUTS``: ``opacities``,
+            ``shadow_masks``, ``shadow_free``; ``RenderedSequence.outputs``); the other outputs are the
+            same either way (the config fields of the rows' ``switch``).
         highlight_spill: over-exposed light spills into the other channels, a blown-out red turning
             white; false: each channel clips at white on its own (config ``highlight_spill``).
         light_radius: every emitter's radius, painting units: above 0, soft shadows (percentage-closer
@@ -80,9 +77,7 @@ class RenderSettings:
     shadows: bool = True
     occluders_visible: bool = True
     mask_min_opacity: float = 0.0
-    opacities: bool = False
-    shadow_masks: bool = False
-    shadow_free: bool = False
+    outputs: frozenset[str] = frozenset()
     antialias: int = 1
     highlight_spill: bool = True
     light_radius: float = 0.0
@@ -121,6 +116,8 @@ class RenderSettings:
             raise ValueError(f"footprint_tile: expected an integer >= 1 (pixels), got {self.footprint_tile!r}")
         if not 0 <= self.light_radius < math.inf:
             raise ValueError(f"light_radius: expected a finite value >= 0, got {self.light_radius!r}")
+        if not isinstance(self.outputs, frozenset) or not self.outputs <= OUTPUTS.keys():
+            raise ValueError(f"outputs: expected a frozenset of {sorted(OUTPUTS)}, got {self.outputs!r}")
         if not 0 <= self.mask_min_opacity <= 1:
             raise ValueError(f"mask_min_opacity: expected a value in [0, 1], got {self.mask_min_opacity!r}")
 
@@ -133,8 +130,8 @@ class RenderSettings:
             mesh_error_px=config.mesh_error_px if config.mesh_detail == "auto" else None,
             texture_filter=config.texture_filter, shadows=config.shadows,
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
-            opacities=config.opacity_output, shadow_masks=config.shadow_mask_output,
-            shadow_free=config.shadow_free_output, antialias=config.antialias,
+            outputs=frozenset(name for name, row in OUTPUTS.items() if getattr(config, row.switch)),
+            antialias=config.antialias,
             highlight_spill=config.highlight_spill, light_radius=config.light_radius,
             group_emitters=config.area_light_shading == "per_light",
         )

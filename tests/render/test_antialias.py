@@ -20,7 +20,7 @@ def render(antialias):
     """One unlit view (ambient 1, no lights) of a flat grey painting behind a black sphere: with
     one sample per pixel each painting pixel is either grey or black."""
     sphere = Occluder("sphere", np.array([0.03, -0.02, 0.3]), np.eye(3), np.full(3, 0.15), BLACK)
-    return render_flat_painting([sphere], ambient=1.0, painting=GREY, opacities=True, antialias=antialias)
+    return render_flat_painting([sphere], ambient=1.0, painting=GREY, outputs=frozenset({"opacities"}), antialias=antialias)
 
 
 def test_antialiasing_blends_the_silhouette_and_moves_nothing():
@@ -51,7 +51,7 @@ def test_masks_opacities_and_label_are_the_same_with_and_without_antialiasing():
     sharp, smooth = render(1), render(4)
     assert sharp.masks[0].any() and not sharp.masks[0].all()
     assert np.array_equal(sharp.masks, smooth.masks)
-    assert np.array_equal(sharp.opacities, smooth.opacities)
+    assert np.array_equal(sharp.outputs["opacities"], smooth.outputs["opacities"])
     assert np.array_equal(sharp.label, smooth.label)
     assert np.array_equal(sharp.background, smooth.background)
     assert not np.array_equal(sharp.views, smooth.views)

@@ -22,8 +22,8 @@ OPAQUE_KINDS = ("diffuse", "glossy", "metallic", "principled")
 def render(occluders, painting=200, mask_min_opacity=0.0, camera=None, visible=True):
     """One unlit (ambient 1, no lights) view of a flat grey painting, with its opacities."""
     out = render_flat_painting(occluders, ambient=1.0, painting=painting, camera=camera, occluders_visible=visible,
-                               mask_min_opacity=mask_min_opacity, opacities=True)
-    return out.views[0].astype(int), out.masks[0], out.opacities[0].astype(int)
+                               mask_min_opacity=mask_min_opacity, outputs=frozenset({"opacities"}))
+    return out.views[0].astype(int), out.masks[0], out.outputs["opacities"][0].astype(int)
 
 
 def dark_glass(alpha):

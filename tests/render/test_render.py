@@ -217,7 +217,7 @@ def test_render_settings_come_from_the_config_and_key_the_shared_renderer():
     config = small_config("shadows_only", mask_min_opacity=0.5, opacity_output=True, shadow_filter="bilinear")
     settings = RenderSettings.from_config(config)
     assert settings == RenderSettings(SMALL, 512, "bilinear", "fitted", 0.25, "trilinear", shadows=True,
-                                      occluders_visible=False, mask_min_opacity=0.5, opacities=True)  # auto maps
+                                      occluders_visible=False, mask_min_opacity=0.5, outputs=frozenset({"opacities"}))  # auto maps
     assert shared_renderer(RenderSettings(SMALL)) is shared_renderer(RenderSettings((96, 128), 1024))
     assert shared_renderer(RenderSettings(SMALL)).settings == RenderSettings(SMALL)
 

@@ -36,7 +36,7 @@ def render(occluders, lights, shadows=True):
     """A white painting through the reference camera: the rendered sequence (one view)."""
     timings = {}
     out = render_flat_painting(occluders, lights, LAMBERTIAN, painting=255, timings=timings, shadows=shadows,
-                               shadow_masks=True, shadow_free=True)
+                               outputs=frozenset({"shadow_masks", "shadow_free"}))
     return out, timings
 
 
@@ -49,21 +49,21 @@ def test_the_shadow_mask_is_the_light_the_occluders_take_from_the_painting():
     casters = [ball((0.0, 0.0), [0.2, 0.3, 0.9, 1.0]), ball((0.35, 0.2), [0.9, 0.1, 0.1, 0.4])]  # opaque, red glass
     shadowed, _ = render(casters, lights)
     unshadowed, _ = render(casters, lights, shadows=False)
-    fraction = shadowed.shadow_masks[0] / 255.0
+    fraction = shadowed.outputs["shadow_masks"][0] / 255.0
     seen = ~shadowed.masks[0] & (luminance(unshadowed.views[0]) > 0.05)
     assert (fraction[seen] > 0.5).sum() > 100 and ((fraction[seen] > 0.05) & (fraction[seen] < 0.5)).sum() > 50
     ratio = luminance(shadowed.views[0])[seen] / luminance(unshadowed.views[0])[seen]
     assert np.percentile(np.abs(ratio - (1 - fraction[seen])), 99) < 0.03
     assert (fraction[shadowed.masks[0]] == 0).all()  # off the painting and behind the occluders
-    assert np.array_equal(shadowed.shadow_free, unshadowed.views)  # the scene without shadows, exactly
-    free = luminance(shadowed.shadow_free[0])[seen]
+    assert np.array_equal(shadowed.outputs["shadow_free"], unshadowed.views)  # the scene without shadows, exactly
+    free = luminance(shadowed.outputs["shadow_free"][0])[seen]
     assert np.percentile(np.abs(luminance(shadowed.views[0])[seen] / free - (1 - fraction[seen])), 99) < 0.03
 
 
 def test_no_occluder_no_shadow_and_no_draw():
     out, timings = render([], [spot(-1.0, 0.0, 0.5)])
-    assert out.shadow_masks.shape == (1, *SMALL) and not out.shadow_masks.any()
-    assert np.array_equal(out.shadow_free, out.views)
+    assert out.outputs["shadow_masks"].shape == (1, *SMALL) and not out.outputs["shadow_masks"].any()
+    assert np.array_equal(out.outputs["shadow_free"], out.views)
     assert "shadow_mask" not in timings and "shadow_free" not in timings
 
 
@@ -98,9 +98,9 @@ def test_the_shadow_free_view_is_the_scene_rendered_without_shadows_pixel_for_pi
     settings = RenderSettings.from_config(config)
     for index in range(2):
         sequence, painting = dataset.scene(index), dataset.source.painting(index, config.image_size)
-        with_outputs = shared_renderer(replace(settings, shadow_free=True)).render(sequence, painting)
+        with_outputs = shared_renderer(replace(settings, outputs=settings.outputs | {"shadow_free"})).render(sequence, painting)
         without_shadows = shared_renderer(replace(settings, shadows=False)).render(sequence, painting)
-        assert np.array_equal(with_outputs.shadow_free, without_shadows.views)
+        assert np.array_equal(with_outputs.outputs["shadow_free"], without_shadows.views)
         assert not np.array_equal(with_outputs.views, without_shadows.views)  # there were shadows to remove
 
 
@@ -118,7 +118,7 @@ def one_ball_shadow(alpha):
     caster = Occluder("sphere", BALL_AT, np.eye(3), np.full(3, BALL_RADIUS),
                       Material(np.array([0.5, 0.5, 0.5, alpha]), 0.0, 1.0, specular=0.0))
     view = ViewScene(camera, (light,), (caster,), LAMBERTIAN, 0.0)
-    settings = RenderSettings(ELLIPSE_SIZE, shadow_masks=True, shadow_map_size=2048)
+    settings = RenderSettings(ELLIPSE_SIZE, outputs=frozenset({"shadow_masks"}), shadow_map_size=2048)
     painting = np.full((*ELLIPSE_SIZE, 3), 200, np.uint8)
     out = shared_renderer(settings).render(SceneSequence(ELLIPSE_SIZE, (view,)), painting)
     h, w = ELLIPSE_SIZE
@@ -131,7 +131,7 @@ def one_ball_shadow(alpha):
     pixel = np.linalg.norm(geometry.project(camera.K, camera.R, camera.t, np.array([[0, 0, 0.0], [1e-3, 0, 0]]))[1]
                            - geometry.project(camera.K, camera.R, camera.t, np.zeros((1, 3)))[0]) / 1e-3  # px per unit
     distance = (angle - np.arcsin(BALL_RADIUS / np.linalg.norm(axis))) * np.linalg.norm(rays, axis=-1) * pixel
-    return out.shadow_masks[0] / 255.0, out.masks[0], distance
+    return out.outputs["shadow_masks"][0] / 255.0, out.masks[0], distance
 
 
 def test_an_opaque_ball_shadow_matches_its_analytic_ellipse_within_a_pixel():
