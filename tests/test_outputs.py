@@ -1,0 +1,29 @@
+"""The optional outputs' table (``render_choices.OUTPUTS``) and the layers that follow it name the same outputs."""
+
+from sidar_torch import load_config
+from sidar_torch.config import SidarConfig
+from sidar_torch.config.memory import estimated_sample_bytes
+from sidar_torch.render.settings import RenderSettings
+from sidar_torch.render_choices import OUTPUTS
+from sidar_torch.sample import KEYS, SampleArrays
+
+
+def test_every_optional_output_is_a_config_switch_a_sample_key_and_a_sample_arrays_field():
+    keys = {key.name: key for key in KEYS}
+    assert {key.name for key in KEYS if key.switch is not None} == set(OUTPUTS)
+    for name, row in OUTPUTS.items():
+        assert isinstance(SidarConfig.__dataclass_fields__[row.switch].default, bool), row.switch
+        assert (keys[name].switch, keys[name].entry) == (row.switch, row.entry), name
+        assert keys[name].shape == f"(V, {row.channels}, H, W)", name
+        assert name in SampleArrays.__dataclass_fields__, name
+
+
+def test_a_switch_turns_its_output_on_in_the_render_settings_and_counts_in_the_memory_estimate():
+    plain = load_config("misaligned")
+    assert RenderSettings.from_config(plain).outputs == frozenset()
+    for name, row in OUTPUTS.items():
+        config = plain.replace(**{row.switch: True})
+        assert RenderSettings.from_config(config).outputs == {name}
+        more = estimated_sample_bytes(config) - estimated_sample_bytes(plain)
+        assert more == config.image_size[0] * config.image_size[1] * (config.n_views * row.view_pixel_bytes
+                                                                      + row.target_pixel_bytes), name
