@@ -21,7 +21,8 @@ from PIL import Image
 
 from ..config.numbers import long_integer_text
 
-__all__ = ["DECODERS", "ENCODERS", "MAT_HEADER", "MAT_LIMIT", "decode", "encode", "png_size", "read_json"]
+__all__ = ["DECODERS", "ENCODERS", "MAT_HEADER", "MAT_LIMIT", "decode", "encode", "png_size", "read_json",
+           "unreadable"]
 
 MAT_HEADER = b"MATLAB 5.0 MAT-file, written by sidar_torch"
 """Replaces scipy's header text, which holds the time of writing, so equal data gives equal files."""
@@ -69,7 +70,7 @@ def png_size(data: bytes) -> tuple[int, int] | None:
 
 
 @contextmanager
-def _unreadable(kind: str) -> Iterator[None]:
+def unreadable(kind: str) -> Iterator[None]:
     """Turn whatever a library raises while decoding hostile bytes into ``ValueError("not a readable
     <kind> (...)")``; a ``MemoryError`` stays one (the callers check every size before decoding)."""
     try:
@@ -93,7 +94,7 @@ def _read_png(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
         if depth != 8 or PNG_CHANNEL_AXES.get(colour) != shape[2:]:
             raise ValueError(f"expected an 8-bit {'RGB' if shape[2:] else 'grey'} PNG, its header says bit depth "
                              f"{depth}, colour type {colour}")
-    with _unreadable("PNG"), Image.open(io.BytesIO(data)) as image:
+    with unreadable("PNG"), Image.open(io.BytesIO(data)) as image:
         pixels = np.array(image)
     if shape is not None and (pixels.shape != shape or pixels.dtype != np.uint8):
         raise ValueError(f"decodes to {pixels.dtype} {pixels.shape}, expected uint8 {shape}")
@@ -106,14 +107,14 @@ def _read_mat(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
     shape = shape or (3, 3)
     if len(data) > MAT_LIMIT:
         raise ValueError(f"holds {len(data)} bytes, more than the {MAT_LIMIT} of a homography's MATLAB file")
-    with _unreadable("MATLAB file"):
+    with unreadable("MATLAB file"):
         variables = {name: (size, kind) for name, size, kind in scipy.io.whosmat(io.BytesIO(data))}
     if "H" not in variables:
         raise ValueError(f"no variable 'H' (it holds {sorted(variables)})")
     size, kind = variables["H"]
     if kind != "double" or tuple(size) != shape:
         raise ValueError(f"holds 'H' of shape {tuple(size)}, class {kind}; expected {shape} double")
-    with _unreadable("MATLAB file"):
+    with unreadable("MATLAB file"):
         H = scipy.io.loadmat(io.BytesIO(data), variable_names=["H"])["H"]
     if H.dtype != np.float64 or H.shape != tuple(size):
         raise ValueError(f"holds 'H' of {H.dtype} {H.shape}, its header says {tuple(size)} double")
@@ -125,7 +126,7 @@ def _read_npy(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
     its header is checked against ``shape`` and against the bytes the file holds before the array
     is made."""
     f = io.BytesIO(data)
-    with _unreadable(".npy file"):
+    with unreadable(".npy file"):
         version = np.lib.format.read_magic(f)
         read_header = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
         declared, fortran_order, dtype = read_header[version](f)

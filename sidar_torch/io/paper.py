@@ -41,7 +41,7 @@ import numpy as np
 from PIL import Image
 
 from ..sample import SampleArrays
-from .codecs import encode, png_size
+from .codecs import encode, png_size, unreadable
 from .entries import CAMERA_KEYS, CAMERAS, camera_shape, sample_entries
 from .files import open_inside
 from .folders import FolderLayout
@@ -129,13 +129,14 @@ class PaperLayout(FolderLayout):
         as the shared codec's MATLAB file of the same matrix (the paper's pixels).
 
         Raises:
-            FileNotFoundError: no such entry; ValueError: as :meth:`FolderLayout.read`.
+            FileNotFoundError: no such entry; ValueError: as :meth:`FolderLayout.read`, and a PNG
+            Pillow cannot read or of too many pixels (:func:`_ours`), naming the file.
         """
         if name == CAMERAS and not (where / CAMERAS).exists():
             return where / CAMERAS, _unknown_cameras(out, where)
         path, data = super().read(out, where, name, limit)
         if name.endswith(".png"):
-            return path, _ours(path, name, data)
+            return path, _ours(path, name, data, limit)
         if name.endswith(".mat"):  # the paper's text, handed on as the shared codec's MATLAB file (same numbers)
             return path, encode({name: read_homography_text(data, path)})[name]
         return path, data
@@ -144,7 +145,7 @@ class PaperLayout(FolderLayout):
         """``(V, V, 3, 3)`` float64: ``homographies.npy`` where there is one (ours), else the
         paper's ``H_i_j.mat`` texts converted to Kornia pixels, det = 1, ``H[j, i]`` the inverse."""
         try:
-            return read(HOMOGRAPHIES)
+            return read(HOMOGRAPHIES, (n_views, n_views, 3, 3))
         except FileNotFoundError:
             pass
         size = read(LABEL).shape[:2]
@@ -156,17 +157,31 @@ class PaperLayout(FolderLayout):
         return homographies
 
 
-def _ours(path: Path, name: str, data: bytes) -> bytes:
+PNG_BYTES_PER_PIXEL = 4
+"""The most bytes Pillow holds a decoded PNG pixel in (RGB, RGBA, grey with alpha, 32-bit grey)."""
+
+
+def _ours(path: Path, name: str, data: bytes, limit: int) -> bytes:
     """A PNG in our form: the bytes as they are when grey or RGB (ours), else (the paper's RGBA)
     converted: a mask ``<v>-m.png`` to grey 0 / 255 (255 from 128 up, its antialiased edges), any
-    other to RGB (the alpha dropped)."""
+    other to RGB (the alpha dropped). Its header's size is checked first: Pillow holds at most
+    ``limit`` bytes of pixels (:data:`PNG_BYTES_PER_PIXEL`), the conversion about three times that.
+
+    Raises:
+        ValueError: naming ``path``: not a PNG Pillow reads, or one of more pixels than ``limit``
+            bytes hold (the entry's :func:`.limits.entry_size_limit`).
+    """
+    size = png_size(data)
+    if size is not None and PNG_BYTES_PER_PIXEL * size[0] * size[1] > limit:
+        raise ValueError(f"{str(path)!r}: its header says {size[0]} x {size[1]} pixels (H x W), more than the "
+                         f"{limit} bytes this export's files may hold at {PNG_BYTES_PER_PIXEL} bytes a pixel")
     try:
-        with Image.open(io.BytesIO(data)) as image:
+        with unreadable("PNG"), Image.open(io.BytesIO(data), formats=["PNG"]) as image:
             if image.mode in ("L", "RGB"):
                 return data
             pixels = np.asarray(image.convert("RGB"))
-    except OSError as error:
-        raise ValueError(f"{str(path)!r}: not a readable PNG ({error})") from None
+    except ValueError as error:
+        raise ValueError(f"{str(path)!r}: {error}") from None
     if name.endswith("-m.png"):
         pixels = np.where(pixels[..., 0] >= 128, 255, 0).astype(np.uint8)
     return encode({name: pixels})[name]
@@ -198,14 +213,16 @@ def paper_manifest(folder: Path) -> dict[str, Any]:
 
     Raises:
         ValueError: ``folder`` holds no ``export.json`` and no sequence folder of the paper's
-            layout, or one whose ``gt.png`` is not a PNG (the message names it).
+            layout, or the first one's ``gt.png`` is not a PNG, not a regular file (a FIFO is
+            refused before it is opened, :func:`.files.open_inside`) or leads outside ``folder``
+            (the message names it).
     """
     sequences = paper_folders(folder)
     if not sequences:
         raise ValueError(f"{str(folder)!r}: not a sidar_torch export (no {MANIFEST}) nor a folder of the SIDAR "
                          f"paper's sequences (sub-folders with {LABEL}, 0.png, 0-m.png, H_0_1.mat, ...)")
     first = sequences[0]
-    with open(first / LABEL, "rb") as f:
+    with open_inside(first / LABEL, folder) as f:
         size = png_size(f.read(24))
     if size is None:
         raise ValueError(f"{str(first / LABEL)!r}: not a PNG")
