@@ -1,8 +1,10 @@
 """Export: freeze a :class:`~sidar_torch.SidarDataset` to disk, and read it back.
 
-:func:`export_dataset` writes sequences ``start .. start + count - 1`` of a dataset in the SIDAR
-paper's file layout (the default, :mod:`.folders`) or in WebDataset-style tar shards
-(:mod:`.shards`); :class:`ExportedDataset` (:mod:`.reader`) loads either back into the dict
+:func:`export_dataset` writes sequences ``start .. start + count - 1`` of a dataset as one folder
+per sequence with the SIDAR paper's file names (the default, :mod:`.folders`: a MATLAB file per
+ordered pair of views), in the paper's own layout (``layout="paper"``, :mod:`.paper`: its
+``H_i_j.mat`` texts in its pixels, as its generator writes them) or in WebDataset-style tar shards
+(:mod:`.shards`); :class:`ExportedDataset` (:mod:`.reader`) loads any of them back into the dict
 :meth:`SidarDataset.sample` returns, tensor for tensor byte-identical (the views are 8-bit
 renders, so 8-bit PNGs hold them exactly). Each layout is one class answering the same interface
 (:class:`.layout.Layout`: which sequences are here, how missing ones group into write units, write

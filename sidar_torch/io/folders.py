@@ -1,4 +1,6 @@
-"""The SIDAR paper's layout: one folder per sequence, PNGs and one MATLAB file per homography.
+"""The folder layout: one folder per sequence with the SIDAR paper's file names, PNGs and one MATLAB
+file per ordered pair of views (the paper's own layout, its homographies as text in its pixels, is
+:mod:`.paper`'s).
 
 ::
 
@@ -7,6 +9,7 @@
       0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
       0-o.png ..           only with ``opacity_output``: 255 times the fraction of the painting hidden
       0-s.png ..           only with ``shadow_mask_output``: 255 times the fraction of the direct light blocked
+      0-f.png ..           only with ``shadow_free_output``: the views with no light blocked, 8-bit RGB
       gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
       H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: variable ``H``, 3 x 3 float64
       cameras.json         index, image_size [H, W], K, R, t per view (float64), homography_error
