@@ -27,7 +27,7 @@ from .config import SidarConfig
 from .render_choices import OUTPUTS
 from .scene import SceneSequence
 from .timing import timed
-from .warm_up import warm_renderer
+from .warm_up import sample_renderer
 
 __all__ = ["KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
@@ -304,7 +304,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             sequences', :func:`batch_homographies`); default: computed here.
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    rendered = warm_renderer(config).render(sequence, painting, timings)
+    rendered = sample_renderer(config).render(sequence, painting, timings)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed(timings, "effects"):

@@ -46,7 +46,8 @@ from .scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_seq
 if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
     from .render import SceneRenderer
 
-__all__ = ["WARM_UP_SEED", "light_group_counts", "variant_signature", "warm_renderer", "warm_up_sequence"]
+__all__ = ["WARM_UP_SEED", "light_group_counts", "sample_renderer", "variant_signature", "warm_renderer",
+           "warm_up_sequence"]
 
 WARM_UP_SEED = 0x5EED
 """Seed of the generator that draws the warm-up scene (any fixed value: the scene is never handed out)."""
@@ -129,6 +130,21 @@ def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
     signatures = sorted({variant_signature(o.material) for v in sequence.views for o in v.occluders}, key=repr)
     lit = bool(sequence.views[0].lights)
     return sequence, (lit, light_group_counts(config) if lit else (), *signatures)
+
+
+def sample_renderer(config: SidarConfig) -> SceneRenderer:
+    """The renderer a sample of ``config`` is rendered with (``sample.render_arrays``): :func:`warm_renderer`'s,
+    except that a renderer that has rendered nothing yet renders its first sample before its warm-up.
+
+    A fresh process (a DataLoader worker whose parent never rendered) then hands its first sample out
+    after compiling only the variants that sample draws, and warms up before its second, so its later
+    samples still meet no compile mid-stream. Compiling in another order changes no pixel
+    (``tests/render/test_warm_up.py``).
+    """
+    renderer = shared_renderer(RenderSettings.from_config(config))
+    if renderer.renders:
+        renderer.warm_up(*_scenes_and_key(config))
+    return renderer
 
 
 def warm_renderer(config: SidarConfig) -> SceneRenderer:

@@ -149,6 +149,8 @@ class SceneRenderer:
         self._shadows = ShadowMaps(self._passes, settings)
         self._texture: PaintingTexture | None = None
         self._warmed_up: set[Hashable] = set()
+        self.renders = 0
+        """Sequences rendered so far, warm-ups included."""
 
     @property
     def program_count(self) -> int:
@@ -207,6 +209,7 @@ class SceneRenderer:
         else:
             label = render_label(self._passes, reference, self._plane, texture, self.image_size, timings)
         views = np.stack(views)
+        self.renders += 1
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 {name: np.stack(arrays) for name, arrays in outputs.items()})
 

@@ -77,3 +77,27 @@ def test_the_warm_up_hands_out_nothing_and_changes_no_pixel():
     finally:
         cold.close()
         warm.close()
+
+
+def test_a_fresh_renderer_hands_its_first_sample_out_before_its_warm_up():
+    """A process that never rendered (a DataLoader worker of a parent that never did) compiles only what
+    its first sample draws, then warms up before the second: the first sample comes sooner, the stream
+    after it meets no compile, and the pixels are those of a warm renderer."""
+    from sidar_torch.render import shared_renderer
+    from sidar_torch.sample import render_arrays
+
+    config = small_config("misaligned", image_size=(40, 56))  # a size no other test renders: a fresh renderer
+    settings = RenderSettings.from_config(config)
+    dataset = SidarDataset(config=config, seed=0)
+    fresh = shared_renderer(settings)
+    assert fresh.renders == 0
+    warm = SceneRenderer(settings)
+    try:
+        warm.warm_up(warm_up_sequence(config), "all variants")
+        first = render_arrays(dataset.scene(0), painting_of(dataset, 0), config, 0)
+        assert 0 < fresh.program_count < warm.program_count  # the first sample's variants only
+        render_arrays(dataset.scene(1), painting_of(dataset, 1), config, 1)
+        assert fresh.program_count == warm.program_count  # warmed up before the second
+        assert np.array_equal(first.images, warm.render(dataset.scene(0), painting_of(dataset, 0)).views)
+    finally:
+        warm.close()
