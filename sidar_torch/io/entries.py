@@ -15,10 +15,14 @@ import numpy as np
 from ..config.numbers import shown
 from ..sample import KEYS, SampleArrays, SampleKey, present_keys
 
-__all__ = ["CAMERAS", "CAMERA_KEYS", "camera_shape", "pixel_entries_text", "pixel_shape", "read_cameras",
+__all__ = ["CAMERAS", "CAMERA_KEYS", "HOMOGRAPHIES", "camera_shape", "pixel_entries_text", "pixel_shape", "read_cameras",
            "sample_entries", "sample_from_entries"]
 
 CAMERAS = "cameras.json"
+
+HOMOGRAPHIES = "homographies.npy"
+"""The file of all ``(V, V, 3, 3)`` float64 homographies, in Kornia pixels, of the layouts that write one
+(shards, the paper's layout)."""
 
 _NOT_IN_CAMERAS = {
     "homographies": "each layout writes them its own way (H_i_j.mat files, homographies.npy)",

@@ -36,6 +36,8 @@ from .layout import SEQUENCE_NAME, WriteUnit, sequence_name
 
 
 def homography_entry(i: int, j: int) -> str:
+    """The file of the homography from view ``i`` to view ``j`` (the paper's name; its own layout
+    writes it for ``i < j`` only)."""
     return f"H_{i}_{j}.mat"
 
 

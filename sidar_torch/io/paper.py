@@ -42,18 +42,12 @@ from PIL import Image
 
 from ..sample import SampleArrays
 from .codecs import encode, png_size, unreadable
-from .entries import CAMERA_KEYS, CAMERAS, camera_shape, sample_entries
+from .entries import CAMERA_KEYS, CAMERAS, HOMOGRAPHIES, camera_shape, sample_entries
 from .files import open_inside
-from .folders import FolderLayout
+from .folders import FolderLayout, homography_entry
 from .layout import MANIFEST
 
-HOMOGRAPHIES = "homographies.npy"
 LABEL = "gt.png"
-
-
-def homography_entry(i: int, j: int) -> str:
-    """The paper's file of the homography from view ``i`` to view ``j`` (``i < j``)."""
-    return f"H_{i}_{j}.mat"
 
 
 def paper_pixels(image_size: tuple[int, int]) -> np.ndarray:

@@ -24,10 +24,9 @@ import numpy as np
 from ..sample import SampleArrays
 from .files import open_inside, temporary_path
 from .codecs import encode
-from .entries import sample_entries
+from .entries import HOMOGRAPHIES, sample_entries
 from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, sequence_name
 
-HOMOGRAPHIES = "homographies.npy"
 END_MARKER = 2 * tarfile.BLOCKSIZE
 """Bytes of zeros that end a whole tar (the end-of-archive marker ``tarfile`` writes)."""
 
