@@ -9,7 +9,8 @@ Importing this package fixes two environment variables before anything imports O
   child's first GL call; with no worker threads, forking DataLoader workers is safe even after
   the parent rendered. On 2 cores, one thread per worker process is also the fastest split.
 
-Set either variable before importing ``sidar_torch`` to choose otherwise.
+With ``egl``, also ``PYGLET_HEADLESS`` (default ``true``): pyrender's import loads pyglet, which
+otherwise needs X11's libraries. Set any of them before importing ``sidar_torch`` to choose otherwise.
 
 Importing this package loads no GL library: ``renderer`` (pyrender, PyOpenGL) is imported at the
 first use of :func:`shared_renderer` or an attribute named in
@@ -22,6 +23,11 @@ import os
 
 os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
 os.environ.setdefault("LP_NUM_THREADS", "0")
+if os.environ["PYOPENGL_PLATFORM"] == "egl":
+    # pyrender's import loads pyglet (for a viewer never opened here), which looks for X11's libraries
+    # unless headless: on a GPU server without them (seen on an H100 machine) the import failed.
+    # Headless, pyglet uses EGL, which this platform has.
+    os.environ.setdefault("PYGLET_HEADLESS", "true")
 
 from .settings import RenderSettings  # noqa: E402  (GL-free)
 
