@@ -51,13 +51,18 @@ def paired_config(name: str, args: argparse.Namespace) -> SidarConfig:
 
 
 def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
-    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True
-    (:func:`paired_settings_times`)."""
-    from sidar_torch.render import RenderSettings  # imports pyrender: here, so parsing loads no GL
+    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True, or, for
+    the name of an optional output (``render_choices.OUTPUTS``), without and with it in
+    ``RenderSettings.outputs`` (:func:`paired_settings_times`)."""
+    from sidar_torch.render import RenderSettings  # imports the renderer: here, so parsing loads no GL
+    from sidar_torch.render_choices import OUTPUTS
 
     settings = RenderSettings.from_config(config)
-    return paired_settings_times(config, replace(settings, **{field: False}), replace(settings, **{field: True}),
-                                 samples)
+    if field in OUTPUTS:
+        off, on = (replace(settings, outputs=outputs) for outputs in (settings.outputs - {field}, settings.outputs | {field}))
+    else:
+        off, on = (replace(settings, **{field: flag}) for flag in (False, True))
+    return paired_settings_times(config, off, on, samples)
 
 
 def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
