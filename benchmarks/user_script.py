@@ -30,7 +30,7 @@ from sidar_torch import SidarDataset, load_config
 
 from .common import DEFAULT_PRESET, cpu_seconds, kornia_call, machine, machine_line, median, one_thread, parse_size
 
-__all__ = ["first_sample_seconds", "loader_throughput", "main"]
+__all__ = ["build_parser", "first_sample_seconds", "loader_throughput", "main"]
 
 
 def first_sample_seconds(dataset: SidarDataset, workers: int) -> float:
@@ -77,7 +77,8 @@ def run(preset: str, size: tuple[int, int], samples: int, skip: int, seed: int) 
     return figures
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``python -m benchmarks.user_script``."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.user_script", description=__doc__.split("\n\n")[0])
     parser.add_argument("--preset", default=DEFAULT_PRESET)
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW")
@@ -85,7 +86,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--skip", type=int, default=4, help="samples of each loader not timed (default 4)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", default=None, metavar="PATH")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     before = machine()
     figures = run(args.preset, args.size, args.samples, args.skip, args.seed)
     figures["machine"] = machine_line(before, machine())
