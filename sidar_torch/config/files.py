@@ -10,7 +10,6 @@ from __future__ import annotations
 import os
 import stat
 from contextlib import contextmanager
-from pathlib import Path
 from typing import BinaryIO, Iterator
 
 __all__ = ["check_regular", "file_kind", "open_regular", "read_regular"]

@@ -5,7 +5,6 @@ sequences (no ``export.json``) read with their homographies converted to Kornia 
 The six sequences of the paper's generator are checked when ``SIDAR_PAPER_SEQUENCES`` names a
 folder of them (skipped otherwise: users do not have them)."""
 
-import io
 import itertools
 import os
 from pathlib import Path
