@@ -11,6 +11,7 @@ Frames: poses are ``(4, 4)`` float64 object-to-world matrices; cameras and light
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -135,10 +136,11 @@ class ViewDraws:
         """The painting, then the occluders."""
         return [self.painting, *self.occluders]
 
-    @property
+    @functools.cached_property
     def scale(self) -> float:
         """The diagonal of the box around every surface (world units): sets the default shadow
-        cameras' depth range (pyrender's ``Scene.scale``)."""
+        cameras' depth range (pyrender's ``Scene.scale``). Computed at its first use, which comes
+        after every surface is listed (the shadow frusta), then kept: the passes ask for it per light."""
         corners = np.vstack([surface.mesh.corners(surface.pose) for surface in self.surfaces])
         return float(np.linalg.norm(np.diff(np.array([corners.min(axis=0), corners.max(axis=0)]), axis=0).reshape(-1)))
 
