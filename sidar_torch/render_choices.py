@@ -13,7 +13,7 @@ __all__ = ["ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "AUTO_MAP_SIZE", "MAX_AUT
            "OUTPUTS", "OptionalOutput", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
 
 MAX_SHADOWED_LIGHTS = 24
-"""Shadow-casting GL lights one view may use (texture units left after pyrender's reserved ones)."""
+"""Shadow-casting spot lights one view may use: the length of the lights' uniform block (``render.light_block``)."""
 
 AREA_LIGHT_SHADINGS = ("per_light", "per_emitter")
 """How often an area light's shading is evaluated at a fragment (``SidarConfig.area_light_shading``)."""
