@@ -74,6 +74,8 @@ class OptionalOutput:
             second output), 0 for none.
         view_effects: the view effects (background, exposure, noise, JPEG: ``sidar_torch.effects``) apply
             to it as to the views, with the same draws (an image of the view); false: it is left as drawn.
+        dtype: ``"uint8"`` (8-bit levels, a float tensor of ``level / 255`` in the sample, a PNG file) or
+            ``"float32"`` (values with units, the same float32 tensor, a ``.npy`` file).
     """
 
     name: str
@@ -84,6 +86,7 @@ class OptionalOutput:
     view_pixel_bytes: int = 0
     target_pixel_bytes: int = 0
     view_effects: bool = False
+    dtype: str = "uint8"
 
 
 OUTPUTS = {row.name: row for row in (
@@ -95,6 +98,9 @@ OUTPUTS = {row.name: row for row in (
     OptionalOutput("shadow_free", "shadow_free_output", 3, "{v}-f.png",
                    "<i>-f.png: the view with no light blocked (the target of shadow removal)",
                    view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True),
+    OptionalOutput("depth", "depth_output", 1, "{v}-d.npy",
+                   "<i>-d.npy: float32 (H, W), the distance along the camera's z axis to the painting or an occluder, "
+                   "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32"),
 )}
 """The optional outputs, by name. Adding one: a row here, its switch in ``config/fields.py``, its key in
 ``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and the pass or render target that

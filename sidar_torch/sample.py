@@ -29,7 +29,7 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import sample_renderer
 
-__all__ = ["KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+__all__ = ["FLOAT_OUTPUTS", "KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
@@ -84,6 +84,10 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey.optional("shadow_free", "float32 in [0, 1], multiples of 1/255",
               "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
               "blocked: the target of shadow removal; equal to images wherever no shadow falls"),
+    SampleKey.optional("depth", "float32, painting units",
+              "the distance along the view's camera z axis (R X + t's third coordinate) to the nearest surface the "
+              "masks count (the painting, or an occluder at least mask_min_opacity opaque) at each pixel centre, "
+              "inf where none is hit; sidar_torch.flow turns it into dense correspondence"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -102,9 +106,13 @@ KEYS: tuple[SampleKey, ...] = (
 )
 """The sample's keys, in the order of a sample dict."""
 
-PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
-"""The 8-bit pixel keys of the table (those with an export entry: ``images``, ``masks``, ``label`` and
-the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
+FLOAT_OUTPUTS = frozenset(name for name, row in OUTPUTS.items() if row.dtype == "float32")
+"""The optional outputs of float32 values with units (``depth``): their arrays and tensors are float32,
+their export files ``.npy``."""
+
+PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key.name not in FLOAT_OUTPUTS)
+"""The 8-bit pixel keys of the table (those with an export entry, but the float outputs: ``images``,
+``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
 GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
 """``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
@@ -128,8 +136,9 @@ class SampleArrays:
         homography_error: pixels.
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
-        opacities, shadow_masks, shadow_free: the optional outputs (``render_choices.OUTPUTS``), each
-            ``(V, H, W)`` uint8 (one channel) or ``(V, H, W, 3)`` (three), or None (not rendered).
+        opacities, shadow_masks, shadow_free, depth: the optional outputs (``render_choices.OUTPUTS``), each
+            ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
+            float32), or None (not rendered).
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -147,6 +156,7 @@ class SampleArrays:
     opacities: np.ndarray | None = None
     shadow_masks: np.ndarray | None = None
     shadow_free: np.ndarray | None = None
+    depth: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
@@ -158,7 +168,7 @@ class SampleArrays:
                     "K": ((V, 3, 3), np.float64), "R": ((V, 3, 3), np.float64), "t": ((V, 3), np.float64)}
         for name, row in OUTPUTS.items():
             if getattr(self, name) is not None:
-                expected[name] = ((V, H, W, 3) if row.channels == 3 else (V, H, W), np.uint8)
+                expected[name] = ((V, H, W, row.channels) if row.channels > 1 else (V, H, W), np.dtype(row.dtype))
         for name, (shape, dtype) in expected.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
@@ -187,6 +197,9 @@ class SampleArrays:
                 levels = torch.from_numpy(value)
                 levels = levels.movedim(-1, -3) if name in _COLOUR_KEYS else levels.unsqueeze(-3)
                 tensors[name] = _levels_as(levels, pixel_dtype)
+            elif name in FLOAT_OUTPUTS and value is not None:
+                values = torch.from_numpy(value)
+                tensors[name] = values.movedim(-1, -3) if OUTPUTS[name].channels > 1 else values.unsqueeze(-3)
             elif isinstance(value, np.ndarray):
                 tensors[name] = torch.from_numpy(value).to(GEOMETRY_DTYPES[geometry_dtype])
             elif value is not None:

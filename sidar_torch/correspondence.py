@@ -1,0 +1,136 @@
+"""Dense correspondence from rendered depth: where each pixel's surface point lands in another view.
+
+A sample rendered with ``depth_output`` holds, per view, the distance along the camera's z axis to
+the surface each pixel centre sees (``depth``), and the cameras (``K``, ``R``, ``t``: world point ``X``
+lands at ``K (R X + t)``). :func:`flow` lifts every pixel of view i to its 3-D point and projects it
+into view j: on the painting that is the homography ``H[i, j]`` (to float32 depth's rounding); on an
+occluder of a static scene (``scene_per_view: false``) it carries the parallax the homography lacks.
+
+Pixels are Kornia's (pixel ``(u, v)`` is column u, row v; the top-left pixel's centre is ``(0, 0)``);
+all arithmetic is float64.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import torch
+
+from .sample import KEYS
+
+__all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "flow"]
+
+DEPTH_TOLERANCE = 1e-3
+"""Default relative disagreement allowed between the depth a point has in view j and the depth view j
+rendered there (inverse depths interpolated bilinearly, exact on a plane) before the point counts
+as hidden."""
+
+DEPTH_EDGE = 0.05
+"""Four neighbouring pixels whose inverse depths spread by more than this (relative to the largest)
+straddle a depth edge (an occluder's outline): a point landing between them is not counted as
+seen, even where the blend of both sides happens to match its depth."""
+
+
+def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOLERANCE
+         ) -> tuple[torch.Tensor, torch.Tensor]:
+    """Where every pixel of view ``i`` lands in view ``j``, and whether view ``j`` sees it there.
+
+    Args:
+        sample: a sample dict with ``depth`` (``(V, 1, H, W)``, config ``depth_output``), ``K``, ``R``
+            ``(V, 3, 3)`` and ``t`` ``(V, 3)``, or a batch of them (a leading ``B`` on each).
+        i, j: the two views (``0 <= i, j < V``).
+        tolerance: the relative depth disagreement (see :data:`DEPTH_TOLERANCE`) that still counts as
+            the same surface.
+
+    Returns:
+        ``flow`` ``(2, H, W)`` float32, pixels: ``(du, dv)`` such that pixel ``(u, v)`` of view i lands at
+        ``(u + du, v + dv)`` in view j (NaN where view i sees nothing, depth ``inf``); and ``valid``
+        ``(1, H, W)`` bool: view i sees a surface there, its point lies in front of camera j and
+        within view j's pixel grid (its four nearest pixel centres inside), each of those four pixels
+        sees a surface, their inverse depths spread by at most :data:`DEPTH_EDGE` (no outline
+        between them), and view j's inverse depth interpolated bilinearly there agrees with the
+        point's own within ``tolerance`` (relative): the point is not hidden in view j. With a batch,
+        ``(B, 2, H, W)`` and ``(B, 1, H, W)``.
+
+    Raises:
+        KeyError: the sample has no ``depth`` (rendered without ``depth_output``).
+        ValueError: a view index out of range, a tolerance that is not a positive number, or
+            keys whose shapes do not fit together (each named).
+    """
+    if "depth" not in sample:
+        raise KeyError("sample: no 'depth' key; render with the config field depth_output: true")
+    depth, K, R, t, batched = _checked(sample)
+    n_views = depth.shape[1]
+    for name, view in (("i", i), ("j", j)):
+        if isinstance(view, bool) or not isinstance(view, int) or not 0 <= view < n_views:
+            raise ValueError(f"{name}: expected a view index in [0, {n_views}), got {view!r}")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0:
+        raise ValueError(f"tolerance: expected a positive number, got {tolerance!r}")
+    B, _, _, H, W = depth.shape
+    v, u = torch.meshgrid(torch.arange(H, dtype=torch.float64), torch.arange(W, dtype=torch.float64), indexing="ij")
+    pixels = torch.stack([u, v, torch.ones_like(u)]).reshape(1, 3, H * W)
+    z_i = depth[:, i].reshape(B, 1, H * W)
+    seen = torch.isfinite(z_i)
+    rays = torch.linalg.solve(K[:, i], pixels.expand(B, 3, H * W))  # (B, 3, HW), z = 1
+    camera_i = rays * torch.where(seen, z_i, torch.zeros_like(z_i))
+    world = R[:, i].transpose(1, 2) @ (camera_i - t[:, i, :, None])
+    camera_j = R[:, j] @ world + t[:, j, :, None]
+    ahead = camera_j[:, 2:] > 0
+    projected = K[:, j] @ camera_j
+    landed = projected[:, :2] / torch.where(ahead, projected[:, 2:], torch.ones_like(projected[:, 2:]))
+    flows = torch.where(seen, landed - pixels[:, :2], torch.full_like(landed, float("nan")))
+    agrees = _same_surface(depth[:, j, 0], landed, camera_j[:, 2], tolerance)
+    valid = seen & ahead & agrees[:, None]
+    flows, valid = flows.reshape(B, 2, H, W).float(), valid.reshape(B, 1, H, W)
+    return (flows, valid) if batched else (flows[0], valid[0])
+
+
+def _same_surface(depth_j: torch.Tensor, landed: torch.Tensor, z: torch.Tensor, tolerance: float) -> torch.Tensor:
+    """``(B, N)`` bool: whether the four pixel centres of ``depth_j`` ``(B, H, W)`` around each point
+    ``landed`` ``(B, 2, N)`` (pixels of view j) lie inside the grid and see a surface with no depth edge
+    between them (:data:`DEPTH_EDGE`), and their inverse depths, interpolated bilinearly at the point (exact where they see one plane: inverse depth is
+    affine in the pixels of a plane), agree with ``1 / z`` ``(B, N)`` within ``tolerance`` (relative)."""
+    B, H, W = depth_j.shape
+    x, y = landed[:, 0], landed[:, 1]
+    inside = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
+    x, y = x.where(inside, torch.zeros_like(x)), y.where(inside, torch.zeros_like(y))
+    x0, y0 = x.floor().clamp(max=W - 2).long(), y.floor().clamp(max=H - 2).long()
+    fx, fy = x - x0, y - y0
+    inverse = depth_j.reshape(B, H * W).double().reciprocal()  # 0 where nothing is seen (inf)
+    corners = [inverse.gather(1, (y0 + dy) * W + x0 + dx) for dy in (0, 1) for dx in (0, 1)]
+    stacked = torch.stack(corners)
+    seen = stacked.gt(0).all(0)
+    smooth = stacked.min(0).values >= (1 - DEPTH_EDGE) * stacked.max(0).values
+    interpolated = ((1 - fy) * ((1 - fx) * corners[0] + fx * corners[1])
+                    + fy * ((1 - fx) * corners[2] + fx * corners[3]))
+    return inside & seen & smooth & ((interpolated * z - 1).abs() <= tolerance)
+
+
+def _checked(sample: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, bool]:
+    """``depth`` ``(B, V, 1, H, W)`` and ``K``, ``R`` ``(B, V, 3, 3)``, ``t`` ``(B, V, 3)`` (the shapes of
+    ``sample.KEYS``), float64, with ``B = 1`` added for a single sample, and whether the sample was a batch."""
+    depth = _float_tensor(sample, "depth")
+    if depth.ndim not in (4, 5) or depth.shape[-3] != 1 or depth.shape[-2] < 2 or depth.shape[-1] < 2:
+        raise ValueError(f"sample['depth']: expected (V, 1, H, W) or (B, V, 1, H, W) of at least 2 x 2 pixels, "
+                         f"got {tuple(depth.shape)}")
+    batched = depth.ndim == 5
+    cameras = []
+    for key in _CAMERAS:
+        value = _float_tensor(sample, key.name)
+        expected = (*depth.shape[:-3], *(int(axis) for axis in key.shape.strip("()").split(", ")[1:]))
+        if tuple(value.shape) != expected:
+            raise ValueError(f"sample[{key.name!r}]: expected shape {expected} to go with depth {tuple(depth.shape)}, "
+                             f"got {tuple(value.shape)}")
+        cameras.append(value if batched else value[None])
+    return (depth if batched else depth[None]), *cameras, batched
+
+
+_CAMERAS = tuple(next(key for key in KEYS if key.name == name) for name in "KRt")
+"""The rows of ``sample.KEYS`` of the cameras: ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)``."""
+
+
+def _float_tensor(sample: Mapping[str, Any], name: str) -> torch.Tensor:
+    value = sample.get(name)
+    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
+        raise ValueError(f"sample[{name!r}]: expected a float tensor, got {type(value).__name__}")
+    return value.double()
