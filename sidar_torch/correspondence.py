@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 import torch
 
-from .sample import KEYS
+from .sample import KEYS, float_tensor
 
 __all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "flow"]
 
@@ -130,7 +130,4 @@ _CAMERAS = tuple(next(key for key in KEYS if key.name == name) for name in "KRt"
 
 
 def _float_tensor(sample: Mapping[str, Any], name: str) -> torch.Tensor:
-    value = sample.get(name)
-    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
-        raise ValueError(f"sample[{name!r}]: expected a float tensor, got {type(value).__name__}")
-    return value.double()
+    return float_tensor(sample, name, "depth, K, R, t").double()

@@ -29,7 +29,7 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import sample_renderer
 
-__all__ = ["FLOAT_OUTPUTS", "KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+__all__ = ["FLOAT_OUTPUTS", "KEYS", "PIXEL_KEYS", "float_tensor", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
@@ -212,6 +212,22 @@ _FIELDS = tuple(key.name for key in KEYS)
 _COLOUR_KEYS = frozenset(key.name for key in KEYS if key.name in PIXEL_KEYS and key.shape.endswith("3, H, W)"))
 """The pixel keys of 3 channels, whose arrays end in that axis (moved before the rows in the tensors);
 the others' tensors get an axis of one channel there."""
+
+
+def float_tensor(batch: Mapping[str, Any], key: str, needs: str) -> torch.Tensor:
+    """``batch[key]`` (a sample or batch dict), checked to be a float tensor.
+
+    Raises:
+        KeyError: no ``key``, naming it and what the caller ``needs``.
+        ValueError: not a float tensor (naming its type or dtype).
+    """
+    if key not in batch:
+        raise KeyError(f"batch: missing key {key!r} (needs {needs})")
+    value = batch[key]
+    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
+        raise ValueError(f"batch[{key!r}]: expected a float tensor, got {type(value).__name__}"
+                         f"{'' if not isinstance(value, torch.Tensor) else ' of ' + str(value.dtype)}")
+    return value
 
 
 def _check_pixel_dtype(dtype: torch.dtype) -> None:

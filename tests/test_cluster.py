@@ -46,7 +46,7 @@ def cluster():
 def dataset():
     """Tiny sequences (24 x 32, 3 views, every optional output on: every column of a row is exercised)."""
     return SidarDataset(config=small_config(image_size=(24, 32), shadow_map_size=256, opacity_output=True,
-                                            shadow_mask_output=True, shadow_free_output=True), seed=5)
+                                            shadow_mask_output=True, shadow_free_output=True, depth_output=True), seed=5)
 
 
 # --------------------------------------------------------------------------- without Ray
