@@ -123,8 +123,8 @@ def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[st
     """Rebuild the :class:`SampleArrays` of sequence ``index`` from its decoded entries.
 
     Args:
-        read: ``(entry name, shape, check, dtype)`` -> its decoded value, checked to be of ``shape`` and
-            ``dtype`` (None: the kind's own; see
+        read: ``(entry name, shape, check)`` -> its decoded value, checked to be of ``shape`` (and of
+            the keyword ``dtype``, passed for the float outputs' ``.npy`` files only; see
             :func:`.codecs.decode`) and passed through ``check`` (value -> value, or None); raises
             ``FileNotFoundError`` naming a missing entry and ``ValueError`` naming a malformed one
             (``check``'s errors included).
@@ -141,9 +141,10 @@ def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[st
         if key.entry is None:
             continue
         shape = pixel_shape(key, config["image_size"])
-        dtype = np.float32 if key.name in FLOAT_OUTPUTS else None  # None: the 8-bit PNG files
+        # The float outputs' .npy files are read as float32; the 8-bit PNGs by their kind alone.
+        kind = {"dtype": np.float32} if key.name in FLOAT_OUTPUTS else {}
         if "{v}" not in key.entry:
-            pixels[key.name] = read(key.entry, shape, None, dtype)
+            pixels[key.name] = read(key.entry, shape, None, **kind)
             continue
-        pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None, dtype) for v in range(n_views)])
+        pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None, **kind) for v in range(n_views)])
     return SampleArrays(**pixels, homographies=homographies(n_views), index=index, **cameras)
