@@ -16,19 +16,10 @@ from typing import Any, Mapping
 
 import torch
 
+from .dense import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
 from .sample import KEYS, float_tensor
 
 __all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "flow"]
-
-DEPTH_TOLERANCE = 1e-3
-"""Default relative disagreement allowed between the depth a point has in view j and the depth view j
-rendered there (inverse depths interpolated bilinearly, exact on a plane) before the point counts
-as hidden."""
-
-DEPTH_EDGE = 0.05
-"""Four neighbouring pixels whose inverse depths spread by more than this (relative to the largest)
-straddle a depth edge (an occluder's outline): a point landing between them is not counted as
-seen, even where the blend of both sides happens to match its depth."""
 
 
 def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOLERANCE
@@ -66,44 +57,9 @@ def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOL
             raise ValueError(f"{name}: expected a view index in [0, {n_views}), got {view!r}")
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0:
         raise ValueError(f"tolerance: expected a positive number, got {tolerance!r}")
-    B, _, _, H, W = depth.shape
-    v, u = torch.meshgrid(torch.arange(H, dtype=torch.float64), torch.arange(W, dtype=torch.float64), indexing="ij")
-    pixels = torch.stack([u, v, torch.ones_like(u)]).reshape(1, 3, H * W)
-    z_i = depth[:, i].reshape(B, 1, H * W)
-    seen = torch.isfinite(z_i)
-    rays = torch.linalg.solve(K[:, i], pixels.expand(B, 3, H * W))  # (B, 3, HW), z = 1
-    camera_i = rays * torch.where(seen, z_i, torch.zeros_like(z_i))
-    world = R[:, i].transpose(1, 2) @ (camera_i - t[:, i, :, None])
-    camera_j = R[:, j] @ world + t[:, j, :, None]
-    ahead = camera_j[:, 2:] > 0
-    projected = K[:, j] @ camera_j
-    landed = projected[:, :2] / torch.where(ahead, projected[:, 2:], torch.ones_like(projected[:, 2:]))
-    flows = torch.where(seen, landed - pixels[:, :2], torch.full_like(landed, float("nan")))
-    agrees = _same_surface(depth[:, j, 0], landed, camera_j[:, 2], tolerance)
-    valid = seen & ahead & agrees[:, None]
-    flows, valid = flows.reshape(B, 2, H, W).float(), valid.reshape(B, 1, H, W)
+    flows, valid = depth_flow(depth[:, :, 0], K, R, t, i, j, tolerance)
+    flows = flows.float()
     return (flows, valid) if batched else (flows[0], valid[0])
-
-
-def _same_surface(depth_j: torch.Tensor, landed: torch.Tensor, z: torch.Tensor, tolerance: float) -> torch.Tensor:
-    """``(B, N)`` bool: whether the four pixel centres of ``depth_j`` ``(B, H, W)`` around each point
-    ``landed`` ``(B, 2, N)`` (pixels of view j) lie inside the grid and see a surface with no depth edge
-    between them (:data:`DEPTH_EDGE`), and their inverse depths, interpolated bilinearly at the point (exact where they see one plane: inverse depth is
-    affine in the pixels of a plane), agree with ``1 / z`` ``(B, N)`` within ``tolerance`` (relative)."""
-    B, H, W = depth_j.shape
-    x, y = landed[:, 0], landed[:, 1]
-    inside = (x >= 0) & (x <= W - 1) & (y >= 0) & (y <= H - 1)
-    x, y = x.where(inside, torch.zeros_like(x)), y.where(inside, torch.zeros_like(y))
-    x0, y0 = x.floor().clamp(max=W - 2).long(), y.floor().clamp(max=H - 2).long()
-    fx, fy = x - x0, y - y0
-    inverse = depth_j.reshape(B, H * W).double().reciprocal()  # 0 where nothing is seen (inf)
-    corners = [inverse.gather(1, (y0 + dy) * W + x0 + dx) for dy in (0, 1) for dx in (0, 1)]
-    stacked = torch.stack(corners)
-    seen = stacked.gt(0).all(0)
-    smooth = stacked.min(0).values >= (1 - DEPTH_EDGE) * stacked.max(0).values
-    interpolated = ((1 - fy) * ((1 - fx) * corners[0] + fx * corners[1])
-                    + fy * ((1 - fx) * corners[2] + fx * corners[3]))
-    return inside & seen & smooth & ((interpolated * z - 1).abs() <= tolerance)
 
 
 def _checked(sample: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, bool]:

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from . import geometry
+from .dense import depth_flow
 from .effects import apply_effects, draw_effects
 from .config import SidarConfig
 from .render_choices import OUTPUTS
@@ -88,6 +89,10 @@ KEYS: tuple[SampleKey, ...] = (
               "the distance along the view's camera z axis (R X + t's third coordinate) to the nearest surface the "
               "masks count (the painting, or an occluder at least mask_min_opacity opaque) at each pixel centre, "
               "inf where none is hit; sidar_torch.flow turns it into dense correspondence"),
+    SampleKey.optional("flow_to_reference", "float32, pixels",
+              "where each pixel of the view lands in view 0 minus the pixel, (du, dv): sidar_torch.flow(sample, i, 0) "
+              "of every view i, NaN where it is not valid (view i sees nothing there, or view 0 does not see the "
+              "point); on the painting H[i, 0]'s mapping, on occluders of a static scene their parallax"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -136,7 +141,7 @@ class SampleArrays:
         homography_error: pixels.
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
-        opacities, shadow_masks, shadow_free, depth: the optional outputs (``render_choices.OUTPUTS``), each
+        opacities, shadow_masks, shadow_free, depth, flow_to_reference: the optional outputs (``render_choices.OUTPUTS``), each
             ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
             float32), or None (not rendered).
 
@@ -157,6 +162,7 @@ class SampleArrays:
     shadow_masks: np.ndarray | None = None
     shadow_free: np.ndarray | None = None
     depth: np.ndarray | None = None
+    flow_to_reference: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
@@ -326,7 +332,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
             :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on) and ``"homographies"``.
+            any is on), ``"homographies"`` and ``"flow"`` (``flow_output``).
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
         homographies: ``sequence_homographies(sequence)``, when computed already (with other
@@ -345,9 +351,32 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             homographies = sequence_homographies(sequence)
     homographies, homography_error = homographies
     K, R, t = sequence.cameras()
+    outputs = _with_computed_outputs(outputs, config, K, R, t, timings)
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
                         index=index, **outputs)
+
+
+def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
+                           t: np.ndarray, timings: dict[str, float] | None) -> dict[str, np.ndarray]:
+    """``outputs`` (the renderer's, by name) with the computed outputs the config asks for added
+    (``OptionalOutput.computed_from``; timed as ``"flow"``) and the drawn ones only they needed left out."""
+    asked = {name for name, row in OUTPUTS.items() if getattr(config, row.switch)}
+    if "flow_to_reference" in asked:
+        with timed(timings, "flow"):
+            outputs["flow_to_reference"] = _reference_flows(outputs["depth"], K, R, t)
+    return {name: array for name, array in outputs.items() if name in asked}
+
+
+def _reference_flows(depth: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``(V, H, W, 2)`` float32: each view's flow to view 0 (:func:`sidar_torch.dense.depth_flow`), NaN where
+    not valid, from ``depth`` ``(V, H, W)`` float32 and the cameras (float64)."""
+    tensors = [torch.from_numpy(np.asarray(a, np.float64))[None] for a in (depth, K, R, t)]
+    flows = []
+    for i in range(len(depth)):
+        flow, valid = depth_flow(*tensors, i, 0)
+        flows.append(torch.where(valid, flow, torch.full_like(flow, float("nan")))[0])
+    return torch.stack(flows).permute(0, 2, 3, 1).float().numpy()
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

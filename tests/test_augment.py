@@ -326,7 +326,7 @@ def test_pairs_carry_the_same_boxes_of_the_optional_per_view_outputs():
 
 
 def test_pairs_of_a_batch_with_depth_carry_its_boxes_and_the_flow_between_the_views():
-    batch = tiny_augment("parallax", n_views=3)(paintings(2, TINY))
+    batch = tiny_augment("parallax", n_views=3, flow_output=True)(paintings(2, TINY))
     assert batch["depth"].shape == (2, 3, 1, *TINY) and batch["depth"].dtype == torch.float32
     p = homography_pairs(batch, (20, 30), generator=torch.Generator().manual_seed(3))
     for item, ((a, b), (u0, v0)) in enumerate(zip(p["views"].tolist(), p["origin"].tolist())):
@@ -335,10 +335,12 @@ def test_pairs_of_a_batch_with_depth_carry_its_boxes_and_the_flow_between_the_vi
         whole, seen = flow({k: v[item] for k, v in batch.items()}, a, b)
         torch.testing.assert_close(p["flow_ab"][item], whole[:, v0:v0 + 20, u0:u0 + 30], rtol=0, atol=0, equal_nan=True)
         assert torch.equal(p["flow_valid"][item], seen[:, v0:v0 + 20, u0:u0 + 30].float())
+        torch.testing.assert_close(p["flow_to_reference_a"][item], batch["flow_to_reference"][item, a, :, v0:v0 + 20, u0:u0 + 30],
+                                   rtol=0, atol=0, equal_nan=True)
     assert p["flow_valid"].any()
     plain = homography_pairs({k: v for k, v in batch.items() if k != "depth"}, (20, 30),
                              generator=torch.Generator().manual_seed(3))
-    assert not any(key.startswith("flow") or key.startswith("depth") for key in plain)
+    assert "flow_ab" not in plain and "depth_a" not in plain and "flow_to_reference_a" in plain
 
 
 def test_valid_marks_patch_pixels_seen_in_view_a_and_landing_on_painting_in_view_b():

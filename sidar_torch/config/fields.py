@@ -199,6 +199,11 @@ class SidarConfig:
         "by default every occluder, transparent ones included), ``inf`` where none is hit; "
         "``sidar_torch.flow`` turns it into dense correspondence. Costs one untextured draw per view; see "
         "docs/parallax.md."))
+    flow_output: bool = _field(False, meaning=(
+        "also hand out ``flow_to_reference``, per view where each pixel lands in view 0 minus the pixel (pixels, "
+        "float32 ``(du, dv)``), NaN where that is not a seen correspondence: ``sidar_torch.flow(sample, i, 0)`` "
+        "for every view, computed on the CPU from the depth (drawn for it whether or not ``depth_output`` is on). "
+        "See docs/parallax.md."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

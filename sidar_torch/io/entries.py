@@ -65,10 +65,10 @@ def pixel_entries_text() -> str:
 
 def pixel_shape(key: SampleKey, image_size: tuple[int, int]) -> tuple[int, ...]:
     """The shape of one decoded file of pixel key ``key`` (a row of :data:`~sidar_torch.sample.KEYS`
-    with an ``entry``): ``(H, W, 3)`` for a key of 3 channels (its table shape ``(..., 3, H, W)``),
+    with an ``entry``): ``(H, W, C)`` for a key of ``C > 1`` channels (its table shape ``(..., C, H, W)``),
     else ``(H, W)``."""
-    channels = key.shape.strip("()").split(", ")[-3]
-    return (*image_size, 3) if channels == "3" else tuple(image_size)
+    channels = int(key.shape.strip("()").split(", ")[-3])
+    return (*image_size, channels) if channels > 1 else tuple(image_size)
 
 
 def camera_shape(key: SampleKey, n_views: int) -> tuple[int, ...]:

@@ -92,6 +92,25 @@ def test_painting_depth_is_the_planes_and_its_flow_is_the_homography():
                 assert valid[expect_valid].mean() > 0.99, (i, j)
 
 
+def test_the_flow_output_is_each_views_flow_to_view_0_nan_where_not_valid():
+    # float64 cameras in the sample: the output is computed from the renderer's (float64) cameras.
+    config = small_config("parallax", flow_output=True, geometry_dtype="float64")
+    sample = SidarDataset(config=config, seed=5).sample(1)
+    flows = sample["flow_to_reference"]
+    assert flows.shape == (3, 2, *SMALL) and flows.dtype == torch.float32
+    for i in range(3):
+        expected, valid = flow(sample, i, 0)
+        torch.testing.assert_close(flows[i], expected.where(valid, torch.tensor(float("nan"))), rtol=0, atol=0,
+                                   equal_nan=True)
+        assert valid.float().mean() > 0.2
+    without = SidarDataset(config=config.replace(flow_output=False, depth_output=False), seed=5).sample(1)
+    assert "depth" not in without and "flow_to_reference" not in without
+    assert torch.equal(without["images"], sample["images"]) and torch.equal(without["masks"], sample["masks"])
+    only_flow = SidarDataset(config=config.replace(depth_output=False), seed=5).sample(1)
+    assert "depth" not in only_flow  # drawn for the flow, not handed out
+    torch.testing.assert_close(only_flow["flow_to_reference"], flows, rtol=0, atol=0, equal_nan=True)
+
+
 def test_forward_backward_flow_on_the_painting_closes_within_a_hundredth_of_a_pixel():
     # The way back starts at sub-pixel points of view j, so it is read from view j's rendered depth
     # there (inverse depth interpolated bilinearly: exact on a plane; the flow field itself is not
