@@ -24,8 +24,10 @@ from .sample import KEYS
 
 __all__ = ["homography_pairs"]
 
-PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, "))
-"""The optional per-view keys of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``):
+PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, ")
+                         and key.shape.endswith("H, W)"))
+"""The optional per-view images of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``,
+``distortion_maps``):
 when a batch holds one, the pair carries the same boxes of it."""
 
 
@@ -80,6 +82,9 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         - ``<key>_a``, ``<key>_b`` ``(B, C, ph, pw)``: for each optional per-view key the batch holds
           (``opacities``, ``shadow_masks``, ``shadow_free``, see :data:`PAIRED_VIEW_KEYS`), the
           same pixel boxes of it, e.g. ``shadow_free_a`` and ``shadow_free_b``.
+        - ``lens_a``, ``lens_b`` ``(B, 5)`` float64, when the batch holds ``lens``: the two views' lenses.
+          The patches are then cut from the distorted views while ``H_ab`` maps the undistorted ones:
+          pass ``sidar_torch.undistort``'s images and masks for pairs that ``H_ab`` aligns exactly.
 
     Raises:
         KeyError: a required key is missing.
@@ -149,6 +154,9 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         "views": torch.stack([a, b], 1),
         "origin": origin,
     }
+    if "lens" in batch:  # the patches are of the distorted views; H_ab maps the undistorted ones
+        lens = batch["lens"][None] if single else batch["lens"]
+        out["lens_a"], out["lens_b"] = lens[rows, a], lens[rows, b]
     for name in PAIRED_VIEW_KEYS:
         if name in batch:
             values = _per_view_tensor(batch, name, images, single)

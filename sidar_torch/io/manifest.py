@@ -29,8 +29,10 @@ MANIFEST_LIMIT = 2**20
 up to about 9 times its bytes in Python objects: :data:`.limits.JSON_BYTES_PER_VIEW`)."""
 
 
-OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)
-"""The sample keys a config switch turns on (:data:`~sidar_torch.sample.KEYS`, column ``switch``)."""
+OPTIONAL_KEYS = tuple(key for key in KEYS if key.name in OUTPUTS)
+"""The optional outputs' sample keys (:data:`~sidar_torch.sample.KEYS` rows of ``render_choices.OUTPUTS``),
+each turned on by a boolean config switch; ``lens`` (``lens_model``) and ``distortion_maps`` are in
+``cameras.json`` or recomputed, and have no file of their own."""
 
 def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
     """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
