@@ -8,7 +8,8 @@ the view's pinhole field). The renderer draws every view at one size, so the wid
 canvas is drawn in *tiles*: the view's camera with its principal point moved by whole image widths
 or heights (``K[0, 2] -= ox``, ``K[1, 2] -= oy``: the same focal length, tile pixel ``(u, v)`` is
 canvas pixel ``(u + ox, v + oy)``), as few as cover every source pixel (one, the view itself, when
-the lens only pulls pixels inwards; at most 2 x 2 within the config's bounds). The tiles are pasted
+the lens only pulls pixels inwards; 2 x 2 while the canvas is under twice the view's side, as for
+every default range and the ``lens`` preset; up to 3 x 3 for the strongest barrel the bounds allow). The tiles are pasted
 into the canvas and every image is resampled bilinearly into the distorted view (torch's
 ``grid_sample``); masks and the background flag are resampled as fractions and cut at 1/2, so they
 stay binary. The view effects (``sidar_torch.effects``) come after, as a sensor's do.
@@ -28,7 +29,7 @@ from .distortion import NO_LENS, distorted_points, undistorted_points
 from .scene import Camera, SceneSequence
 from .timing import timed
 
-__all__ = ["distortion_maps", "render_through_lens", "undistort"]
+__all__ = ["distortion_maps", "render_through_lens", "tile_origins", "undistort"]
 
 
 def _pixel_grid(image_size: tuple[int, int]) -> np.ndarray:
@@ -65,7 +66,7 @@ def _axis_origins(lo: int, hi: int, n: int) -> list[int]:
     return sorted({int(round(o)) for o in np.linspace(lo, hi - n + 1, count)})
 
 
-def _tile_origins(sources: np.ndarray, image_size: tuple[int, int]) -> list[tuple[int, int]]:
+def tile_origins(sources: np.ndarray, image_size: tuple[int, int]) -> list[tuple[int, int]]:
     """The ``(ox, oy)`` origins of the tiles covering every pixel the bilinear resampling of one view's
     ``sources (H, W, 2)`` reads with a weight above 0 (``floor`` to ``ceil`` of each coordinate)."""
     h, w = image_size
@@ -102,7 +103,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
     with timed(timings, "lens"):
         K = sequence.cameras()[0]
         sources = distortion_maps(sequence.lens_model, sequence.lenses, K, size)
-        origins = [_tile_origins(s, size) for s in sources]
+        origins = [tile_origins(s, size) for s in sources]
         # The renderer's label is drawn with its first view's camera: view 0's own comes first.
         first = [] if (0, 0) in origins[0] else [sequence.views[0]]
         origins[0].sort(key=lambda o: o != (0, 0))
