@@ -17,10 +17,11 @@ from .dataset import SidarDataset
 from .correspondence import flow
 from .evaluation import evaluate
 from .io import ExportedDataset, export_dataset
+from .lens import undistort
 from .pairs import homography_pairs
 from .version import __version__  # noqa: F401  (the package's version, recorded in export manifests)
 
 __all__ = [
     "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "SidarStep", "available_presets", "evaluate",
-    "export_dataset", "flow", "homography_pairs", "load_config",
+    "export_dataset", "flow", "homography_pairs", "load_config", "undistort",
 ]

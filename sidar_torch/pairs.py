@@ -25,8 +25,10 @@ from .sample import KEYS, float_tensor
 
 __all__ = ["homography_pairs"]
 
-PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, "))
-"""The optional per-view keys of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``, ``depth``):
+PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, ")
+                         and key.shape.endswith("H, W)"))
+"""The optional per-view images of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``, ``depth``,
+``flow_to_reference``, ``distortion_maps``):
 when a batch holds one, the pair carries the same boxes of it."""
 
 
@@ -86,6 +88,9 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
           pixel of view a lands in view b minus the pixel, full-image pixels, and where that is a true,
           unhidden correspondence (:func:`sidar_torch.flow`): on occluders of a static scene it carries
           the parallax ``H_ab`` lacks.
+        - ``lens_a``, ``lens_b`` ``(B, 5)`` float64, when the batch holds ``lens``: the two views' lenses.
+          The patches are then cut from the distorted views while ``H_ab`` maps the undistorted ones:
+          pass ``sidar_torch.undistort``'s images and masks for pairs that ``H_ab`` aligns exactly.
 
     Raises:
         KeyError: a required key is missing.
@@ -155,6 +160,9 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         "views": torch.stack([a, b], 1),
         "origin": origin,
     }
+    if "lens" in batch:  # the patches are of the distorted views; H_ab maps the undistorted ones
+        lens = batch["lens"][None] if single else batch["lens"]
+        out["lens_a"], out["lens_b"] = lens[rows, a], lens[rows, b]
     for name in PAIRED_VIEW_KEYS:
         if name in batch:
             values = _per_view_tensor(batch, name, images, single)

@@ -23,14 +23,16 @@ import torch
 
 from . import geometry
 from .dense import depth_flow
+from .distortion import NO_LENS
 from .effects import apply_effects, draw_effects
+from .lens import distortion_maps, render_through_lens
 from .config import SidarConfig
 from .render_choices import OUTPUTS
 from .scene import SceneSequence
 from .timing import timed
 from .warm_up import sample_renderer
 
-__all__ = ["FLOAT_OUTPUTS", "KEYS", "PIXEL_KEYS", "float_tensor", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+__all__ = ["FLOAT_OUTPUTS", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "float_tensor", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
@@ -97,16 +99,25 @@ KEYS: tuple[SampleKey, ...] = (
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
               "H[i, j] maps view-i pixels to view-j pixels (Kornia pixels: pixel (u, v) is column u, row v, "
-              "the centre of the top-left pixel is (0, 0)); det = 1; fitted in float64"),
+              "the centre of the top-left pixel is (0, 0)); det = 1; fitted in float64. With a lens, the maps "
+              "between the undistorted views (sidar_torch.undistort)"),
     SampleKey("homography_error", "()", "float (Python)",
               "largest distance, in view-j pixels, between where the float64 homographies and the analytic "
               "plane-induced ones send the painting points both views of a pair see, on a 17 x 17 lattice "
               "(the fit is exact at its own four points, so its error shows elsewhere)"),
-    SampleKey("K", "(V, 3, 3)", "geometry_dtype", "intrinsics, pixels (Kornia pixel centres)"),
+    SampleKey("K", "(V, 3, 3)", "geometry_dtype", "intrinsics, pixels (Kornia pixel centres); with a lens, the "
+              "pinhole intrinsics of the undistorted view"),
     SampleKey("R", "(V, 3, 3)", "geometry_dtype",
               "world-to-camera rotation, OpenCV camera frame (x right, y down, z forward): world point X "
               "lands at K (R X + t)"),
     SampleKey("t", "(V, 3)", "geometry_dtype", "world-to-camera translation, painting units"),
+    SampleKey("lens", "(V, 5)", "float64",
+              "each view's lens in normalised camera coordinates K^-1 (u, v, 1): OpenCV's (k1, k2, p1, p2, k3) for "
+              "lens_model brown_conrady (cv2.undistort(view, K, lens)), (lambda, 0, 0, 0, 0) for division "
+              "(x_u = x_d / (1 + lambda |x_d|^2)); see sidar_torch.distortion", switch="lens_model"),
+    SampleKey("distortion_maps", "(V, 2, H, W)", "float32",
+              "per view and distorted pixel, where it comes from in the undistorted view (u then v, Kornia "
+              "pixels; each pixel itself without a lens)", switch="distortion_map_output"),
     SampleKey("index", "()", "int (Python)", "the sample's dataset index (SidarAugment: its position in the batch)"),
 )
 """The sample's keys, in the order of a sample dict."""
@@ -119,14 +130,21 @@ PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key
 """The 8-bit pixel keys of the table (those with an export entry, but the float outputs: ``images``,
 ``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
+LENS_KEYS = ("lens", "distortion_maps")
+"""The keys the lens step makes (:mod:`sidar_torch.lens`, a CPU step after read-back), not the renderer:
+the optional keys besides ``render_choices.OUTPUTS``' rows. ``lens`` is turned on by ``lens_model`` (not
+``"none"``), ``distortion_maps`` by ``distortion_map_output``; neither has a file of its own (``lens`` is
+in ``cameras.json``, the maps are recomputed on reading)."""
+
 GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
 """``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
 
 
 def present_keys(config: SidarConfig | Mapping[str, Any]) -> tuple[SampleKey, ...]:
-    """The keys a sample rendered with ``config`` (a config or its ``to_dict()``) holds."""
+    """The keys a sample rendered with ``config`` (a config or its ``to_dict()``) holds: those without a
+    switch, and those whose switch is true (``lens_model``: not ``"none"``)."""
     fields = config.to_dict() if isinstance(config, SidarConfig) else config
-    return tuple(key for key in KEYS if key.switch is None or fields.get(key.switch, False))
+    return tuple(key for key in KEYS if key.switch is None or fields.get(key.switch, False) not in (False, NO_LENS))
 
 
 @dataclass(frozen=True)
@@ -144,6 +162,8 @@ class SampleArrays:
         opacities, shadow_masks, shadow_free, depth, flow_to_reference: the optional outputs (``render_choices.OUTPUTS``), each
             ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
             float32), or None (not rendered).
+        lens: ``(V, 5)`` float64, each view's lens (None: no lens).
+        distortion_maps: ``(V, 2, H, W)`` float32 (None: not asked for).
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -163,6 +183,8 @@ class SampleArrays:
     shadow_free: np.ndarray | None = None
     depth: np.ndarray | None = None
     flow_to_reference: np.ndarray | None = None
+    lens: np.ndarray | None = None
+    distortion_maps: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.images, np.ndarray) or self.images.ndim != 4:
@@ -175,6 +197,9 @@ class SampleArrays:
         for name, row in OUTPUTS.items():
             if getattr(self, name) is not None:
                 expected[name] = ((V, H, W, row.channels) if row.channels > 1 else (V, H, W), np.dtype(row.dtype))
+        for name, shape, dtype in (("lens", (V, 5), np.float64), ("distortion_maps", (V, 2, H, W), np.float32)):
+            if getattr(self, name) is not None:
+                expected[name] = (shape, dtype)
         for name, (shape, dtype) in expected.items():
             value = getattr(self, name)
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
@@ -207,13 +232,16 @@ class SampleArrays:
                 values = torch.from_numpy(value)
                 tensors[name] = values.movedim(-1, -3) if OUTPUTS[name].channels > 1 else values.unsqueeze(-3)
             elif isinstance(value, np.ndarray):
-                tensors[name] = torch.from_numpy(value).to(GEOMETRY_DTYPES[geometry_dtype])
+                tensors[name] = torch.from_numpy(value).to(_OWN_DTYPES.get(name, GEOMETRY_DTYPES[geometry_dtype]))
             elif value is not None:
                 tensors[name] = value
         return tensors
 
 
 _FIELDS = tuple(key.name for key in KEYS)
+
+_OWN_DTYPES = {"lens": torch.float64, "distortion_maps": torch.float32}
+"""The array keys whose dtype is their own, not ``geometry_dtype``."""
 
 _COLOUR_KEYS = frozenset(key.name for key in KEYS if key.name in PIXEL_KEYS and key.shape.endswith("3, H, W)"))
 """The pixel keys of 3 channels, whose arrays end in that axis (moved before the rows in the tensors);
@@ -339,7 +367,10 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             sequences', :func:`batch_homographies`); default: computed here.
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    rendered = sample_renderer(config).render(sequence, painting, timings)
+    if sequence.lens_model == NO_LENS:
+        rendered, sources = sample_renderer(config).render(sequence, painting, timings), None
+    else:  # the lens's optics before the sensor's effects
+        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, timings)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed(timings, "effects"):
@@ -352,9 +383,13 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     homographies, homography_error = homographies
     K, R, t = sequence.cameras()
     outputs = _with_computed_outputs(outputs, config, K, R, t, timings)
+    if config.distortion_map_output:
+        with timed(timings, "lens"):
+            maps = sources if sources is not None else distortion_maps(NO_LENS, None, K, sequence.image_size)
+            outputs["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
-                        index=index, **outputs)
+                        index=index, lens=sequence.lenses, **outputs)
 
 
 def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,

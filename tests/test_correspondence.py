@@ -49,3 +49,11 @@ def test_wrong_inputs_name_what_is_wrong():
         flow({**sample, "depth": sample["depth"][:, 0]}, 0, 1)
     with pytest.raises(ValueError, match=r"batch\['t'\]: expected a float tensor"):
         flow({**sample, "t": sample["t"].long()}, 0, 1)
+
+
+def test_depth_and_flow_are_refused_through_a_lens():
+    from sidar_torch import load_config
+
+    for switch in ("depth_output", "flow_output"):
+        with pytest.raises(ValueError, match=f"'{switch}': expected false with lens_model 'division'"):
+            load_config("lens", **{switch: True})

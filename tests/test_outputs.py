@@ -5,12 +5,15 @@ from sidar_torch.config import SidarConfig
 from sidar_torch.config.memory import estimated_sample_bytes
 from sidar_torch.render.settings import RenderSettings
 from sidar_torch.render_choices import OUTPUTS
-from sidar_torch.sample import KEYS, SampleArrays
+from sidar_torch.sample import KEYS, LENS_KEYS, SampleArrays
 
 
 def test_every_optional_output_is_a_config_switch_a_sample_key_and_a_sample_arrays_field():
     keys = {key.name: key for key in KEYS}
-    assert {key.name for key in KEYS if key.switch is not None} == set(OUTPUTS)
+    assert {key.name for key in KEYS if key.switch is not None} == set(OUTPUTS) | set(LENS_KEYS)
+    for name in LENS_KEYS:  # made by the lens step after read-back, not the renderer
+        assert keys[name].entry is None and name in SampleArrays.__dataclass_fields__, name
+        assert keys[name].switch in SidarConfig.__dataclass_fields__, name
     for name, row in OUTPUTS.items():
         assert isinstance(SidarConfig.__dataclass_fields__[row.switch].default, bool), row.switch
         assert (keys[name].switch, keys[name].entry) == (row.switch, row.entry), name

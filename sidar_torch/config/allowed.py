@@ -3,10 +3,11 @@ renderer's own choices come from :mod:`sidar_torch.render_choices`, which both l
 
 from __future__ import annotations
 
+from ..distortion import LENS_MODELS as _LENS_ROWS, NO_LENS
 from ..render_choices import ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
 
 __all__ = [
-    "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
+    "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LENS_MODELS", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
     "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
     "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "SPOT_FALLOFFS",
     "TEXTURE_FILTERS",
@@ -23,6 +24,8 @@ BACKGROUNDS = ("black", "view", "sequence")
 MESH_DETAILS = ("fixed", "auto")
 SPOT_FALLOFFS = ("quadratic", "blender")
 GEOMETRY_DTYPES = ("float32", "float64")
+LENS_MODELS = (NO_LENS, *_LENS_ROWS)
+"""``lens_model`` values: no lens, then the rows of ``sidar_torch.distortion.LENS_MODELS``."""
 
 
 MAX_GL_SIZE = 16384

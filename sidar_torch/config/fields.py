@@ -15,7 +15,7 @@ import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
-from .allowed import (ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
+from .allowed import (ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, BACKGROUNDS, GEOMETRY_DTYPES, LENS_MODELS, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
                       MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
                       OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, SPOT_FALLOFFS,
                       TEXTURE_FILTERS)
@@ -57,6 +57,11 @@ _IRRADIANCE = (
 _OCCLUDER_KINDS = "kinds to draw from."
 _OCCLUDER_BOX = f"box of occluder centres (at most {MAX_SCENE_EXTENT:g} painting units)."
 _PLANE_MATERIAL = "ranges of the painting's material."
+_LENS = ("range of a lens coefficient (``lens_model``) at the image's corner, drawn per view: ``k1 r^2``, ``k2 r^4``, "
+         "``k3 r^6``, ``p1 r``, ``p2 r`` (brown_conrady) or ``lambda r^2`` (division), ``r`` the corner's normalised "
+         "radius ``|K^-1 (u, v, 1)|``, so a lens bends every field of view alike (``k1 = -0.1``: the corner 10 % "
+         "closer to the centre); the sample's ``lens`` holds the coefficients themselves. The ranges' ends must "
+         "not fold the image before its corner (checked).")
 _COAT = ("ranges of the weight and roughness of a clear coat on the painting (a second, sharper specular lobe "
          "with 4 % reflectance).")
 
@@ -271,6 +276,22 @@ class SidarConfig:
     jpeg: bool = _field(False, meaning="compress each view as JPEG and decode it (Pillow, in memory, 4:2:0 chroma).")
     jpeg_quality: IntRange = _field((30, 95), bounds=(1, 100), meaning=(
         "range of a view's JPEG quality (Pillow's scale, 1-100)."))
+    # Lens (off by default; drawn from a generator of its own, so switching it on changes no other draw;
+    # see ``sidar_torch.distortion`` and docs/lens.md)
+    lens_model: str = _field("none", choices=LENS_MODELS, meaning=(
+        'each view\'s lens: ``"none"`` (a pinhole camera, the default), ``"brown_conrady"`` (OpenCV\'s radial and '
+        'tangential ``(k1, k2, p1, p2, k3)``) or ``"division"`` (Fitzgibbon\'s ``lambda``). Every view (view 0 '
+        "too) and every per-view image output is distorted, the label is not; ``K`` and ``homographies`` stay "
+        "those of the undistorted views, the sample's ``lens`` holds each view's coefficients."))
+    lens_k1: Range = _field((-0.1, 0.05), bounds=(-0.5, 0.5), meaning=_LENS)
+    lens_k2: Range = _field((0.0, 0.03), bounds=(-0.5, 0.5), meaning=_LENS)
+    lens_k3: Range = _field((0.0, 0.0), bounds=(-0.5, 0.5), meaning=_LENS)
+    lens_p1: Range = _field((-0.002, 0.002), bounds=(-0.01, 0.01), meaning=_LENS)
+    lens_p2: Range = _field((-0.002, 0.002), bounds=(-0.01, 0.01), meaning=_LENS)
+    lens_lambda: Range = _field((-0.15, 0.05), bounds=(-0.5, 0.5), meaning=_LENS)
+    distortion_map_output: bool = _field(False, meaning=(
+        "also hand out ``distortion_maps`` (with a lens): per view and distorted pixel, where it comes from in "
+        "the undistorted view, Kornia pixels."))
     shadow_frustum: str = _field("fitted", choices=SHADOW_FRUSTA, meaning=(
         'what a spot light\'s shadow map covers: ``"cone"`` (pyrender\'s frustum, 2 x outer cone + pi / 16 wide) '
         'or ``"fitted"`` (only what the cameras see of the painting and occluders, within the cone: the same '

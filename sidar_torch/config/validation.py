@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import itertools
 import math
 from typing import Any, Mapping
 
+from ..distortion import LENS_MODELS, NO_LENS, radial_folds
 from ..render_choices import AUTO_MAP_SIZE, shadow_map_side
 from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
@@ -169,7 +171,29 @@ def validate(config: Any) -> None:
     need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
          f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
          f"config field 'n_lights' is {c.n_lights})")
+    _check_lens(c)
     _check_memory(c)
+
+
+def _check_lens(config: Any) -> None:
+    """With a lens, no depth or flow output (pinhole cameras only), and no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
+    each radial coefficient's ends are tried together (the radius is linear in them, so the worst lens
+    of the box is one of its corners)."""
+    if config.lens_model == NO_LENS:
+        return
+    for switch in ("depth_output", "flow_output"):  # a pinhole's depth and flow; a lens would resample them wrongly
+        if getattr(config, switch):
+            raise ValueError(f"config field {switch!r}: expected false with lens_model {config.lens_model!r} (depth and "
+                             f"flow are rendered for pinhole cameras only, lens_model none), got true")
+    fields = LENS_MODELS[config.lens_model].fields
+    ends = [getattr(config, f) if f is not None and f not in ("lens_p1", "lens_p2") else (0.0, 0.0) for f in fields]
+    for corner in itertools.product(*ends):
+        if radial_folds(config.lens_model, corner):
+            named = [f for f in fields if f is not None]
+            raise ValueError(f"config fields {', '.join(map(repr, named))}: expected ranges of lens_model "
+                             f"{config.lens_model!r} whose every lens bends the image without folding it before its "
+                             f"corner, got {', '.join(str(getattr(config, f)) for f in named)}, whose lens "
+                             f"{tuple(float(c) for c in corner)} folds it: narrow the ranges towards 0")
 
 
 def _check_memory(config: Any) -> None:

@@ -13,6 +13,8 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..config.numbers import shown
+from ..distortion import NO_LENS
+from ..lens import distortion_maps
 from ..sample import FLOAT_OUTPUTS, KEYS, SampleArrays, SampleKey, present_keys
 
 __all__ = ["CAMERAS", "CAMERA_KEYS", "HOMOGRAPHIES", "camera_shape", "pixel_entries_text", "pixel_shape", "read_cameras",
@@ -27,6 +29,7 @@ HOMOGRAPHIES = "homographies.npy"
 _NOT_IN_CAMERAS = {
     "homographies": "each layout writes them its own way (H_i_j.mat files, homographies.npy)",
     "index": "the sequence's folder or shard entry names it",
+    "distortion_maps": "recomputed on reading from K and lens, by the function that made them (sidar_torch.lens)",
 }
 """The keys without a file of their own that ``cameras.json`` does not hold, and why."""
 
@@ -51,6 +54,7 @@ def sample_entries(arrays: SampleArrays) -> dict[str, Any]:
         "R": arrays.R.tolist(),
         "t": arrays.t.tolist(),
         "homography_error": arrays.homography_error,
+        **({} if arrays.lens is None else {"lens": arrays.lens.tolist()}),
         "frame": "OpenCV camera frame (x right, y down, z forward): world point X lands at K (R X + t); "
                  "K in pixels, Kornia pixel centres",
     }
@@ -97,7 +101,8 @@ def _numbers(cameras: dict[str, Any], name: str, shape: tuple[int, ...]) -> np.n
 def read_cameras(cameras: Any, config: Mapping[str, Any]) -> dict[str, Any]:
     """The decoded ``cameras.json`` of a sequence of an export recorded with ``config``, checked:
     a JSON object whose ``image_size`` is the recorded one, with ``K``, ``R`` ``(V, 3, 3)`` and
-    ``t`` ``(V, 3)`` numbers for the recorded ``n_views`` ``V`` and a number ``homography_error``.
+    ``t`` ``(V, 3)`` numbers for the recorded ``n_views`` ``V``, a number ``homography_error`` and,
+    recorded with a lens, ``lens`` ``(V, 5)``.
 
     Returns:
         ``{name: float64 array}`` for each key of :data:`CAMERA_KEYS`, of :func:`camera_shape` (``K``,
@@ -115,7 +120,8 @@ def read_cameras(cameras: Any, config: Mapping[str, Any]) -> dict[str, Any]:
     K = cameras.get("K")
     if isinstance(K, list) and len(K) != views:
         raise ValueError(f"field 'K': the cameras of {len(K)} views, but the recorded config field 'n_views' is {views}")
-    return {key.name: _numbers(cameras, key.name, camera_shape(key, views)) for key in CAMERA_KEYS}
+    present = present_keys(config)
+    return {key.name: _numbers(cameras, key.name, camera_shape(key, views)) for key in CAMERA_KEYS if key in present}
 
 
 def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[str, Any],
@@ -147,4 +153,7 @@ def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[st
             pixels[key.name] = read(key.entry, shape, None, **kind)
             continue
         pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None, **kind) for v in range(n_views)])
+    if config.get("distortion_map_output", False):
+        maps = distortion_maps(config.get("lens_model", NO_LENS), cameras.get("lens"), cameras["K"], tuple(config["image_size"]))
+        pixels["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
     return SampleArrays(**pixels, homographies=homographies(n_views), index=index, **cameras)

@@ -10,6 +10,8 @@ from typing import Any, Callable
 
 import yaml
 
+from ..config.allowed import LENS_MODELS as LENS_MODEL_NAMES
+from ..distortion import NO_LENS
 from ..sample import GEOMETRY_DTYPES, KEYS
 from ..paintings import PaintingSource
 from ..render_choices import OUTPUTS
@@ -29,8 +31,10 @@ MANIFEST_LIMIT = 2**20
 up to about 9 times its bytes in Python objects: :data:`.limits.JSON_BYTES_PER_VIEW`)."""
 
 
-OPTIONAL_KEYS = tuple(key for key in KEYS if key.switch is not None)
-"""The sample keys a config switch turns on (:data:`~sidar_torch.sample.KEYS`, column ``switch``)."""
+OPTIONAL_KEYS = tuple(key for key in KEYS if key.name in OUTPUTS)
+"""The optional outputs' sample keys (:data:`~sidar_torch.sample.KEYS` rows of ``render_choices.OUTPUTS``),
+each turned on by a boolean config switch; ``lens`` (``lens_model``) and ``distortion_maps`` are in
+``cameras.json`` or recomputed, and have no file of their own."""
 
 def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[str, Any], layout: Layout) -> None:
     """Write ``export.json`` and ``config.yaml``, or check that a rerun matches the existing ones.
@@ -136,8 +140,10 @@ def check_manifest(manifest: Any, where: Path) -> None:
     check("config.image_size", config.get("image_size"),
           lambda v: isinstance(v, list) and len(v) == 2 and all(_is_int(n, 1) for n in v), "[H, W], integers >= 1")
     check("config.n_views", config.get("n_views"), lambda v: _is_int(v, 1), "an integer >= 1")
-    for key in OPTIONAL_KEYS:
-        check(f"config.{key.switch}", config.get(key.switch, False), lambda v: isinstance(v, bool), "true or false")
+    for switch in (*(key.switch for key in OPTIONAL_KEYS), "distortion_map_output"):
+        check(f"config.{switch}", config.get(switch, False), lambda v: isinstance(v, bool), "true or false")
+    check("config.lens_model", config.get("lens_model", NO_LENS), lambda v: v in LENS_MODEL_NAMES,
+          f"one of {list(LENS_MODEL_NAMES)}")
     check("config.geometry_dtype", config.get("geometry_dtype", "float32"), lambda v: v in GEOMETRY_DTYPES,
           f"one of {list(GEOMETRY_DTYPES)}")
 

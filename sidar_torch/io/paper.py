@@ -183,14 +183,14 @@ def _ours(path: Path, name: str, data: bytes, limit: int) -> bytes:
 
 def _unknown_cameras(out: Path, where: Path) -> bytes:
     """A ``cameras.json`` for a sequence of the paper's (which has none): NaN for every number of
-    :data:`.entries.CAMERA_KEYS` (the cameras of each view, ``homography_error``)."""
+    :data:`.entries.CAMERA_KEYS` (the cameras of each view, ``homography_error``; no ``lens``: pinhole cameras)."""
     n_views = 0
     while (where / f"{n_views}.png").exists():
         n_views += 1
     with open_inside(where / LABEL, out) as f:
         size = png_size(f.read(24))  # the header alone: the limit is cameras.json's
     cameras = {"index": None, "image_size": list(size or (0, 0)),
-               **{key.name: np.full(camera_shape(key, n_views), np.nan).tolist() for key in CAMERA_KEYS}}
+               **{key.name: np.full(camera_shape(key, n_views), np.nan).tolist() for key in CAMERA_KEYS if key.switch is None}}
     return json.dumps(cameras).encode()
 
 

@@ -151,6 +151,9 @@ class SceneSequence(_Plain):
     Attributes:
         image_size: ``(H, W)`` of every view, in pixels.
         views: ``V`` view scenes; view 0's camera is the fronto-parallel reference.
+        lens_model: ``"none"`` (pinhole cameras) or a row of ``sidar_torch.distortion.LENS_MODELS``.
+        lenses: with a lens, ``(V, 5)`` float64, each view's coefficients in normalised camera
+            coordinates (``sidar_torch.distortion``); None without.
 
     How it is drawn (shadows, occluders seen by the cameras, masks) is the renderer's business
     (``sidar_torch.render.RenderSettings``), not the scene's.
@@ -158,6 +161,8 @@ class SceneSequence(_Plain):
 
     image_size: tuple[int, int]
     views: tuple[ViewScene, ...]
+    lens_model: str = "none"
+    lenses: np.ndarray | None = None
 
     def cameras(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Stacked ``K (V, 3, 3)``, ``R (V, 3, 3)``, ``t (V, 3)`` float64."""

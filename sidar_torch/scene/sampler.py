@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from .. import geometry
+from ..distortion import LENS_MODELS, NO_LENS, scaled_lens
 from ..config import SidarConfig
 from .description import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 from .kinds import LIGHT_KINDS, MATERIAL_KINDS, SHAPES
@@ -24,7 +25,8 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
     """Draw one sample's scenes from ``config`` with ``rng`` (a pure function of the rng's state).
 
     Cameras are drawn first (view 0 the reference, then views 1..V-1), then each view's lights,
-    occluders and materials, or one set reused by every view when ``scene_per_view`` is false.
+    occluders and materials, or one set reused by every view when ``scene_per_view`` is false; with a
+    ``lens_model``, each view's lens last, from a generator of its own (:func:`_sample_lenses`).
     """
     size = config.image_size
     cameras = _sample_cameras(config, rng)
@@ -34,7 +36,27 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
         if content is None or config.scene_per_view:
             content = _sample_content(config, rng, size, cameras)
         views.append(ViewScene(camera, *content))
-    return SceneSequence(size, tuple(views))
+    if config.lens_model == NO_LENS:
+        return SceneSequence(size, tuple(views))
+    return SceneSequence(size, tuple(views), config.lens_model, _sample_lenses(config, rng, cameras))
+
+
+def _sample_lenses(config: SidarConfig, rng: np.random.Generator, cameras: list[Camera]) -> np.ndarray:
+    """Each view's lens ``(V, 5)`` (:func:`sidar_torch.distortion.scaled_lens` of coefficients drawn from
+    the config's ranges at the image's corner), drawn from ``Generator(rng.bit_generator.jumped())``: a
+    stream 2**127 steps ahead of ``rng``'s, a pure function of its state that leaves it untouched, so
+    the lens changes no draw of the scene or of what ``rng`` draws next (the view effects)."""
+    if not hasattr(rng.bit_generator, "jumped"):
+        raise ValueError(f"rng: lens_model {config.lens_model!r} draws from a jumped copy of the generator, which "
+                         f"needs a bit generator with jumped() (numpy.random.default_rng's PCG64), got "
+                         f"{type(rng.bit_generator).__name__}")
+    lens_rng = np.random.Generator(rng.bit_generator.jumped())
+    fields = LENS_MODELS[config.lens_model].fields
+    lenses = []
+    for camera in cameras:
+        corner = [lens_rng.uniform(*getattr(config, f)) if f is not None else 0.0 for f in fields]
+        lenses.append(scaled_lens(config.lens_model, np.array(corner), camera.K, config.image_size))
+    return np.stack(lenses)
 
 
 CAMERA_ATTEMPTS = 1000

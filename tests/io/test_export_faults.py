@@ -257,6 +257,10 @@ def tamper(manifest):
                           "field 'config.image_size'"),
         "geometry-dtype": ({**manifest, "config": {**manifest["config"], "geometry_dtype": "int8"}},
                            "field 'config.geometry_dtype'"),
+        "lens-model": ({**manifest, "config": {**manifest["config"], "lens_model": "fisheye"}},
+                       "field 'config.lens_model'"),
+        "maps-switch": ({**manifest, "config": {**manifest["config"], "distortion_map_output": "yes"}},
+                        "field 'config.distortion_map_output'"),
         "binary": (b"\xff\xfe\x00garbage", "not UTF-8"),
         "long-integer": (json.dumps(manifest).replace('"seed": 0', '"seed": ' + "9" * 5000).encode(),
                          "an integer of 5000 digits"),  # issue 34 item 4: a ValueError naming no file
