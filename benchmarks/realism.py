@@ -25,13 +25,14 @@ Definitions (every threshold is a named constant below):
   draws: only the renderer's ``shadows`` setting differs), among pixels at least :data:`MIN_LIT` bright
   there. (Blender's and ours, estimated): the label warped into the view is the painting's albedo
   there; the shading ratio ``view / albedo`` (luminances, both blurred by :data:`SMOOTH_SIGMA` px) is
-  compared with the light level: a quadratic in the view's pixel coordinates fitted to the log ratio,
-  refitted without the pixels well below it (the light normalisation: the unshadowed light varies
-  slowly over the painting, lights being 10-15 Blender units away from a 7-unit painting); a pixel is
-  in shadow when its ratio is below :data:`SHADOW_RATIO` times that level. Pixels blown out (luma >=
-  ``WHITE``) or with a dark albedo (below :data:`MIN_ALBEDO`) are not judged. Spot-cone edges and
-  specular washes also fall below the level, so the estimate is compared only with the estimate;
-  ours by both methods shows how far the estimate is from the truth (``docs/realism.md``).
+  the light, and a cast shadow is a hole in it: :func:`filled_light` fills each dark region that lit
+  pixels surround to its rim's level (greyscale hole filling; the dark parts of a spot's pool or of a
+  metallic painting reach the painting's edge and are not holes); a pixel is in shadow when its light
+  is below :data:`SHADOW_RATIO` times that level. Pixels blown out (luma >= ``WHITE``) or with a dark
+  albedo (below :data:`MIN_ALBEDO`) are not judged. Shadows cut by the painting's or the image's edge
+  are missed, so the estimate is compared only with the estimate; ours by both methods shows how far
+  the estimate is from the truth, and on the ``shadows=False`` twin what it finds where there is
+  nothing (``docs/realism.md``).
 * *clipped pixels still coloured*: of a view's painting pixels with a channel at ``exposure.CLIPPED``
   or more, the fraction with another channel below ``exposure.STILL_COLOURED`` (how over-exposure is
   clipped: per channel keeps colour, a spill into white does not).
@@ -97,14 +98,9 @@ SMOOTH_SIGMA = 3.0
 """Gaussian blur (pixels) of the view's and the warped label's luminance before their ratio is taken:
 the warped label is a resampling of the painting, not the renderer's own texture filtering."""
 
-LEVEL_DEGREE = 2
-"""Degree of the polynomial (in the view's pixel coordinates) fitted to the log shading ratio."""
-
-LEVEL_ITERATIONS = 4
-"""Fits of the light level, each without the pixels well below the previous fit."""
-
-LEVEL_KEEP = 0.7
-"""Pixels whose shading ratio is below this fraction of the fitted level are left out of the next fit."""
+HOLE_STEP = float(np.log(2) / 8)
+"""Step (natural log of light) of the levels at which :func:`filled_light` follows paths to the
+painting's edge: its fill level is exact to this (9 %)."""
 
 MIN_JUDGED = 100
 """Least judged pixels for a view to have an estimated cast-shadow fraction."""
@@ -226,42 +222,72 @@ def smoothed(values: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndar
     return total / np.maximum(weight, 1e-9), weight
 
 
-def light_level(log_ratio: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
-    """Unshadowed log light level at pixels ``(xs, ys)`` (in [-0.5, 0.5], fractions of the image): a
-    polynomial of degree :data:`LEVEL_DEGREE` fitted to ``log_ratio`` by least squares, refitted
-    :data:`LEVEL_ITERATIONS` times without the pixels more than :data:`LEVEL_KEEP` times below the fit
-    (shadows pull a plain fit down; highlights above it are kept)."""
-    basis = np.stack([xs**i * ys**j for i in range(LEVEL_DEGREE + 1) for j in range(LEVEL_DEGREE + 1 - i)], axis=1)
-    keep = np.ones(log_ratio.size, bool)
-    for _ in range(LEVEL_ITERATIONS):
-        coefficients = np.linalg.lstsq(basis[keep], log_ratio[keep], rcond=None)[0]
-        fit = basis @ coefficients
-        keep = log_ratio > fit + np.log(LEVEL_KEEP)
-    return fit
+def filled_light(log_light: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The light level each pixel's dark hole is filled to: for each pixel of ``inside``, the least level
+    ``t`` (a multiple of :data:`HOLE_STEP` above the least value) such that a 4-connected path of
+    pixels at or below ``t`` leads from it out of ``inside`` (greyscale hole filling); ``+inf`` off it.
+
+    Args:
+        log_light: ``(H, W)`` float64, the log light level of every pixel of ``inside``.
+        inside: ``(H, W)`` bool, the painting region; the pixels off it, the image's border
+            included, are the outside every path ends in.
+
+    Returns:
+        ``(H, W)`` float64, at least ``log_light`` on ``inside``. A shadow, a hole in the light that
+        lit pixels surround, is filled to its surroundings' level; the dark part of a spot's pool or
+        of a metallic painting reaches the painting's edge through dark pixels, and stays as it is.
+    """
+    filled = np.full(log_light.shape, np.inf)
+    frame = np.zeros(log_light.shape, bool)
+    frame[[0, -1], :] = frame[:, [0, -1]] = True
+    outside = ~inside | frame
+    todo = inside & ~outside
+    filled[inside & frame] = log_light[inside & frame]
+    values = log_light[todo]
+    for level in np.arange(values.min(), values.max() + HOLE_STEP, HOLE_STEP) if values.size else []:
+        labels, _ = ndimage.label(outside | (inside & (log_light <= level)))
+        reached = todo & np.isin(labels, np.unique(labels[outside]))
+        filled[reached] = level
+        todo &= ~reached
+        if not todo.any():
+            break
+    return np.where(inside, np.maximum(filled, log_light), np.inf)
 
 
-def estimated_light_ratio(view: np.ndarray, albedo: np.ndarray, painting: np.ndarray) -> np.ndarray | None:
-    """Light ratio (light over the fitted unshadowed level) of each judged painting pixel, ``(N,)``,
+def estimated_light_ratio(view: np.ndarray, albedo: np.ndarray, painting: np.ndarray,
+                          region: np.ndarray) -> np.ndarray | None:
+    """Light ratio (light over the level its hole is filled to) of each judged painting pixel, ``(N,)``,
     estimated from one render and the label.
+
+    The shading ratio ``view / albedo`` (luminances, each smoothed by :data:`SMOOTH_SIGMA` px) is the
+    light; the unjudged pixels of the region (occluders, blown-out or dark-albedo pixels) take their
+    nearest judged pixel's, and :func:`filled_light` fills its dark holes. A cast shadow is such a hole:
+    the pixels around it are lit. Shading does not make holes (a spot's pool is a bright patch in the
+    dark, a metallic painting dark with bright highlights), so on our ``shadows=False`` twins this reads
+    near 0; a shadow that the painting's or the image's edge cuts is not a hole, and is missed
+    (``docs/realism.md``).
 
     Args:
         view: ``(H, W, 3)`` uint8 sRGB render.
         albedo: ``(H, W, 3)`` float 0..255 sRGB, the label warped into the view (NaN off it).
-        painting: ``(H, W)`` bool, True where the painting is visible.
+        painting: ``(H, W)`` bool, True where the painting is visible (mask 0).
+        region: ``(H, W)`` bool, the painting region (:func:`painting_region`).
 
     Returns:
         the ratios, None when fewer than :data:`MIN_JUDGED` pixels can be judged.
     """
-    valid = painting & np.isfinite(albedo).all(-1) & (luma(view) < WHITE)
+    valid = painting & region & np.isfinite(albedo).all(-1) & (luma(view) < WHITE)
     lit, weight = smoothed(luminance(view), valid)
     reflectance, _ = smoothed(srgb_to_linear(np.nan_to_num(albedo, nan=0.0).round()) @ LUMA, valid)
     judged = valid & (weight > 0.5) & (reflectance >= MIN_ALBEDO) & (lit > 0)
     if judged.sum() < MIN_JUDGED:
         return None
-    ys, xs = np.nonzero(judged)
-    h, w = judged.shape
-    log_ratio = np.log(lit[judged] / reflectance[judged])
-    return np.exp(log_ratio - light_level(log_ratio, xs / w - 0.5, ys / h - 0.5))
+    log_ratio = np.zeros(judged.shape)
+    log_ratio[judged] = np.log(lit[judged] / reflectance[judged])
+    nearest = ndimage.distance_transform_edt(~judged, return_distances=False, return_indices=True)
+    log_ratio = log_ratio[tuple(nearest)]
+    log_ratio[region & painting & (luma(view) >= WHITE)] = log_ratio[judged].max()  # blown out: lit
+    return np.exp(log_ratio[judged] - filled_light(log_ratio, region)[judged])
 
 
 def occluder_coverage(mask: np.ndarray, region: np.ndarray) -> float:
@@ -363,8 +389,8 @@ def sequence_stats(views: np.ndarray, masks: np.ndarray, label: np.ndarray, H0: 
         painting = ~mask
         albedo = warp_label(label, H0[j])
         exact = None if unshadowed is None or not painting.any() else exact_light_ratio(view, unshadowed[j], painting)
-        estimated = estimated_light_ratio(view, albedo, painting & region)
-        twin = None if unshadowed is None else estimated_light_ratio(unshadowed[j], albedo, painting & region)
+        estimated = estimated_light_ratio(view, albedo, painting, region)
+        twin = None if unshadowed is None else estimated_light_ratio(unshadowed[j], albedo, painting, region)
         shadows.append([shadow_fraction(exact), shadow_fraction(estimated), shadow_fraction(twin),
                         shadow_darkness(exact), shadow_darkness(estimated)])
         coverage.append(occluder_coverage(mask, region))

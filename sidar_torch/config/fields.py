@@ -170,6 +170,12 @@ class SidarConfig:
         "every torus at the size of the paper's, Blender's default torus, which it never scales (major radius 1, "
         "minor 0.25 Blender units): outer radius 1.25 / 7 and half-thickness 0.25 / 7, with no draw from "
         "``occluder_size`` (see ``sidar_torch.scene.PAPER_TORUS_SCALE``)."))
+    paper_occluder_materials: bool = _field(False, meaning=(
+        "occluder colours and factors drawn as the paper's Blender materials draw them: colour uniform in linear "
+        "RGB (each channel U(0, 1), not HSV), roughness U(0, 0.5) for the ``glossy``, ``metallic`` and "
+        "``transparent`` kinds, and a ``principled`` occluder with the Principled BSDF's ranges (roughness "
+        "U(0, 0.5), metallic, specular, coat, coat roughness and transmission U(0, 1); see "
+        "``sidar_torch.scene.kinds``)."))
     glass_shadows_opaque: bool = _field(False, meaning=(
         "``glass`` occluders cast shadows as dark as opaque ones, as the paper's glass and refraction materials "
         "do in Cycles (refracted light from a light source carries no direct light); false: a tinted, lighter "

@@ -167,10 +167,24 @@ order, and keeps its own (if any): the draws of every sample recorded since the 
 (``tests/stored_digests.py``) depend on it."""
 
 
+PAPER_ROUGHNESS = (0.0, 0.5)
+"""The paper's roughness range for every occluder material (``SidarConfig.paper_occluder_materials``)."""
+
+
+def _colour(rng: np.random.Generator, config: SidarConfig) -> tuple[float, float, float]:
+    """An occluder's linear RGB colour from three draws: HSV with hue and saturation in [0, 1] and value
+    in [0.2, 1], or, with ``paper_occluder_materials``, each channel uniform in [0, 1] (Blender's
+    ``np.random.uniform(0, 1, 4)`` colour input, linear)."""
+    if config.paper_occluder_materials:
+        return tuple(rng.uniform(size=3))
+    return colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+
+
 @dataclass(frozen=True)
 class SimpleMaterial:
-    """A material kind with one colour draw and named ranges, drawn in this order: colour (hue,
-    saturation, value in [0.2, 1]), ``alpha`` if a range, then every range of :data:`ROUGHNESS_RANGES`.
+    """A material kind with one colour draw and named ranges, drawn in this order: colour
+    (:func:`_colour`), ``alpha`` if a range, then every range of :data:`ROUGHNESS_RANGES` (each
+    :data:`PAPER_ROUGHNESS` with ``paper_occluder_materials``).
 
     Attributes:
         alpha: opacity, or a range it is drawn from (transparent).
@@ -184,9 +198,10 @@ class SimpleMaterial:
     specular: float
 
     def __call__(self, rng: np.random.Generator, config: SidarConfig) -> Material:
-        rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+        rgb = _colour(rng, config)
         alpha = rng.uniform(*self.alpha) if isinstance(self.alpha, tuple) else self.alpha
-        drawn = {name: rng.uniform(*bounds) for name, bounds in ROUGHNESS_RANGES.items()}
+        paper = config.paper_occluder_materials
+        drawn = {name: rng.uniform(*(PAPER_ROUGHNESS if paper else bounds)) for name, bounds in ROUGHNESS_RANGES.items()}
         roughness = drawn[self.roughness] if isinstance(self.roughness, str) else self.roughness
         return Material(np.array([*rgb, alpha]), self.metallic, roughness, self.specular)
 
@@ -202,10 +217,16 @@ def _glass(rng: np.random.Generator, config: SidarConfig) -> Material:
 
 
 def _principled(rng: np.random.Generator, config: SidarConfig) -> Material:
-    """Every factor random: colour, metallic, roughness, specular, coat and its roughness (0.03-0.3)."""
-    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(), rng.uniform(0.2, 1.0))
+    """Every factor random: colour, metallic, roughness, specular, coat and its roughness (0.03-0.3);
+    with ``paper_occluder_materials`` the paper's Principled BSDF: roughness in :data:`PAPER_ROUGHNESS`,
+    coat roughness and transmission in [0, 1] too."""
+    rgb = _colour(rng, config)
     metallic, roughness, specular, coat = rng.uniform(size=4)
-    return Material(np.array([*rgb, 1.0]), metallic, roughness, specular, coat, rng.uniform(0.03, 0.3))
+    if not config.paper_occluder_materials:
+        return Material(np.array([*rgb, 1.0]), metallic, roughness, specular, coat, rng.uniform(0.03, 0.3))
+    roughness = PAPER_ROUGHNESS[0] + roughness * (PAPER_ROUGHNESS[1] - PAPER_ROUGHNESS[0])
+    coat_roughness, transmission = rng.uniform(size=2)
+    return Material(np.array([*rgb, 1.0]), metallic, roughness, specular, coat, coat_roughness, transmission)
 
 
 MATERIAL_KINDS: dict[str, Callable[[np.random.Generator, SidarConfig], Material]] = {

@@ -95,11 +95,31 @@ def test_estimated_shadow_fraction_finds_a_shadow_under_uneven_light_on_a_textur
     view = encode(albedo * (light * np.where(shadow, 0.25, 1.0))[..., None])
     label = encode(albedo).astype(np.float64)
     painting = np.ones((h, w), bool)
-    ratio = realism.estimated_light_ratio(view, label, painting)
+    ratio = realism.estimated_light_ratio(view, label, painting, painting)
     assert realism.shadow_fraction(ratio) == pytest.approx(shadow.mean(), abs=0.02)
-    assert realism.shadow_darkness(ratio) == pytest.approx(0.25, abs=0.05)  # the blur widens the edge a little
+    # the hole is filled to its rim's lowest light, 0.61 on its left, where its centre has 0.72: 0.25 x 0.72 / 0.61
+    assert realism.shadow_darkness(ratio) == pytest.approx(0.30, abs=0.05)
     no_shadow = encode(albedo * light[..., None])
-    assert realism.shadow_fraction(realism.estimated_light_ratio(no_shadow, label, painting)) < 0.005
+    assert realism.shadow_fraction(realism.estimated_light_ratio(no_shadow, label, painting, painting)) < 0.005
+
+
+def test_a_spot_pool_is_not_a_shadow_but_a_shadow_inside_it_is():
+    """A spot's pool of light (8 times the light around it, its edge 6 px wide) leaves the rest of the
+    painting dark out to its edges: shading, not a hole in the light. An occluder's shadow inside the
+    pool is one, also where an occluder hides part of it."""
+    h, w = 192, 256
+    albedo = np.random.default_rng(2).uniform(0.2, 0.8, (h // 8, w // 8, 3)).repeat(8, 0).repeat(8, 1)
+    y, x = np.mgrid[0:h, 0:w]
+    light = 0.1 + 0.7 / (1 + np.exp((np.hypot(x - 140, y - 90) - 70) / 3))
+    shadow = (x - 150) ** 2 + (y - 90) ** 2 < 25**2
+    label = encode(albedo).astype(np.float64)
+    painting, region = np.ones((h, w), bool), realism.painting_region(np.eye(3), (h, w))
+    pool = realism.estimated_light_ratio(encode(albedo * light[..., None]), label, painting, region)
+    assert realism.shadow_fraction(pool) < 0.005
+    hidden = (x - 165) ** 2 + (y - 90) ** 2 < 12**2  # an occluder over part of its shadow
+    view = encode(albedo * (light * np.where(shadow, 0.3, 1.0))[..., None])
+    ratio = realism.estimated_light_ratio(view, label, ~hidden, region)
+    assert realism.shadow_fraction(ratio) == pytest.approx((shadow & ~hidden)[region].mean(), abs=0.01)
 
 
 def test_occluder_coverage_and_components():

@@ -174,3 +174,25 @@ def test_blender_spot_falloff_puts_the_inner_cone_at_the_blend_in_cos():
         cos_outer = math.cos(blender.outer_cone)
         assert blender.outer_cone == quadratic.outer_cone and blender.smooth_falloff and not quadratic.smooth_falloff
         assert math.cos(blender.inner_cone) == pytest.approx(cos_outer + (1.0 - cos_outer) * u, abs=1e-12)
+
+
+def paper_occluders(material, on, views=120):
+    cfg = small_config(n_views=views, n_occluders=(3, 3), occluder_materials=(material,), paper_occluder_materials=on)
+    return [o.material for view in sample_sequence(cfg, np.random.default_rng(3)).views for o in view.occluders]
+
+
+def test_paper_occluder_materials_draw_the_papers_colours_and_principled_ranges():
+    """Blender's colour input ``np.random.uniform(0, 1, 4)`` is uniform per linear channel; our HSV draw
+    (value at least 0.2) is not. The paper's Principled BSDF has roughness U(0, 0.5), coat roughness
+    and transmission U(0, 1)."""
+    from scipy import stats
+
+    paper, ours = (np.array([m.base_color[:3] for m in paper_occluders("metallic", on)]) for on in (True, False))
+    assert min(stats.kstest(paper[:, c], "uniform").pvalue for c in range(3)) > 0.01
+    assert max(stats.kstest(ours[:, c], "uniform").pvalue for c in range(3)) < 0.01
+    metals = paper_occluders("metallic", True)
+    assert max(m.roughness for m in metals) <= 0.5 and min(m.roughness for m in metals) < 0.05
+    principled = paper_occluders("principled", True)
+    for name, top in (("roughness", 0.5), ("coat_roughness", 1.0), ("transmission", 1.0), ("metallic", 1.0)):
+        values = np.array([getattr(m, name) for m in principled])
+        assert values.max() <= top and values.max() > 0.9 * top and values.min() < 0.1 * top, name
