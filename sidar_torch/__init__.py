@@ -14,6 +14,7 @@ from .config import SidarConfig, available_presets, load_config
 from .augment import SidarAugment
 from .augment_step import SidarStep
 from .dataset import SidarDataset
+from .correspondence import flow
 from .evaluation import evaluate
 from .io import ExportedDataset, export_dataset
 from .lens import undistort
@@ -22,5 +23,5 @@ from .version import __version__  # noqa: F401  (the package's version, recorded
 
 __all__ = [
     "ExportedDataset", "SidarAugment", "SidarConfig", "SidarDataset", "SidarStep", "available_presets", "evaluate",
-    "export_dataset", "homography_pairs", "load_config", "undistort",
+    "export_dataset", "flow", "homography_pairs", "load_config", "undistort",
 ]

@@ -20,14 +20,15 @@ import kornia
 import torch
 
 from .config import as_int
-from .sample import KEYS
+from .correspondence import flow
+from .sample import KEYS, float_tensor
 
 __all__ = ["homography_pairs"]
 
 PAIRED_VIEW_KEYS = tuple(key.name for key in KEYS if key.switch is not None and key.shape.startswith("(V, ")
                          and key.shape.endswith("H, W)"))
-"""The optional per-view images of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``,
-``distortion_maps``):
+"""The optional per-view images of the sample table (``opacities``, ``shadow_masks``, ``shadow_free``, ``depth``,
+``flow_to_reference``, ``distortion_maps``):
 when a batch holds one, the pair carries the same boxes of it."""
 
 
@@ -80,8 +81,13 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
         - ``views`` ``(B, 2)`` int64: ``(a, b)``.
         - ``origin`` ``(B, 2)`` int64: ``(u0, v0)``, column and row of the patch's top-left pixel.
         - ``<key>_a``, ``<key>_b`` ``(B, C, ph, pw)``: for each optional per-view key the batch holds
-          (``opacities``, ``shadow_masks``, ``shadow_free``, see :data:`PAIRED_VIEW_KEYS`), the
+          (``opacities``, ``shadow_masks``, ``shadow_free``, ``depth``, see :data:`PAIRED_VIEW_KEYS`), the
           same pixel boxes of it, e.g. ``shadow_free_a`` and ``shadow_free_b``.
+        - ``flow_ab`` ``(B, 2, ph, pw)`` float32 and ``flow_valid`` ``(B, 1, ph, pw)`` in {0, 1}, when the
+          batch holds ``depth`` (config ``depth_output``; with its ``K``, ``R``, ``t``): where each patch
+          pixel of view a lands in view b minus the pixel, full-image pixels, and where that is a true,
+          unhidden correspondence (:func:`sidar_torch.flow`): on occluders of a static scene it carries
+          the parallax ``H_ab`` lacks.
         - ``lens_a``, ``lens_b`` ``(B, 5)`` float64, when the batch holds ``lens``: the two views' lenses.
           The patches are then cut from the distorted views while ``H_ab`` maps the undistorted ones:
           pass ``sidar_torch.undistort``'s images and masks for pairs that ``H_ab`` aligns exactly.
@@ -162,6 +168,10 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
             values = _per_view_tensor(batch, name, images, single)
             out[f"{name}_a"] = _crop(values[rows, a], u0, v0, (ph, pw))
             out[f"{name}_b"] = _crop(values[rows, b], u0, v0, (ph, pw))
+    if "depth" in batch:
+        flows, seen = _flows(batch, single, a, b)
+        out["flow_ab"] = _crop(flows, u0, v0, (ph, pw))
+        out["flow_valid"] = _crop(seen, u0, v0, (ph, pw)).to(images.dtype)
     return {key: value[0] for key, value in out.items()} if single else out
 
 
@@ -196,6 +206,17 @@ def _valid(mask_a: torch.Tensor, mask_b: torch.Tensor, H_ab: torch.Tensor, u0: t
     row = torch.where(inside, row, torch.zeros_like(row)).long()
     seen_b = inside & (_gather(mask_b[..., 0, :, :], row, col) == 0)
     return seen_a & seen_b.unflatten(-1, (ph, pw))
+
+
+def _flows(batch: Mapping[str, Any], single: bool, a: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(B, 2, H, W)`` float32 flow from view ``a[k]`` to view ``b[k]`` of each item and ``(B, 1, H, W)``
+    bool its validity (:func:`sidar_torch.flow`, from the batch's ``depth`` and cameras)."""
+    pairs = []
+    for k, (i, j) in enumerate(zip(a.tolist(), b.tolist())):
+        item = batch if single else {name: value[k] for name, value in batch.items()
+                                     if isinstance(value, torch.Tensor) and value.ndim > 0}
+        pairs.append(flow(item, i, j))
+    return torch.stack([f for f, _ in pairs]), torch.stack([v for _, v in pairs])
 
 
 def _gather(mask: torch.Tensor, rows: torch.Tensor, cols: torch.Tensor) -> torch.Tensor:
@@ -256,15 +277,7 @@ def _per_view_tensor(batch: Mapping[str, Any], key: str, images: torch.Tensor, s
 
 
 def _float_tensor(batch: Mapping[str, Any], key: str) -> torch.Tensor:
-    """``batch[key]``, checked to be a float tensor (a sample key: see :data:`sidar_torch.sample.KEYS`)."""
-    if key not in batch:
-        raise KeyError(f"batch: missing key {key!r} (needs images, masks, homographies)")
-    value = batch[key]
-    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
-        raise ValueError(f"batch[{key!r}]: expected a float tensor, got {type(value).__name__}"
-                         f"{'' if not isinstance(value, torch.Tensor) else ' of ' + str(value.dtype)}")
-    return value
-
+    return float_tensor(batch, key, "images, masks, homographies")
 
 
 def _check_patch_size(patch_size: Any, image_size: tuple[int, int]) -> tuple[int, int]:

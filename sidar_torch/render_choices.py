@@ -10,7 +10,8 @@ them for users.
 from dataclasses import dataclass
 
 __all__ = ["ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
-           "OUTPUTS", "OptionalOutput", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS", "shadow_map_side"]
+           "OUTPUTS", "OptionalOutput", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS", "drawn_outputs",
+           "shadow_map_side"]
 
 MAX_SHADOWED_LIGHTS = 24
 """Shadow-casting spot lights one view may use: the length of the lights' uniform block (``render.light_block``)."""
@@ -74,6 +75,11 @@ class OptionalOutput:
             second output), 0 for none.
         view_effects: the view effects (background, exposure, noise, JPEG: ``sidar_torch.effects``) apply
             to it as to the views, with the same draws (an image of the view); false: it is left as drawn.
+        dtype: ``"uint8"`` (8-bit levels, a float tensor of ``level / 255`` in the sample, a PNG file) or
+            ``"float32"`` (values with units, the same float32 tensor, a ``.npy`` file).
+        computed_from: None for an output the renderer draws; else the drawn output it is computed from
+            on the CPU after rendering (``sample.render_arrays``), which is then drawn whether or not it
+            is asked for itself.
     """
 
     name: str
@@ -84,6 +90,8 @@ class OptionalOutput:
     view_pixel_bytes: int = 0
     target_pixel_bytes: int = 0
     view_effects: bool = False
+    dtype: str = "uint8"
+    computed_from: str | None = None
 
 
 OUTPUTS = {row.name: row for row in (
@@ -95,8 +103,21 @@ OUTPUTS = {row.name: row for row in (
     OptionalOutput("shadow_free", "shadow_free_output", 3, "{v}-f.png",
                    "<i>-f.png: the view with no light blocked (the target of shadow removal)",
                    view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True),
+    OptionalOutput("depth", "depth_output", 1, "{v}-d.npy",
+                   "<i>-d.npy: float32 (H, W), the distance along the camera's z axis to the painting or an occluder, "
+                   "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32"),
+    OptionalOutput("flow_to_reference", "flow_output", 2, "{v}-flow.npy",
+                   "<i>-flow.npy: float32 (H, W, 2), where each pixel of view i lands in view 0 minus the pixel, "
+                   "(du, dv) in pixels; NaN where that is not a seen correspondence (sidar_torch.flow)",
+                   view_pixel_bytes=24, target_pixel_bytes=8, dtype="float32", computed_from="depth"),
 )}
-"""The optional outputs, by name. Adding one: a row here, its switch in ``config/fields.py``, its key in
+"""The optional outputs, by name (``flow_to_reference``'s memory counts the depth it is computed from). Adding one: a row here, its switch in ``config/fields.py``, its key in
 ``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and the pass or render target that
 draws it in ``render/`` (``docs/architecture.md``). Memory, the manifest, export, the reader, Ray and the
 render settings follow the row. Opacities' memory is in the measured per-view figure (``config.memory``)."""
+
+
+def drawn_outputs(asked: frozenset[str] | set[str]) -> frozenset[str]:
+    """The outputs the renderer draws for the outputs ``asked`` for (names of :data:`OUTPUTS`): those it
+    draws itself, and the ones the computed outputs are computed from."""
+    return frozenset(OUTPUTS[name].computed_from or name for name in asked)

@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 from . import geometry
+from .dense import depth_flow
 from .distortion import NO_LENS
 from .effects import apply_effects, draw_effects
 from .lens import distortion_maps, render_through_lens
@@ -31,7 +32,7 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import sample_renderer
 
-__all__ = ["KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "render_arrays", "render_sample",
+__all__ = ["FLOAT_OUTPUTS", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "float_tensor", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
@@ -86,6 +87,14 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey.optional("shadow_free", "float32 in [0, 1], multiples of 1/255",
               "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
               "blocked: the target of shadow removal; equal to images wherever no shadow falls"),
+    SampleKey.optional("depth", "float32, painting units",
+              "the distance along the view's camera z axis (R X + t's third coordinate) to the nearest surface the "
+              "masks count (the painting, or an occluder at least mask_min_opacity opaque) at each pixel centre, "
+              "inf where none is hit; sidar_torch.flow turns it into dense correspondence"),
+    SampleKey.optional("flow_to_reference", "float32, pixels",
+              "where each pixel of the view lands in view 0 minus the pixel, (du, dv): sidar_torch.flow(sample, i, 0) "
+              "of every view i, NaN where it is not valid (view i sees nothing there, or view 0 does not see the "
+              "point); on the painting H[i, 0]'s mapping, on occluders of a static scene their parallax"),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -113,15 +122,19 @@ KEYS: tuple[SampleKey, ...] = (
 )
 """The sample's keys, in the order of a sample dict."""
 
+FLOAT_OUTPUTS = frozenset(name for name, row in OUTPUTS.items() if row.dtype == "float32")
+"""The optional outputs of float32 values with units (``depth``): their arrays and tensors are float32,
+their export files ``.npy``."""
+
+PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key.name not in FLOAT_OUTPUTS)
+"""The 8-bit pixel keys of the table (those with an export entry, but the float outputs: ``images``,
+``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
+
 LENS_KEYS = ("lens", "distortion_maps")
 """The keys the lens step makes (:mod:`sidar_torch.lens`, a CPU step after read-back), not the renderer:
 the optional keys besides ``render_choices.OUTPUTS``' rows. ``lens`` is turned on by ``lens_model`` (not
 ``"none"``), ``distortion_maps`` by ``distortion_map_output``; neither has a file of its own (``lens`` is
 in ``cameras.json``, the maps are recomputed on reading)."""
-
-PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None)
-"""The 8-bit pixel keys of the table (those with an export entry: ``images``, ``masks``, ``label`` and
-the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
 GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
 """``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
@@ -146,8 +159,9 @@ class SampleArrays:
         homography_error: pixels.
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
-        opacities, shadow_masks, shadow_free: the optional outputs (``render_choices.OUTPUTS``), each
-            ``(V, H, W)`` uint8 (one channel) or ``(V, H, W, 3)`` (three), or None (not rendered).
+        opacities, shadow_masks, shadow_free, depth, flow_to_reference: the optional outputs (``render_choices.OUTPUTS``), each
+            ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
+            float32), or None (not rendered).
         lens: ``(V, 5)`` float64, each view's lens (None: no lens).
         distortion_maps: ``(V, 2, H, W)`` float32 (None: not asked for).
 
@@ -167,6 +181,8 @@ class SampleArrays:
     opacities: np.ndarray | None = None
     shadow_masks: np.ndarray | None = None
     shadow_free: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    flow_to_reference: np.ndarray | None = None
     lens: np.ndarray | None = None
     distortion_maps: np.ndarray | None = None
 
@@ -180,7 +196,7 @@ class SampleArrays:
                     "K": ((V, 3, 3), np.float64), "R": ((V, 3, 3), np.float64), "t": ((V, 3), np.float64)}
         for name, row in OUTPUTS.items():
             if getattr(self, name) is not None:
-                expected[name] = ((V, H, W, 3) if row.channels == 3 else (V, H, W), np.uint8)
+                expected[name] = ((V, H, W, row.channels) if row.channels > 1 else (V, H, W), np.dtype(row.dtype))
         for name, shape, dtype in (("lens", (V, 5), np.float64), ("distortion_maps", (V, 2, H, W), np.float32)):
             if getattr(self, name) is not None:
                 expected[name] = (shape, dtype)
@@ -212,6 +228,9 @@ class SampleArrays:
                 levels = torch.from_numpy(value)
                 levels = levels.movedim(-1, -3) if name in _COLOUR_KEYS else levels.unsqueeze(-3)
                 tensors[name] = _levels_as(levels, pixel_dtype)
+            elif name in FLOAT_OUTPUTS and value is not None:
+                values = torch.from_numpy(value)
+                tensors[name] = values.movedim(-1, -3) if OUTPUTS[name].channels > 1 else values.unsqueeze(-3)
             elif isinstance(value, np.ndarray):
                 tensors[name] = torch.from_numpy(value).to(_OWN_DTYPES.get(name, GEOMETRY_DTYPES[geometry_dtype]))
             elif value is not None:
@@ -227,6 +246,22 @@ _OWN_DTYPES = {"lens": torch.float64, "distortion_maps": torch.float32}
 _COLOUR_KEYS = frozenset(key.name for key in KEYS if key.name in PIXEL_KEYS and key.shape.endswith("3, H, W)"))
 """The pixel keys of 3 channels, whose arrays end in that axis (moved before the rows in the tensors);
 the others' tensors get an axis of one channel there."""
+
+
+def float_tensor(batch: Mapping[str, Any], key: str, needs: str) -> torch.Tensor:
+    """``batch[key]`` (a sample or batch dict), checked to be a float tensor.
+
+    Raises:
+        KeyError: no ``key``, naming it and what the caller ``needs``.
+        ValueError: not a float tensor (naming its type or dtype).
+    """
+    if key not in batch:
+        raise KeyError(f"batch: missing key {key!r} (needs {needs})")
+    value = batch[key]
+    if not isinstance(value, torch.Tensor) or not value.is_floating_point():
+        raise ValueError(f"batch[{key!r}]: expected a float tensor, got {type(value).__name__}"
+                         f"{'' if not isinstance(value, torch.Tensor) else ' of ' + str(value.dtype)}")
+    return value
 
 
 def _check_pixel_dtype(dtype: torch.dtype) -> None:
@@ -325,7 +360,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
             :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on) and ``"homographies"``.
+            any is on), ``"homographies"`` and ``"flow"`` (``flow_output``).
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
         homographies: ``sequence_homographies(sequence)``, when computed already (with other
@@ -347,6 +382,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             homographies = sequence_homographies(sequence)
     homographies, homography_error = homographies
     K, R, t = sequence.cameras()
+    outputs = _with_computed_outputs(outputs, config, K, R, t, timings)
     if config.distortion_map_output:
         with timed(timings, "lens"):
             maps = sources if sources is not None else distortion_maps(NO_LENS, None, K, sequence.image_size)
@@ -354,6 +390,28 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
                         index=index, lens=sequence.lenses, **outputs)
+
+
+def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
+                           t: np.ndarray, timings: dict[str, float] | None) -> dict[str, np.ndarray]:
+    """``outputs`` (the renderer's, by name) with the computed outputs the config asks for added
+    (``OptionalOutput.computed_from``; timed as ``"flow"``) and the drawn ones only they needed left out."""
+    asked = {name for name, row in OUTPUTS.items() if getattr(config, row.switch)}
+    if "flow_to_reference" in asked:
+        with timed(timings, "flow"):
+            outputs["flow_to_reference"] = _reference_flows(outputs["depth"], K, R, t)
+    return {name: array for name, array in outputs.items() if name in asked}
+
+
+def _reference_flows(depth: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """``(V, H, W, 2)`` float32: each view's flow to view 0 (:func:`sidar_torch.dense.depth_flow`), NaN where
+    not valid, from ``depth`` ``(V, H, W)`` float32 and the cameras (float64)."""
+    tensors = [torch.from_numpy(np.asarray(a, np.float64))[None] for a in (depth, K, R, t)]
+    flows = []
+    for i in range(len(depth)):
+        flow, valid = depth_flow(*tensors, i, 0)
+        flows.append(torch.where(valid, flow, torch.full_like(flow, float("nan")))[0])
+    return torch.stack(flows).permute(0, 2, 3, 1).float().numpy()
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

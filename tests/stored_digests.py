@@ -26,8 +26,9 @@ SIZE = (48, 64)
 N_VIEWS = 3
 INDICES = (0, 1)
 SEED = 3
-PIXEL_KEYS = ("images", "masks", "opacities", "shadow_masks", "shadow_free", "label")
-EVERYTHING_ON = dict(opacity_output=True, shadow_mask_output=True, shadow_free_output=True, background="view",
+PIXEL_KEYS = ("images", "masks", "opacities", "shadow_masks", "shadow_free", "depth", "flow_to_reference", "label")
+EVERYTHING_ON = dict(opacity_output=True, shadow_mask_output=True, shadow_free_output=True, depth_output=True, flow_output=True,
+                     background="view",
                      exposure_jitter=True, sensor_noise=True, jpeg=True, mesh_detail="auto", n_occluders=(3, 3))
 """Overrides of the extra ``misaligned+everything`` entry: the optional outputs and view effects."""
 

@@ -6,7 +6,7 @@ import pytest
 import torch
 from kornia.geometry.transform import get_perspective_transform, warp_perspective
 
-from sidar_torch import SidarAugment, SidarDataset, homography_pairs
+from sidar_torch import SidarAugment, SidarDataset, flow, homography_pairs
 from sidar_torch.sample import sequence_homographies
 from sidar_torch.paintings import ProceduralPaintings
 
@@ -323,6 +323,24 @@ def test_pairs_carry_the_same_boxes_of_the_optional_per_view_outputs():
     assert all(torch.equal(plain[key], p[key]) for key in plain)  # the same draws either way
     with pytest.raises(ValueError, match=r"batch\['shadow_free'\]: expected"):
         homography_pairs({**batch, "shadow_free": batch["shadow_free"][:, :, :, :-1]}, 8)
+
+
+def test_pairs_of_a_batch_with_depth_carry_its_boxes_and_the_flow_between_the_views():
+    batch = tiny_augment("parallax", n_views=3, flow_output=True)(paintings(2, TINY))
+    assert batch["depth"].shape == (2, 3, 1, *TINY) and batch["depth"].dtype == torch.float32
+    p = homography_pairs(batch, (20, 30), generator=torch.Generator().manual_seed(3))
+    for item, ((a, b), (u0, v0)) in enumerate(zip(p["views"].tolist(), p["origin"].tolist())):
+        for view, side in ((a, "a"), (b, "b")):
+            assert torch.equal(p[f"depth_{side}"][item], batch["depth"][item, view, :, v0:v0 + 20, u0:u0 + 30])
+        whole, seen = flow({k: v[item] for k, v in batch.items()}, a, b)
+        torch.testing.assert_close(p["flow_ab"][item], whole[:, v0:v0 + 20, u0:u0 + 30], rtol=0, atol=0, equal_nan=True)
+        assert torch.equal(p["flow_valid"][item], seen[:, v0:v0 + 20, u0:u0 + 30].float())
+        torch.testing.assert_close(p["flow_to_reference_a"][item], batch["flow_to_reference"][item, a, :, v0:v0 + 20, u0:u0 + 30],
+                                   rtol=0, atol=0, equal_nan=True)
+    assert p["flow_valid"].any()
+    plain = homography_pairs({k: v for k, v in batch.items() if k != "depth"}, (20, 30),
+                             generator=torch.Generator().manual_seed(3))
+    assert "flow_ab" not in plain and "depth_a" not in plain and "flow_to_reference_a" in plain
 
 
 def test_valid_marks_patch_pixels_seen_in_view_a_and_landing_on_painting_in_view_b():

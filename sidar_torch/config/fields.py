@@ -198,6 +198,17 @@ class SidarConfig:
         "effects and noise) with no light blocked: the target of shadow removal in the view's own lighting. "
         "Occluders stay in the picture and the masks do not change. Costs a second output of the colour draw "
         "(and its readback) per view with a shadowed light; see docs/rendering.md, \"Shadow masks\"."))
+    depth_output: bool = _field(False, meaning=(
+        "also hand out ``depth``, per view the distance along the camera's z axis (painting units, float32) to "
+        "the nearest surface the mask counts (the painting, or an occluder at least ``mask_min_opacity`` opaque: "
+        "by default every occluder, transparent ones included), ``inf`` where none is hit; "
+        "``sidar_torch.flow`` turns it into dense correspondence. Costs one untextured draw per view; see "
+        "docs/parallax.md."))
+    flow_output: bool = _field(False, meaning=(
+        "also hand out ``flow_to_reference``, per view where each pixel lands in view 0 minus the pixel (pixels, "
+        "float32 ``(du, dv)``), NaN where that is not a seen correspondence: ``sidar_torch.flow(sample, i, 0)`` "
+        "for every view, computed on the CPU from the depth (drawn for it whether or not ``depth_output`` is on). "
+        "See docs/parallax.md."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

@@ -176,11 +176,15 @@ def validate(config: Any) -> None:
 
 
 def _check_lens(config: Any) -> None:
-    """With a lens, no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
+    """With a lens, no depth or flow output (pinhole cameras only), and no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
     each radial coefficient's ends are tried together (the radius is linear in them, so the worst lens
     of the box is one of its corners)."""
     if config.lens_model == NO_LENS:
         return
+    for switch in ("depth_output", "flow_output"):  # a pinhole's depth and flow; a lens would resample them wrongly
+        if getattr(config, switch):
+            raise ValueError(f"config field {switch!r}: expected false with lens_model {config.lens_model!r} (depth and "
+                             f"flow are rendered for pinhole cameras only, lens_model none), got true")
     fields = LENS_MODELS[config.lens_model].fields
     ends = [getattr(config, f) if f is not None and f not in ("lens_p1", "lens_p2") else (0.0, 0.0) for f in fields]
     for corner in itertools.product(*ends):

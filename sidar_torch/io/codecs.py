@@ -121,22 +121,23 @@ def _read_mat(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
     return H
 
 
-def _read_npy(data: bytes, shape: tuple[int, ...] | None = None) -> np.ndarray:
-    """A float64 array of a ``.npy`` file (format 1.0 or 2.0, no pickles), of ``shape`` if given:
-    its header is checked against ``shape`` and against the bytes the file holds before the array
-    is made."""
+def _read_npy(data: bytes, shape: tuple[int, ...] | None = None, dtype: Any = np.float64) -> np.ndarray:
+    """A ``dtype`` (float64, or float32 for the float outputs) array of a ``.npy`` file (format 1.0 or
+    2.0, little-endian, no pickles), of ``shape`` if given: its header is checked against ``dtype``,
+    ``shape`` and the bytes the file holds before the array is made."""
     f = io.BytesIO(data)
     with unreadable(".npy file"):
         version = np.lib.format.read_magic(f)
         read_header = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
-        declared, fortran_order, dtype = read_header[version](f)
-    if dtype != np.dtype(np.float64) or fortran_order or (shape is not None and declared != shape):
-        raise ValueError(f"its header declares {dtype}{' (Fortran order)' if fortran_order else ''} of shape "
-                         f"{declared}, expected {shape or 'an array'} of float64")
-    count = len(data) - f.tell()
-    if count != 8 * math.prod(declared):
-        raise ValueError(f"holds {count} bytes of data, its header declares {8 * math.prod(declared)}")
-    return np.frombuffer(data, np.float64, offset=f.tell()).reshape(declared).copy()
+        declared, fortran_order, declared_dtype = read_header[version](f)
+    expected = np.dtype(dtype).newbyteorder("<")
+    if declared_dtype != expected or fortran_order or (shape is not None and declared != shape):
+        raise ValueError(f"its header declares {declared_dtype}{' (Fortran order)' if fortran_order else ''} of shape "
+                         f"{declared}, expected {shape or 'an array'} of {expected.name}")
+    count, size = len(data) - f.tell(), expected.itemsize * math.prod(declared)
+    if count != size:
+        raise ValueError(f"holds {count} bytes of data, its header declares {size}")
+    return np.frombuffer(data, expected, offset=f.tell()).reshape(declared).astype(np.dtype(dtype).newbyteorder("="))
 
 
 def _json_integer(text: str) -> int:
@@ -164,12 +165,12 @@ def read_json(data: bytes, shape: None = None) -> Any:
 
 ENCODERS: dict[str, Callable[[Any], bytes]] = {".png": _png, ".mat": _mat, ".npy": _npy, ".json": _json}
 """Entry extension -> encoder: ``.png`` uint8 ``(H, W)`` or ``(H, W, 3)``, ``.mat`` a 3 x 3 float64
-``H``, ``.npy`` an array (the export writes float64 homographies), ``.json`` a dict."""
+``H``, ``.npy`` an array (the export writes float64 homographies and float32 float outputs), ``.json`` a dict."""
 
 DECODERS: dict[str, Callable[[bytes, Any], Any]] = {".png": _read_png, ".mat": _read_mat, ".npy": _read_npy,
                                                      ".json": read_json}
 """Entry extension -> decoder, the inverse of :data:`ENCODERS` for what the export writes (``.npy``:
-float64 only): ``(data, shape)`` -> value, checking ``shape`` (None: any) before anything of its
+float64; :func:`decode` reads other dtypes): ``(data, shape)`` -> value, checking ``shape`` (None: any) before anything of its
 size is made."""
 
 
@@ -178,7 +179,7 @@ def encode(entries: dict[str, Any]) -> dict[str, bytes]:
     return {name: ENCODERS[os.path.splitext(name)[1]](value) for name, value in entries.items()}
 
 
-def decode(name: str, data: bytes, shape: tuple[int, ...] | None = None) -> Any:
+def decode(name: str, data: bytes, shape: tuple[int, ...] | None = None, dtype: Any = None) -> Any:
     """The value of entry ``name`` from its ``data``, by the name's extension (:data:`DECODERS`), in
     memory bounded by ``len(data)`` and ``shape``.
 
@@ -187,9 +188,15 @@ def decode(name: str, data: bytes, shape: tuple[int, ...] | None = None) -> Any:
             a ``.npy``: any, float64; a ``.mat``: (3, 3) unless given), checked against the file's
             header before anything of its size is decoded, inflated or allocated; None: any (a
             ``.mat`` is still 3 x 3). Not used for ``.json``.
+        dtype: a ``.npy``'s dtype, checked from its header (None: float64); for no other kind.
 
     Raises:
         ValueError: ``data`` is not a file of the kind its name says (truncated, of another kind or
             shape, a ``.mat`` without ``H``); the message says what is wrong, not which file.
     """
-    return DECODERS[os.path.splitext(name)[1]](data, shape)
+    extension = os.path.splitext(name)[1]
+    if dtype is None:
+        return DECODERS[extension](data, shape)
+    if extension != ".npy":
+        raise ValueError(f"dtype: only a .npy entry has one to check, not {name!r}")
+    return _read_npy(data, shape, dtype)

@@ -1,7 +1,7 @@
-"""A sequence as named entries, the unit both export layouts write and read: per view the 8-bit pixel
+"""A sequence as named entries, the unit both export layouts write and read: per view the pixel
 files of the sample table (:data:`sidar_torch.sample.KEYS`, column ``entry``: ``0.png``, ``0-m.png``,
-...), the label ``gt.png`` and ``cameras.json``; a new 8-bit output is exported and read back
-without a change here. The writers (:mod:`.folders`, :mod:`.shards`) turn entries into bytes with
+..., 8-bit PNGs; ``0-d.npy``, float32, for the float outputs), the label ``gt.png`` and ``cameras.json``;
+a new output is exported and read back without a change here. The writers (:mod:`.folders`, :mod:`.shards`) turn entries into bytes with
 :mod:`.codecs`.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from ..config.numbers import shown
 from ..distortion import NO_LENS
 from ..lens import distortion_maps
-from ..sample import KEYS, SampleArrays, SampleKey, present_keys
+from ..sample import FLOAT_OUTPUTS, KEYS, SampleArrays, SampleKey, present_keys
 
 __all__ = ["CAMERAS", "CAMERA_KEYS", "HOMOGRAPHIES", "camera_shape", "pixel_entries_text", "pixel_shape", "read_cameras",
            "sample_entries", "sample_from_entries"]
@@ -39,7 +39,7 @@ when read): every key without a file of its own (``entry``), except :data:`_NOT_
 
 
 def sample_entries(arrays: SampleArrays) -> dict[str, Any]:
-    """The entries both layouts share, in writing order: per view the 8-bit pixel keys of the
+    """The entries both layouts share, in writing order: per view the pixel keys of the
     sample table (``0.png``, ``0-m.png``, ``0-o.png`` if rendered, ...), then the whole-image ones
     (``gt.png``), then ``cameras.json`` (index, image size, K, R, t, homography error)."""
     n_views = len(arrays.images)
@@ -62,17 +62,17 @@ def sample_entries(arrays: SampleArrays) -> dict[str, Any]:
 
 
 def pixel_entries_text() -> str:
-    """The 8-bit pixel files of a sequence, for help texts: ``"<i>.png (images), <i>-m.png (masks), ..."``."""
+    """The pixel files of a sequence, for help texts: ``"<i>.png (images), <i>-m.png (masks), ..."``."""
     return ", ".join(f"{key.entry.format(v='<i>')} ({key.name}{', with ' + key.switch if key.switch else ''})"
                      for key in KEYS if key.entry is not None)
 
 
 def pixel_shape(key: SampleKey, image_size: tuple[int, int]) -> tuple[int, ...]:
     """The shape of one decoded file of pixel key ``key`` (a row of :data:`~sidar_torch.sample.KEYS`
-    with an ``entry``): ``(H, W, 3)`` for a key of 3 channels (its table shape ``(..., 3, H, W)``),
+    with an ``entry``): ``(H, W, C)`` for a key of ``C > 1`` channels (its table shape ``(..., C, H, W)``),
     else ``(H, W)``."""
-    channels = key.shape.strip("()").split(", ")[-3]
-    return (*image_size, 3) if channels == "3" else tuple(image_size)
+    channels = int(key.shape.strip("()").split(", ")[-3])
+    return (*image_size, channels) if channels > 1 else tuple(image_size)
 
 
 def camera_shape(key: SampleKey, n_views: int) -> tuple[int, ...]:
@@ -129,7 +129,8 @@ def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[st
     """Rebuild the :class:`SampleArrays` of sequence ``index`` from its decoded entries.
 
     Args:
-        read: ``(entry name, shape, check)`` -> its decoded value, checked to be of ``shape`` (see
+        read: ``(entry name, shape, check)`` -> its decoded value, checked to be of ``shape`` (and of
+            the keyword ``dtype``, passed for the float outputs' ``.npy`` files only; see
             :func:`.codecs.decode`) and passed through ``check`` (value -> value, or None); raises
             ``FileNotFoundError`` naming a missing entry and ``ValueError`` naming a malformed one
             (``check``'s errors included).
@@ -146,10 +147,12 @@ def sample_from_entries(read: Callable[..., Any], index: int, config: Mapping[st
         if key.entry is None:
             continue
         shape = pixel_shape(key, config["image_size"])
+        # The float outputs' .npy files are read as float32; the 8-bit PNGs by their kind alone.
+        kind = {"dtype": np.float32} if key.name in FLOAT_OUTPUTS else {}
         if "{v}" not in key.entry:
-            pixels[key.name] = read(key.entry, shape, None)
+            pixels[key.name] = read(key.entry, shape, None, **kind)
             continue
-        pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None) for v in range(n_views)])
+        pixels[key.name] = np.stack([read(key.entry.format(v=v), shape, None, **kind) for v in range(n_views)])
     if config.get("distortion_map_output", False):
         maps = distortion_maps(config.get("lens_model", NO_LENS), cameras.get("lens"), cameras["K"], tuple(config["image_size"]))
         pixels["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)

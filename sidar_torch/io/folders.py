@@ -10,6 +10,8 @@ file per ordered pair of views (the paper's own layout, its homographies as text
       0-o.png ..           only with ``opacity_output``: 255 times the fraction of the painting hidden
       0-s.png ..           only with ``shadow_mask_output``: 255 times the fraction of the direct light blocked
       0-f.png ..           only with ``shadow_free_output``: the views with no light blocked, 8-bit RGB
+      0-d.npy ..           only with ``depth_output``: the depth, float32 (H, W), painting units, inf where nothing
+      0-flow.npy ..        only with ``flow_output``: the flow to view 0, float32 (H, W, 2), NaN where not valid
       gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
       H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: variable ``H``, 3 x 3 float64
       cameras.json         index, image_size [H, W], K, R, t per view (float64), homography_error

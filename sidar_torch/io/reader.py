@@ -87,9 +87,9 @@ class ExportedDataset(Dataset):
         return arrays.to_tensors(self.config.get("geometry_dtype", "float32"))
 
     def _read(self, index: int, where: Any, name: str, shape: tuple[int, ...] | None = None,
-              check: Callable[[Any], Any] | None = None) -> Any:
+              check: Callable[[Any], Any] | None = None, dtype: Any = None) -> Any:
         """Entry ``name`` of sequence ``index``, which the layout finds at ``where``, decoded and
-        checked to be of ``shape`` (:func:`.codecs.decode`) and by ``check`` (value -> value).
+        checked to be of ``shape`` and ``dtype`` (:func:`.codecs.decode`) and by ``check`` (value -> value).
 
         Raises:
             FileNotFoundError: no such entry.
@@ -97,7 +97,7 @@ class ExportedDataset(Dataset):
         """
         path, data = self._layout.read(self.path, where, name, entry_size_limit(self.config, name))
         try:
-            value = decode(name, data, shape)
+            value = decode(name, data, shape, dtype)
             return value if check is None else check(value)
         except ValueError as error:
             entry = "" if path.name == name else f": entry {sequence_name(index)}.{name}"

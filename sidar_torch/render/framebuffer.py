@@ -38,7 +38,7 @@ from typing import Iterator
 import numpy as np
 from OpenGL import GL
 
-__all__ = ["FLIP_Y", "Framebuffer", "sample_counts", "size_limits"]
+__all__ = ["FLIP_Y", "DepthFramebuffer", "Framebuffer", "sample_counts", "size_limits"]
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 """Left-multiplies a projection matrix so that clip-space y, and so the image, is drawn upside down."""
@@ -64,13 +64,13 @@ _COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
 """The colour attachments of an output count's framebuffers, in output (``location``) order."""
 
 
-def _new_framebuffer(width: int, height: int, samples: int, outputs: int) -> int:
-    """A framebuffer with ``outputs`` RGBA8 colour renderbuffers and a 24-bit depth, 8-bit stencil
-    renderbuffer, ``samples`` per pixel (1: single-sampled). Raises RuntimeError if the driver reports
-    it incomplete."""
+def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8) -> int:
+    """A framebuffer with ``outputs`` colour renderbuffers of format ``colour`` (RGBA8, or R32F for
+    the camera depth) and a 24-bit depth, 8-bit stencil renderbuffer, ``samples`` per pixel (1:
+    single-sampled). Raises RuntimeError if the driver reports it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
-    for attachment, storage in ((*((c, GL.GL_RGBA8) for c in _COLOURS[:outputs]),
+    for attachment, storage in ((*((c, colour) for c in _COLOURS[:outputs]),
                                  (GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_DEPTH24_STENCIL8))):
         renderbuffer = GL.glGenRenderbuffers(1)
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
@@ -161,3 +161,33 @@ class Framebuffer:
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
         pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_STENCIL_INDEX, GL.GL_UNSIGNED_BYTE)
         return np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width)
+
+
+class DepthFramebuffer:
+    """A single-sampled R32F colour renderbuffer (and a depth and stencil one for the depth test) of
+    ``width`` x ``height`` pixels: the camera-depth pass (``Passes.camera_depth``) writes each pixel's
+    distance along the camera's axis into it, in float32, drawn upside down like every pass.
+
+    Raises:
+        RuntimeError: the driver reports it incomplete.
+    """
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        self.id = _new_framebuffer(width, height, 1, 1, GL.GL_R32F)
+
+    def begin_drawing(self) -> None:
+        """Make it the draw framebuffer, with clockwise front faces (see :meth:`Framebuffer.begin_drawing`)."""
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
+        GL.glDrawBuffers(1, _COLOURS[:1])
+        GL.glFrontFace(GL.GL_CW)
+
+    def end_drawing(self) -> np.ndarray:
+        """Restore counter-clockwise front faces and return the red channel: ``(height, width)``
+        float32, top row first."""
+        GL.glFrontFace(GL.GL_CCW)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 4)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
+        GL.glReadBuffer(_COLOURS[0])
+        pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RED, GL.GL_FLOAT)
+        return np.array(pixels, dtype=np.float32).reshape(self.height, self.width)

@@ -11,7 +11,9 @@ the transmittance maps, the lights' uniform blocks, two sampler objects) and dra
   shadow-free colour as a second output, the painting's stencil for the mask, or the shadow
   fraction instead of a colour;
 * ``kind="segmentation"``: the mask draw (a grey level per surface, depth-tested);
-* ``kind="unlit"``: the label and opacity draws (``unlit.frag``).
+* ``kind="unlit"``: the label and opacity draws (``unlit.frag``);
+
+and :meth:`Passes.camera_depth`: each pixel's distance along the camera's axis, float32 (``camera_depth.*``).
 
 Every pass draws into :class:`~.framebuffer.Framebuffer` upside down (``FLIP_Y``) and reads back.
 Nothing of pyrender runs here: pyrender opens the GL context (``render.context``) and nothing else.
@@ -34,7 +36,7 @@ from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .draws import SpotEmitter, Surface, ViewDraws
 from .footprints import PaintingPart
-from .framebuffer import FLIP_Y, Framebuffer
+from .framebuffer import FLIP_Y, DepthFramebuffer, Framebuffer
 from .light_block import LightBlocks
 from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .programs import Program, ProgramCache
@@ -155,6 +157,7 @@ class Passes:
         self._depth_sampler = self._sampler(GL.GL_NEAREST, GL.GL_NEAREST, compare=False)  # soft lookups' search
         self._mirror_sampler = self._sampler(GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR)  # trilinear, any painting filter
         self._textures = 0  # texture units taken by the current surface's draw
+        self._depth_target: DepthFramebuffer | None = None  # made at the first camera-depth pass
 
     @staticmethod
     def _sampler(minify: int, magnify: int, compare: bool = True) -> int:
@@ -239,6 +242,47 @@ class Passes:
             return None
         groups = light_group_count(view.lights)
         return groups if groups <= self.unrolled_light_groups else None
+
+    def camera_depth(self, view: ViewDraws, surfaces: Sequence[Surface], timings: dict[str, float] | None = None
+                     ) -> np.ndarray:
+        """The distance along ``view``'s camera axis to the nearest of ``surfaces`` at each pixel
+        centre: ``(H, W)`` float32, painting units, ``inf`` where none is hit.
+
+        One draw of each surface (back faces culled, depth-tested, no blending, nothing of its
+        material) into a float target (:class:`~.framebuffer.DepthFramebuffer`), single-sampled
+        whatever ``antialias`` is; the value is the vertex stage's camera-frame depth interpolated
+        perspective-correctly (exact for a plane up to float32 rounding), not the 24-bit depth buffer,
+        whose resolution at the painting is about 1e-5 of the distance. Timed as ``"depth"``
+        (``"upload"``, ``"readback"``).
+        """
+        with timed(timings, "upload", GL.glFinish):
+            for surface in surfaces:
+                surface.mesh.upload()
+        if self._depth_target is None:
+            self._depth_target = DepthFramebuffer(self.width, self.height)
+        camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
+        with timed(timings, "depth", GL.glFinish):
+            GL.glViewport(0, 0, self.width, self.height)
+            GL.glEnable(GL.GL_DEPTH_TEST)
+            GL.glDepthMask(GL.GL_TRUE)
+            GL.glDepthFunc(GL.GL_LESS)
+            GL.glDepthRange(0.0, 1.0)
+            self._depth_target.begin_drawing()
+            GL.glClearColor(0.0, 0.0, 0.0, 0.0)  # 0: nothing drawn (every surface lies beyond the near plane)
+            GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+            GL.glDisable(GL.GL_MULTISAMPLE)
+            for surface in surfaces:
+                program = self._program(("camera_depth.vert", "camera_depth.frag"),
+                                        {"INST_M_LOC": surface.mesh.defines["INST_M_LOC"]})
+                program.use()
+                camera.set(program)
+                self._draw_plain(surface, program)
+            GL.glUseProgram(0)
+            GL.glFlush()
+        with timed(timings, "readback"):
+            depth = self._depth_target.end_drawing()
+        depth[depth == 0] = np.inf
+        return depth
 
     # -- shadow passes ---------------------------------------------------------------------------
 

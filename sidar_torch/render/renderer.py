@@ -20,6 +20,8 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   colour pass is single-sampled, that pass drew what this draw would, in the same order with the
   same depth test: it marks in the stencil the pixels whose depth the painting's fragments kept,
   and the mask is read from there, without its own draw (``tests/render/test_skips.py``);
+* the **depth** (only with ``"depth"`` in ``settings.outputs``): the distance along the camera's
+  axis to the surfaces the mask draws (the painting and the occluders it counts), in float32;
 * the **opacity** (only with ``"opacities"`` in ``settings.outputs``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -29,7 +31,7 @@ and once per sequence the **label**: the painting through view 0's camera, unlit
 occluders (the texture as the reference camera samples it).
 
 ``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
-(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``opacity``, ``label``, ``readback``; see
+(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``opacity``, ``label``, ``readback``; see
 ``render.passes`` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
@@ -96,7 +98,9 @@ class RenderedSequence:
             the painting hidden at each pixel (``unlit.render_opacity``); ``"shadow_masks"`` ``(V, H, W)``
             uint8, 255 times the fraction of the direct light on the visible painting that occluders
             block (:meth:`SceneRenderer._render_shadow_mask`); ``"shadow_free"`` ``(V, H, W, 3)`` uint8
-            sRGB, the views with no light blocked, from the colour pass's second output.
+            sRGB, the views with no light blocked, from the colour pass's second output; ``"depth"``
+            ``(V, H, W)`` float32, the distance along each camera's axis to the painting or an occluder
+            the mask counts (``inf``: neither), from the camera-depth pass (``Passes.camera_depth``).
     """
 
     views: np.ndarray
@@ -328,6 +332,8 @@ class SceneRenderer:
             seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey,
                                     timings=timings, step="mask")
             mask = seg[..., 0] < 128
+        if "depth" in outputs:  # the surfaces the mask counts: the painting and the masked occluders
+            extra["depth"] = self._passes.camera_depth(draws, [draws.painting, *masked], timings)
         if "opacities" in outputs:
             extra["opacities"] = render_opacity(self._passes, draws, drawn, mask, timings)
         if "shadow_masks" in outputs:

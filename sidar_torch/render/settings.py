@@ -14,7 +14,8 @@ import operator
 from dataclasses import dataclass
 from typing import Any
 
-from ..render_choices import ANTIALIAS_SAMPLES, OUTPUTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, shadow_map_side
+from ..render_choices import (ANTIALIAS_SAMPLES, OUTPUTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, drawn_outputs,
+                              shadow_map_side)
 
 __all__ = ["RenderSettings"]
 
@@ -116,8 +117,10 @@ class RenderSettings:
             raise ValueError(f"footprint_tile: expected an integer >= 1 (pixels), got {self.footprint_tile!r}")
         if not 0 <= self.light_radius < math.inf:
             raise ValueError(f"light_radius: expected a finite value >= 0, got {self.light_radius!r}")
-        if not isinstance(self.outputs, frozenset) or not self.outputs <= OUTPUTS.keys():
-            raise ValueError(f"outputs: expected a frozenset of {sorted(OUTPUTS)}, got {self.outputs!r}")
+        drawn = {name for name, row in OUTPUTS.items() if row.computed_from is None}
+        if not isinstance(self.outputs, frozenset) or not self.outputs <= drawn:
+            raise ValueError(f"outputs: expected a frozenset of {sorted(drawn)} (the outputs the renderer draws), "
+                             f"got {self.outputs!r}")
         if not 0 <= self.mask_min_opacity <= 1:
             raise ValueError(f"mask_min_opacity: expected a value in [0, 1], got {self.mask_min_opacity!r}")
 
@@ -130,7 +133,7 @@ class RenderSettings:
             mesh_error_px=config.mesh_error_px if config.mesh_detail == "auto" else None,
             texture_filter=config.texture_filter, shadows=config.shadows,
             occluders_visible=config.occluders_visible, mask_min_opacity=config.mask_min_opacity,
-            outputs=frozenset(name for name, row in OUTPUTS.items() if getattr(config, row.switch)),
+            outputs=drawn_outputs({name for name, row in OUTPUTS.items() if getattr(config, row.switch)}),
             antialias=config.antialias,
             highlight_spill=config.highlight_spill, light_radius=config.light_radius,
             group_emitters=config.area_light_shading == "per_light",

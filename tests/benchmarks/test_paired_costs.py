@@ -1,10 +1,10 @@
-"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``skip_cost``, ``shadow_outputs_cost``, over ``benchmarks.paired``) on tiny
+"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``skip_cost``, ``output_cost``, over ``benchmarks.paired``) on tiny
 settings: what they print and that a wrong override is named, never speed."""
 
 import numpy as np
 import pytest
 
-from benchmarks import mirror_cost, opacity_cost, setting_cost, shadow_outputs_cost, skip_cost
+from benchmarks import mirror_cost, opacity_cost, setting_cost, output_cost, skip_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -88,12 +88,12 @@ def test_skip_cost_prints_the_texels_cleared(capsys):
     assert 0 < depth < 100 and out[0].startswith("clear_written_texels: ")
 
 
-@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free"])
-def test_shadow_outputs_cost_prints_both_clocks_and_the_draw(capsys, output):
-    shadow_outputs_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
+@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free", "depth"])
+def test_output_cost_prints_both_clocks_and_the_draw(capsys, output):
+    output_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
-        "wall", "cpu", f"{' + '.join(shadow_outputs_cost.OUTPUTS[output])} (wall)"]
+        "wall", "cpu", f"{' + '.join(output_cost.OUTPUTS[output])} (wall)"]
 
 
 def test_revision_cost_runs_each_tree_in_its_own_process_and_prints_the_ratio(capsys, tmp_path):

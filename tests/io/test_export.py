@@ -73,6 +73,26 @@ def test_folder_round_trip_is_byte_identical(tmp_path):
     assert load_config(tmp_path / "config.yaml") == ds.config
 
 
+@pytest.mark.parametrize("layout", ["folders", "shards"])
+def test_depth_and_flow_are_exported_as_float32_npy_files_and_read_back_exactly(tmp_path, layout):
+    ds = tiny_dataset(seed=2, depth_output=True, flow_output=True, scene_per_view=False, n_occluders=(1, 2))
+    export_dataset(ds, tmp_path, count=2, layout=layout, shards=1 if layout == "shards" else None, progress=False)
+    read = ExportedDataset(tmp_path)
+    for k in range(2):
+        rendered = ds.sample(k)
+        assert rendered["depth"].dtype == torch.float32
+        assert_same_sample(read[k], rendered)
+    if layout == "folders":
+        depth = np.load(tmp_path / "000001" / "1-d.npy")
+        assert depth.dtype == np.float32 and depth.shape == TINY["image_size"]
+        assert np.array_equal(depth, ds.sample(1)["depth"][1, 0].numpy())
+        flows = np.load(tmp_path / "000001" / "1-flow.npy")
+        assert flows.dtype == np.float32 and flows.shape == (*TINY["image_size"], 2)
+        np.save(tmp_path / "000001" / "1-d.npy", depth.astype(np.float64))
+        with pytest.raises(ValueError, match=r"1-d.npy': its header declares float64 .* expected .* of float32"):
+            ExportedDataset(tmp_path)[1]
+
+
 def test_shards_round_trip_resume_and_match_an_uninterrupted_export(tmp_path):
     ds = tiny_dataset(seed=1)
     export_dataset(ds, tmp_path / "a", count=3, start=1, shard_size=2, progress=False)
