@@ -305,3 +305,18 @@ def test_tasks_stop_writing_when_the_driver_dies(tmp_path):
             os.killpg(driver.pid, signal.SIGKILL)
         driver.wait()
         driver.stderr.close()
+
+
+@pytest.mark.slow
+@pytest.mark.gl
+def test_ray_rows_carry_the_lens_and_its_maps(cluster):
+    lensed = SidarDataset(config=small_config(image_size=(24, 32), shadow_map_size=256, lens_model="division",
+                                              distortion_map_output=True), seed=5)
+    rows = ray_dataset(lensed, 2, actors=1).take_all()
+    assert sorted(int(row["index"]) for row in rows) == [0, 1]
+    for row in rows:
+        got = SampleArrays(**row)
+        want = lensed.sample_arrays(got.index)
+        for name in ("images", "masks", "lens", "distortion_maps"):
+            a, b = getattr(got, name), getattr(want, name)
+            assert a.dtype == b.dtype and np.array_equal(a, b), name

@@ -36,6 +36,10 @@ def test_the_config_choices_are_the_model_table_and_a_folding_lens_is_refused_by
         load_config("misaligned", lens_model="brown_conrady", lens_k1=(-0.3, 0.0))
     with pytest.raises(ValueError, match="config field 'lens_lambda'"):
         load_config("misaligned", lens_model="division", lens_lambda=(-0.9, 0.0))
+    for switch in ("depth_output", "flow_output"):  # pinhole only: the lens step would resample them as images
+        with pytest.raises(ValueError, match=f"config field '{switch}': expected false with lens_model 'division'"):
+            load_config("misaligned", lens_model="division", **{switch: True})
+        assert getattr(load_config("misaligned", **{switch: True}), switch)
 
 
 def test_the_lens_draws_change_no_other_draw():
