@@ -65,7 +65,8 @@ if __name__ == "__main__":
     if only:
         stored = json.loads(STORE.read_text())
         if stored["recorded_with"] != environment():
-            raise SystemExit(f"--only: this environment {environment()} is not the recorded one {stored['recorded_with']}")
+            raise SystemExit(f"--only: this environment {environment()} is not the recorded one "
+                             f"{stored['recorded_with']}")
         records = {**stored["samples"], **records}
     STORE.write_text(json.dumps({"recorded_with": environment(), "samples": records}, indent=1, sort_keys=True) + "\n")
     print(f"wrote {STORE} ({len(records)} samples" + (f", {only} re-recorded)" if only else ")"))

@@ -201,7 +201,8 @@ class SimpleMaterial:
         rgb = _colour(rng, config)
         alpha = rng.uniform(*self.alpha) if isinstance(self.alpha, tuple) else self.alpha
         paper = config.paper_occluder_materials
-        drawn = {name: rng.uniform(*(PAPER_ROUGHNESS if paper else bounds)) for name, bounds in ROUGHNESS_RANGES.items()}
+        drawn = {name: rng.uniform(*(PAPER_ROUGHNESS if paper else bounds))
+                 for name, bounds in ROUGHNESS_RANGES.items()}
         roughness = drawn[self.roughness] if isinstance(self.roughness, str) else self.roughness
         return Material(np.array([*rgb, alpha]), self.metallic, roughness, self.specular)
 
