@@ -11,7 +11,9 @@ faces), so its first row in memory is the image's top row. Mesa draws window-sys
 OSMesa's included, the same way, and the rasteriser's arithmetic depends on that orientation:
 drawn upright, about 1-3 % of lit pixels come out 1-6 levels different from what OSMesa's own
 buffer gave. Drawn upside down, every view, mask and label is byte-identical to rendering into
-OSMesa's buffer, and rows need no reversal on readback.
+OSMesa's buffer (but for the painting seen in mirrors and glass, whose texture level comes from
+screen-space derivatives taken per 2 x 2 quad: a few of its pixels move by one level), and rows need
+no reversal on readback.
 
 With ``samples > 1`` (config ``antialias``) it also holds a multisampled colour and depth pair of
 the same size. A pass drawn inside :meth:`Framebuffer.multisampled` (the lit colour pass) draws
