@@ -265,6 +265,12 @@ class SidarConfig:
         "every pixel (Blackman-Harris, 1.5 px wide by default) and denoises; the ``paper_*`` presets take the "
         "sigma that gives their views the paper's measured blur (``python -m benchmarks.blur``, "
         "docs/realism.md). Masks, opacities, shadow masks and the label are never filtered."))
+    texture_blur_sigma: float = _field(0.0, bounds=(0.0, 4.0), meaning=(
+        "standard deviation, in texels, of a Gaussian blur of the painting's texture in linear light, as the views "
+        "(and ``shadow_free`` and the painting's reflections) see it; 0: the painting as it is. Cycles filters an "
+        "image texture (the paper's label is 0.75 px blurrier than its painting) while its denoiser keeps "
+        "occluder outlines sharp: unlike ``pixel_filter_sigma`` this leaves outlines alone (docs/realism.md). "
+        "The label, masks and opacities are never blurred."))
     exposure_jitter: bool = _field(False, meaning=(
         "scale each view's linear intensity by ``2 ** stops`` and raise it to a power ``gamma`` (drawn per "
         "view)."))
