@@ -174,8 +174,10 @@ class SidarConfig:
         "occluder colours and factors drawn as the paper's Blender materials draw them: colour uniform in linear "
         "RGB (each channel U(0, 1), not HSV), roughness U(0, 0.5) for the ``glossy``, ``metallic`` and "
         "``transparent`` kinds, and a ``principled`` occluder with the Principled BSDF's ranges (roughness "
-        "U(0, 0.5), metallic, specular, coat, coat roughness and transmission U(0, 1); see "
-        "``sidar_torch.scene.kinds``)."))
+        "U(0, 0.5), metallic, specular, coat, coat roughness and transmission U(0, 1)); ``glass`` and "
+        "``transparent`` occluders filter the painting behind by that colour squared (the paper's Glass and "
+        "Transparent BSDFs tint light at both of a body's surfaces; a transparent one has no shading of its own). "
+        "See ``sidar_torch.scene.kinds``."))
     glass_shadows_opaque: bool = _field(False, meaning=(
         "``glass`` occluders cast shadows as dark as opaque ones, as the paper's glass and refraction materials "
         "do in Cycles (refracted light from a light source carries no direct light); false: a tinted, lighter "
