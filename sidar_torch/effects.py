@@ -46,8 +46,8 @@ from PIL import Image
 
 from .config import SidarConfig
 
-__all__ = ["ViewEffects", "apply_effects", "draw_effects", "enabled_effects", "gaussian_filter", "jpeg_roundtrip",
-           "linear_to_srgb", "srgb_to_linear"]
+__all__ = ["ViewEffects", "apply_effects", "blur_painting", "draw_effects", "enabled_effects", "gaussian_filter",
+           "jpeg_roundtrip", "linear_to_srgb", "srgb_to_linear"]
 
 def srgb_to_linear(srgb: torch.Tensor) -> torch.Tensor:
     """Decode sRGB values in [0, 1] to linear light (the exact piecewise sRGB curve), any shape."""
@@ -197,6 +197,14 @@ def gaussian_filter(images: torch.Tensor, sigma: float) -> torch.Tensor:
         x = torch.nn.functional.pad(x, pad, mode="reflect" if side > radius else "replicate")
         x = torch.nn.functional.conv2d(x, kernel.view(1, 1, *shape).repeat(channels, 1, 1, 1), groups=channels)
     return x.permute(0, 2, 3, 1).contiguous()
+
+
+def blur_painting(painting: np.ndarray, sigma: float) -> np.ndarray:
+    """``painting`` ``(H, W, 3)`` uint8 sRGB filtered in linear light by a Gaussian of ``sigma`` texels
+    (:func:`gaussian_filter`, borders reflected), re-encoded to ``(H, W, 3)`` uint8 sRGB: the texture the
+    views see with ``texture_blur_sigma`` (Cycles' filtering of an image texture). ``sigma`` must be > 0."""
+    x = gaussian_filter(torch.from_numpy(_DECODED[painting][None]), sigma)
+    return linear_to_srgb(x, out=x).mul_(255).round_().to(torch.uint8).numpy()[0]
 
 
 def _sensor(values: np.ndarray, effects: ViewEffects) -> np.ndarray:

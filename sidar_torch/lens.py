@@ -84,13 +84,14 @@ def _tile(view: Any, ox: int, oy: int) -> Any:
 
 
 def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.ndarray,
-                        timings: dict[str, float] | None = None) -> tuple[Any, np.ndarray]:
+                        timings: dict[str, float] | None = None, texture: np.ndarray | None = None
+                        ) -> tuple[Any, np.ndarray]:
     """Render ``sequence`` (with a lens) through its lenses: every per-view image distorted, the label not.
 
     Args:
         renderer: a ``SceneRenderer`` of ``sequence.image_size``.
         sequence: the scenes, ``sequence.lens_model`` not ``"none"``.
-        painting: ``(H, W, 3)`` uint8, as for ``SceneRenderer.render``.
+        painting, texture: ``(H, W, 3)`` uint8, as for ``SceneRenderer.render``.
         timings: if given, the renderer's steps and ``"lens"`` (maps, tiles, resampling), seconds.
 
     Returns:
@@ -108,7 +109,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
         first = [] if (0, 0) in origins[0] else [sequence.views[0]]
         origins[0].sort(key=lambda o: o != (0, 0))
         tiles = [_tile(view, ox, oy) for view, view_origins in zip(sequence.views, origins) for ox, oy in view_origins]
-    rendered = renderer.render(SceneSequence(size, (*first, *tiles)), painting, timings)
+    rendered = renderer.render(SceneSequence(size, (*first, *tiles)), painting, timings, texture)
     with timed(timings, "lens"):
         names = sorted(rendered.outputs)
         planes = [rendered.views, rendered.masks[..., None], rendered.background[..., None],

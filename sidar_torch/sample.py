@@ -24,7 +24,7 @@ import torch
 from . import geometry
 from .dense import depth_flow
 from .distortion import NO_LENS
-from .effects import apply_effects, draw_effects
+from .effects import apply_effects, blur_painting, draw_effects
 from .lens import distortion_maps, render_through_lens
 from .config import SidarConfig
 from .render_choices import OUTPUTS
@@ -355,7 +355,8 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
         config: gives the renderer (this process's for its settings, warmed up for it before its
             first sample: ``sidar_torch.warm_up``) and its settings (image size, shadow-map size and filter,
-            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``) and the view effects (:mod:`sidar_torch.effects`: background,
+            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``), the views' texture
+            (``texture_blur_sigma``) and the view effects (:mod:`sidar_torch.effects`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
@@ -367,10 +368,14 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             sequences', :func:`batch_homographies`); default: computed here.
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
+    texture = None
+    if config.texture_blur_sigma > 0:  # the views see the painting blurred, the label stays exact
+        with timed(timings, "upload"):
+            texture = blur_painting(painting, config.texture_blur_sigma)
     if sequence.lens_model == NO_LENS:
-        rendered, sources = sample_renderer(config).render(sequence, painting, timings), None
+        rendered, sources = sample_renderer(config).render(sequence, painting, timings, texture), None
     else:  # the lens's optics before the sensor's effects
-        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, timings)
+        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, timings, texture)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed(timings, "effects"):

@@ -12,13 +12,13 @@ import torch
 from PIL import Image
 
 from sidar_torch import SidarAugment, SidarDataset, geometry
-from sidar_torch.effects import (ViewEffects, apply_effects, draw_effects, gaussian_filter, linear_to_srgb,
-                                 srgb_to_linear)
+from sidar_torch.effects import (ViewEffects, apply_effects, blur_painting, draw_effects, gaussian_filter,
+                                 linear_to_srgb, srgb_to_linear)
 from sidar_torch.sample import render_sample
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
 
-from conftest import SMALL, sample_digest, small_config
+from conftest import SMALL, sample_digest, small_config, textured_painting
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -246,3 +246,42 @@ def test_the_pixel_filter_blurs_views_and_shadow_free_only_and_draws_nothing():
     config = small_config(pixel_filter_sigma=0.85)
     effects = draw_effects(config, 3, SMALL, None)  # needs no generator: nothing is drawn
     assert effects == ViewEffects(blur_sigma=0.85)
+
+
+def test_the_texture_blur_blurs_the_painting_in_the_views_not_the_label_masks_or_outlines():
+    """``texture_blur_sigma`` blurs what the views see of the painting; the label stays the exact
+    painting, and an occluder's outline against a flat painting stays as sharp as without it."""
+    scene = {"n_occluders": (2, 3), "shadow_free_output": True, "opacity_output": True}
+    off, on = pair(scene=scene, texture_blur_sigma=1.0)
+    for key in (*SCENE_KEYS, "opacities"):
+        assert sample_digest(off)[key] == sample_digest(on)[key], key
+    painting = (on["masks"] == 0).expand_as(on["images"])
+    for key in ("images", "shadow_free"):
+        detail = [(s[key] * painting)[:, :, :, 1:].sub((s[key] * painting)[:, :, :, :-1]).abs().mean() for s in (off, on)]
+        assert detail[1] < 0.8 * detail[0], key  # the painting blurred in the views
+    flat = flat_painting(128)
+    off, on = pair(source=flat, scene=scene, texture_blur_sigma=1.0)
+    assert torch.equal(off["images"], on["images"])  # a flat painting: the outlines are untouched
+
+
+def test_a_label_drawn_off_the_reference_camera_comes_from_the_exact_painting():
+    cfg = small_config(n_views=2, n_occluders=(0, 0))
+    seq = sample_sequence(cfg, np.random.default_rng(0))
+    tilted = SceneSequence(seq.image_size, (seq.views[1], seq.views[0]))  # view 0 from a random camera: drawn
+    painting = textured_painting(SMALL)
+    renderer = shared_renderer(RenderSettings.from_config(cfg))
+    exact = renderer.render(tilted, painting)
+    blurred = renderer.render(tilted, painting, texture=blur_painting(painting, 1.0))
+    assert np.array_equal(exact.label, blurred.label)
+    assert not np.array_equal(exact.views, blurred.views)
+    with pytest.raises(ValueError, match="texture: expected"):
+        renderer.render(tilted, painting, texture=painting[:, :-1])
+
+
+def test_blur_painting_keeps_a_flat_painting_and_spreads_a_texel_by_sigma_in_linear_light():
+    assert np.array_equal(blur_painting(np.full((9, 11, 3), 77, np.uint8), 0.8), np.full((9, 11, 3), 77, np.uint8))
+    dot = np.zeros((41, 41, 3), np.uint8)
+    dot[20, 20] = 255
+    light = srgb_to_linear(torch.from_numpy(blur_painting(dot, 2.0)[20, :, 0]).double() / 255)
+    x = torch.arange(41, dtype=torch.float64) - 20
+    assert float(((light * x ** 2).sum() / light.sum()).sqrt()) == pytest.approx(2.0, abs=0.1)

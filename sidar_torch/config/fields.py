@@ -174,8 +174,10 @@ class SidarConfig:
         "occluder colours and factors drawn as the paper's Blender materials draw them: colour uniform in linear "
         "RGB (each channel U(0, 1), not HSV), roughness U(0, 0.5) for the ``glossy``, ``metallic`` and "
         "``transparent`` kinds, and a ``principled`` occluder with the Principled BSDF's ranges (roughness "
-        "U(0, 0.5), metallic, specular, coat, coat roughness and transmission U(0, 1); see "
-        "``sidar_torch.scene.kinds``)."))
+        "U(0, 0.5), metallic, specular, coat, coat roughness and transmission U(0, 1)); ``glass`` and "
+        "``transparent`` occluders filter the painting behind by that colour squared (the paper's Glass and "
+        "Transparent BSDFs tint light at both of a body's surfaces; a transparent one has no shading of its own). "
+        "See ``sidar_torch.scene.kinds``."))
     glass_shadows_opaque: bool = _field(False, meaning=(
         "``glass`` occluders cast shadows as dark as opaque ones, as the paper's glass and refraction materials "
         "do in Cycles (refracted light from a light source carries no direct light); false: a tinted, lighter "
@@ -265,6 +267,12 @@ class SidarConfig:
         "every pixel (Blackman-Harris, 1.5 px wide by default) and denoises; the ``paper_*`` presets take the "
         "sigma that gives their views the paper's measured blur (``python -m benchmarks.blur``, "
         "docs/realism.md). Masks, opacities, shadow masks and the label are never filtered."))
+    texture_blur_sigma: float = _field(0.0, bounds=(0.0, 4.0), meaning=(
+        "standard deviation, in texels, of a Gaussian blur of the painting's texture in linear light, as the views "
+        "(and ``shadow_free`` and the painting's reflections) see it; 0: the painting as it is. Cycles filters an "
+        "image texture (the paper's label is 0.75 px blurrier than its painting) while its denoiser keeps "
+        "occluder outlines sharp: unlike ``pixel_filter_sigma`` this leaves outlines alone (docs/realism.md). "
+        "The label, masks and opacities are never blurred."))
     exposure_jitter: bool = _field(False, meaning=(
         "scale each view's linear intensity by ``2 ** stops`` and raise it to a power ``gamma`` (drawn per "
         "view)."))

@@ -151,7 +151,7 @@ class SceneRenderer:
         self._meshes = MeshPool()
         self._plane = plane_mesh(self.image_size)
         self._shadows = ShadowMaps(self._passes, settings)
-        self._texture: PaintingTexture | None = None
+        self._textures: list[PaintingTexture | None] = [None, None]
         self._warmed_up: set[Hashable] = set()
         self.renders = 0
         """Sequences rendered so far, warm-ups included."""
@@ -173,12 +173,15 @@ class SceneRenderer:
         return self._shadows.layers
 
     def render(self, sequence: SceneSequence, painting: np.ndarray,
-               timings: dict[str, float] | None = None) -> RenderedSequence:
+               timings: dict[str, float] | None = None, texture: np.ndarray | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
             sequence: the scenes; its ``image_size`` must be this renderer's.
-            painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel).
+            painting: ``(H, W, 3)`` uint8 sRGB, the texture (one texel per reference-view pixel) and the label's.
+            texture: ``(H, W, 3)`` uint8 sRGB, the texture the views (and the painting's reflections)
+                see instead, e.g. the painting blurred (config ``texture_blur_sigma``); the label
+                is drawn from ``painting`` either way. Default: ``painting``.
             timings: if given, seconds spent are added to its keys ``"upload"`` (painting
                 texture and meshes), ``"graph"`` (building the draw lists), ``"shadow"``,
                 ``"colour"``, ``"mask"``, ``"opacity"`` and ``"label"`` (draw passes) and
@@ -186,13 +189,15 @@ class SceneRenderer:
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
-        if painting.shape != (*self.image_size, 3) or painting.dtype != np.uint8:
-            raise ValueError(f"painting: expected {(*self.image_size, 3)} uint8, got {painting.shape} {painting.dtype}")
+        for name, array in (("painting", painting), ("texture", painting if texture is None else texture)):
+            if array.shape != (*self.image_size, 3) or array.dtype != np.uint8:
+                raise ValueError(f"{name}: expected {(*self.image_size, 3)} uint8, got {array.shape} {array.dtype}")
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
         self._platform.make_current()
         with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
-            texture = self._painting_texture(painting)
+            label_texture = self._painting_texture(painting, 0)
+            texture = label_texture if texture is None else self._painting_texture(texture, 1)
         with timed(timings, "graph"):
             plans = plan_views(sequence, self.settings)
         views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
@@ -211,7 +216,7 @@ class SceneRenderer:
             with timed(timings, "label"):
                 label = painting.copy()
         else:
-            label = render_label(self._passes, reference, self._plane, texture, self.image_size, timings)
+            label = render_label(self._passes, reference, self._plane, label_texture, self.image_size, timings)
         views = np.stack(views)
         self.renders += 1
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
@@ -257,14 +262,16 @@ class SceneRenderer:
         self._release.detach()
         _DISOWNED.append(self)
 
-    def _painting_texture(self, painting: np.ndarray) -> PaintingTexture:
-        """The painting's texture, created (and uploaded at first draw) once per painting; the
-        previous painting's texture is freed."""
-        if self._texture is None or not np.array_equal(painting, self._texture.rgb):
-            if self._texture is not None:
-                self._texture.delete()
-            self._texture = PaintingTexture(painting.copy(), PAINTING_FILTERS[self.settings.texture_filter])
-        return self._texture
+    def _painting_texture(self, painting: np.ndarray, slot: int) -> PaintingTexture:
+        """The texture of ``painting`` in ``slot`` (0: the label's and, by default, the views'; 1: the
+        views' own, ``render``'s ``texture``), created (and uploaded at first draw) once per
+        painting; the slot's previous texture is freed."""
+        held = self._textures[slot]
+        if held is None or not np.array_equal(painting, held.rgb):
+            if held is not None:
+                held.delete()
+            self._textures[slot] = PaintingTexture(painting.copy(), PAINTING_FILTERS[self.settings.texture_filter])
+        return self._textures[slot]
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
                      timings: dict[str, float] | None = None

@@ -207,11 +207,38 @@ class SimpleMaterial:
         return Material(np.array([*rgb, alpha]), self.metallic, roughness, self.specular)
 
 
+PAPER_FILTER_IOR = 1.0 + 1e-4
+"""The index of refraction of the paper's Transparent BSDF as we draw it (``paper_occluder_materials``):
+the least above 1, so that the renderer takes its refraction path (``render.mirror``), which shows the
+painting behind through the body undeviated and filtered by its colour, rather than blending the
+lit body over it."""
+
+_TRANSPARENT = SimpleMaterial(alpha=(0.2, 0.7), metallic=0.0, roughness="transparent", specular=0.5)
+
+
+def _transparent(rng: np.random.Generator, config: SidarConfig) -> Material:
+    """Lit and blended over what lies behind (alpha 0.2-0.7); with ``paper_occluder_materials``, from
+    the same draws, the paper's Transparent BSDF: no shading of its own, a pure filter of colour ``c``
+    (:func:`_colour`) at both of the body's surfaces, so the painting is seen through ``c ** 2``
+    (alpha 0: only the Fresnel rise of quirk 5 at grazing views shows the body)."""
+    material = _TRANSPARENT(rng, config)
+    if not config.paper_occluder_materials:
+        return material
+    return Material(np.array([*np.square(material.base_color[:3]), 0.0]), 0.0, material.roughness, 0.0,
+                    ior=PAPER_FILTER_IOR)
+
+
 def _glass(rng: np.random.Generator, config: SidarConfig) -> Material:
     """Nearly clear (alpha 0.05-0.25) with a tint of saturation ``glass_saturation`` (which also colours
     the painting seen through it), a sharp clear-coat highlight, an index of refraction in [1, 2] (the
-    paper's glass and refraction materials) and an opaque shadow if ``glass_shadows_opaque``."""
-    rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(*config.glass_saturation), 1.0)
+    paper's glass and refraction materials) and an opaque shadow if ``glass_shadows_opaque``. With
+    ``paper_occluder_materials`` the tint is the paper's instead: its Glass BSDF colour ``c``
+    (:func:`_colour`, uniform per linear channel) filters the light at both of the body's surfaces, so
+    the painting behind is seen through ``c ** 2``."""
+    if config.paper_occluder_materials:
+        rgb = tuple(np.square(_colour(rng, config)))
+    else:
+        rgb = colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(*config.glass_saturation), 1.0)
     alpha, roughness, coat_roughness = rng.uniform(0.05, 0.25), rng.uniform(0.02, 0.1), rng.uniform(0.02, 0.08)
     return Material(np.array([*rgb, alpha]), 0.0, roughness, 0.5, 1.0, coat_roughness, ior=rng.uniform(1.0, 2.0),
                     opaque_shadow=config.glass_shadows_opaque)
@@ -234,7 +261,7 @@ MATERIAL_KINDS: dict[str, Callable[[np.random.Generator, SidarConfig], Material]
     "diffuse": SimpleMaterial(alpha=1.0, metallic=0.0, roughness=1.0, specular=0.0),  # Lambertian
     "glossy": SimpleMaterial(alpha=1.0, metallic=0.0, roughness="glossy", specular=1.0),  # a sharp highlight
     "metallic": SimpleMaterial(alpha=1.0, metallic=1.0, roughness="metallic", specular=0.5),  # tinted metal
-    "transparent": SimpleMaterial(alpha=(0.2, 0.7), metallic=0.0, roughness="transparent", specular=0.5),
+    "transparent": _transparent,
     "glass": _glass,
     "principled": _principled,
 }

@@ -196,3 +196,21 @@ def test_paper_occluder_materials_draw_the_papers_colours_and_principled_ranges(
     for name, top in (("roughness", 0.5), ("coat_roughness", 1.0), ("transmission", 1.0), ("metallic", 1.0)):
         values = np.array([getattr(m, name) for m in principled])
         assert values.max() <= top and values.max() > 0.9 * top and values.min() < 0.1 * top, name
+
+
+def test_paper_glass_and_transparent_filter_the_painting_by_the_papers_colour_squared():
+    """The paper's Glass and Transparent BSDFs take a colour uniform per linear channel and filter the
+    light at both of a body's surfaces: the painting behind is seen through its square. Transparent
+    ones have no shading of their own (alpha 0) and take the refraction path, undeviated."""
+    from scipy import stats
+
+    from sidar_torch.render.mirror import REFRACTION, mirror_define
+
+    for kind in ("glass", "transparent"):
+        tints = np.array([m.base_color[:3] for m in paper_occluders(kind, True)])
+        assert min(stats.kstest(np.sqrt(tints[:, c]), "uniform").pvalue for c in range(3)) > 0.01, kind
+    clear = paper_occluders("transparent", True)
+    assert all(m.base_color[3] == 0.0 and m.specular == 0.0 and 1.0 < m.ior < 1.001 for m in clear)
+    assert all(mirror_define(m) == REFRACTION for m in clear)
+    blended = paper_occluders("transparent", False)
+    assert all(0.2 <= m.base_color[3] <= 0.7 and m.ior == 1.0 and mirror_define(m) is None for m in blended)
