@@ -185,6 +185,10 @@ class SidarConfig:
         "every torus at the size of the paper's, Blender's default torus, which it never scales (major radius 1, "
         "minor 0.25 Blender units): outer radius 1.25 / 7 and half-thickness 0.25 / 7, with no draw from "
         "``occluder_size`` (see ``sidar_torch.scene.PAPER_TORUS_SCALE``)."))
+    paper_rotation: bool = _field(False, meaning=(
+        "every occluder's rotation drawn as the paper's generator draws it: three Euler angles each uniform in "
+        "[0, 2 pi), in Blender's XYZ order (``Rz Ry Rx``), which favours some orientations (a torus's axis lies "
+        "nearer the painting's plane), instead of uniformly over all rotations (three draws instead of four)."))
     paper_occluder_materials: bool = _field(False, meaning=(
         "occluder colours and factors drawn as the paper's Blender materials draw them: colour uniform in linear "
         "RGB (each channel U(0, 1), not HSV), roughness U(0, 0.5) for the ``glossy``, ``metallic`` and "

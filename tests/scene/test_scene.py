@@ -247,3 +247,21 @@ def test_focal_uniform_draws_the_focal_length_not_the_angle():
     assert paper.min() >= shortest - 1e-9 and paper.max() <= longest + 1e-9
     assert stats.kstest((paper - shortest) / (longest - shortest), "uniform").pvalue > 0.01
     assert stats.kstest((angle - shortest) / (longest - shortest), "uniform").pvalue < 0.01
+
+
+def test_paper_rotation_draws_blenders_euler_angles_not_a_uniform_rotation():
+    """The paper's ``rotation=(rx, ry, rz)``, each uniform in [0, 2 pi), turns an occluder's axis to
+    ``Rz Ry Rx e_z``, whose height ``cos rx cos ry`` is not uniform in [-1, 1] as a uniform rotation's is."""
+    from scipy import stats
+
+    def axis_heights(**fields):
+        cfg = small_config(n_views=60, n_occluders=(3, 3), **fields)
+        return np.array([o.rotation[2, 2] for seed in range(3)
+                         for v in sample_sequence(cfg, np.random.default_rng(seed)).views for o in v.occluders])
+
+    paper, uniform = axis_heights(paper_rotation=True), axis_heights()
+    assert len(paper) > 300
+    products = np.cos(np.random.default_rng(0).uniform(0, 2 * np.pi, (2, 20000))).prod(axis=0)
+    assert stats.ks_2samp(paper, products).pvalue > 0.01
+    assert stats.kstest(paper, "uniform", args=(-1, 2)).pvalue < 0.01
+    assert stats.kstest(uniform, "uniform", args=(-1, 2)).pvalue > 0.01
