@@ -251,17 +251,19 @@ def main(argv: list[str] | None = None) -> None:
         return render_sample(sample_sequence(config, rng), paintings[index % len(paintings)], config, index, rng=rng)
 
     if args.population == 0:
-        mine, theirs = [], []
+        mine, theirs, drawn = [], [], []
         for k, sequence in enumerate(sequences):
             seed = int(sequence.name[-2:])  # seqNN was seeded with NN
             count = len(list(sequence.glob("[0-9]*-m.png")))
             views = np.stack([read_rgb(sequence / f"{j}.png") for j in range(count)])
             masks = np.stack([read_rgb(sequence / f"{j}-m.png")[..., 0] >= 128 for j in range(count)])
             our_views, our_masks, H0 = _arrays(replayed(seed, paintings[k]))
+            drawn += [len(view["objects"]) for view in paper_draws(seed)[1]]
             mine.append(view_rows(our_views, our_masks, H0, masks))
             theirs.append(view_rows(views, masks, anchor_homographies(sequence, count, size)[0], our_masks))
         print(f"the references' own scenes (seeds {', '.join(s.name[-2:] for s in sequences)}), exposure where both "
-              f"renders see the painting:\n  Blender: {summary(theirs)}\n  ours:    {summary(mine)}")
+              f"renders see the painting ({np.mean(drawn):.2f} occluders drawn per view, the generator's mean 1.5):"
+              f"\n  Blender: {summary(theirs)}\n  ours:    {summary(mine)}")
         return
     paper = [view_rows(*_arrays(replayed(POPULATION_SEED + i, paintings[i % len(paintings)])))
              for i in range(args.population)]
