@@ -8,7 +8,7 @@ from ..render_choices import ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, MAX_SHADOWE
 
 __all__ = [
     "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LENS_MODELS", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
-    "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
+    "MAX_LIGHT_INTENSITY", "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
     "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "SPOT_FALLOFFS",
     "TEXTURE_FILTERS",
 ]
@@ -58,6 +58,10 @@ MAX_LIGHT_LEVEL = 1e4
 diffuse painting saturates at about 3.3 and the darkest non-black 8-bit sRGB texel (linear
 ``1 / 255 / 12.92``) at about 1e4 times less light than white, so beyond this every lit texel is
 white."""
+
+MAX_LIGHT_INTENSITY = MAX_LIGHT_LEVEL * 3 * MAX_SCENE_EXTENT**2
+"""Largest light intensity (``*_intensity``, irradiance at one painting unit): what gives
+:data:`MAX_LIGHT_LEVEL` at the farthest a light can be (``sqrt(3)`` :data:`MAX_SCENE_EXTENT`)."""
 
 MAX_VIEWS = 256
 """Largest ``n_views``: a sample's homographies and their accuracy check cost about 32 KiB per

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .allowed import (ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, BACKGROUNDS, GEOMETRY_DTYPES, LENS_MODELS, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
-                      MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
+                      MAX_LIGHT_INTENSITY, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
                       OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, SPOT_FALLOFFS,
                       TEXTURE_FILTERS)
 from .validation import check_names, coerce, validate
@@ -54,6 +54,14 @@ _IRRADIANCE = (
     "over its emitters). The defaults keep the paper's power ratios (point 1-3.5 kW, spot 1-10 kW, area 1-2 "
     "kW radiating into a half-space, i.e. 4-8 kW point-equivalent) at a scale chosen so that the fraction "
     "of blown-out painting pixels matches the paper's renders (``python -m benchmarks.exposure``).")
+_INTENSITY = (
+    "ranges of a point, spot and area light's intensity: the irradiance it gives at one painting unit on its axis "
+    "(the renderer's linear units; an area light's summed over its emitters, before its spread narrows it). ``(0, 0)``, the default: no draw, the "
+    "light's strength is drawn as its irradiance at the painting's centre (``*_irradiance``), whatever its "
+    "distance. Otherwise the intensity is drawn, and the centre gets ``intensity cos / d**2`` from the light's "
+    "drawn position (``d`` its distance, ``cos`` the incidence there), as the paper's generator draws each light's "
+    "power (point 1-3.5 kW, spot 1-10 kW: ``P / (4 pi 7**2)``; area 1-2 kW: ``P / (pi 7**2)``, 7 Blender units to "
+    "the painting unit): a far light is a dim one.")
 _OCCLUDER_KINDS = "kinds to draw from."
 _OCCLUDER_BOX = f"box of occluder centres (at most {MAX_SCENE_EXTENT:g} painting units)."
 _PLANE_MATERIAL = "ranges of the painting's material."
@@ -110,6 +118,10 @@ class SidarConfig:
         "over the painting far more often than from a camera 5-7 units high."))
     fov_deg: Range = _field((61.9, 100.4), bounds=(1.0, 170.0), meaning=(
         "range of the field of view across the longer image side, for views 1..V-1."))
+    focal_uniform: bool = _field(False, meaning=(
+        "draw the focal length of views 1..V-1 uniformly between those of ``fov_deg``'s ends (``1 / tan(fov / 2)`` "
+        "uniform), as the paper's generator draws its lens (15-30 mm on a 36 mm sensor: 100.4-61.9 degrees), "
+        "instead of the angle (the same single draw either way)."))
     max_tilt_deg: float = _field(90.0, bounds=(0.0, 90.0), meaning=(
         "largest angle between a camera's axis and the painting's normal: cameras are drawn from the "
         "``camera_xy`` x ``camera_height`` box, then limited to this tilt (90: no limit). The box itself "
@@ -131,6 +143,9 @@ class SidarConfig:
     light_irradiance: Range = _field((0.5, 1.75), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
     spot_irradiance: Range = _field((0.5, 5.0), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
     area_irradiance: Range = _field((2.0, 4.0), bounds=(0.0, MAX_LIGHT_LEVEL), meaning=_IRRADIANCE)
+    light_intensity: Range = _field((0.0, 0.0), bounds=(0.0, MAX_LIGHT_INTENSITY), meaning=_INTENSITY)
+    spot_intensity: Range = _field((0.0, 0.0), bounds=(0.0, MAX_LIGHT_INTENSITY), meaning=_INTENSITY)
+    area_intensity: Range = _field((0.0, 0.0), bounds=(0.0, MAX_LIGHT_INTENSITY), meaning=_INTENSITY)
     light_saturation_max: float = _field(0.3, bounds=(0.0, 1.0), meaning="colour is HSV(U(0, 1), U(0, this), 1).")
     spot_cone_deg: Range = _field((10.0, 90.0), bounds=(1.0, 114.0), meaning="range of a spot light's full cone angle.")
     spot_falloff: str = _field("quadratic", choices=SPOT_FALLOFFS, meaning=(
@@ -170,6 +185,10 @@ class SidarConfig:
         "every torus at the size of the paper's, Blender's default torus, which it never scales (major radius 1, "
         "minor 0.25 Blender units): outer radius 1.25 / 7 and half-thickness 0.25 / 7, with no draw from "
         "``occluder_size`` (see ``sidar_torch.scene.PAPER_TORUS_SCALE``)."))
+    paper_rotation: bool = _field(False, meaning=(
+        "every occluder's rotation drawn as the paper's generator draws it: three Euler angles each uniform in "
+        "[0, 2 pi), in Blender's XYZ order (``Rz Ry Rx``), which favours some orientations (a torus's axis lies "
+        "nearer the painting's plane), instead of uniformly over all rotations (three draws instead of four)."))
     paper_occluder_materials: bool = _field(False, meaning=(
         "occluder colours and factors drawn as the paper's Blender materials draw them: colour uniform in linear "
         "RGB (each channel U(0, 1), not HSV), roughness U(0, 0.5) for the ``glossy``, ``metallic`` and "

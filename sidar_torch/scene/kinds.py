@@ -61,11 +61,13 @@ class LightKind:
     """One kind of light.
 
     Attributes:
-        irradiance: the ``SidarConfig`` range field its irradiance is drawn from.
+        irradiance: the ``SidarConfig`` range field its irradiance at the painting's centre is drawn from.
+        intensity: the range field its intensity is drawn from instead, unless that is ``(0, 0)``.
         beam: ``(config, rng, position (3,), irradiance, image_size) -> Beam``: its emitters and cones.
     """
 
     irradiance: str
+    intensity: str
     beam: Callable[[SidarConfig, np.random.Generator, np.ndarray, float, tuple[int, int]], Beam]
 
 
@@ -111,9 +113,9 @@ def _covering_beam(position: np.ndarray, offsets: np.ndarray, irradiance: float,
 
 
 LIGHT_KINDS: dict[str, LightKind] = {
-    "spot": LightKind("spot_irradiance", _spot_beam),
-    "point": LightKind("light_irradiance", _point_beam),
-    "area": LightKind("area_irradiance", _area_beam),
+    "spot": LightKind("spot_irradiance", "spot_intensity", _spot_beam),
+    "point": LightKind("light_irradiance", "light_intensity", _point_beam),
+    "area": LightKind("area_irradiance", "area_intensity", _area_beam),
 }
 """``SidarConfig.light_types`` name -> how that kind of light is drawn."""
 

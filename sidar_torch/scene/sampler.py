@@ -73,7 +73,7 @@ def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camer
     for _ in range(config.n_views - 1):
         for _ in range(CAMERA_ATTEMPTS):
             position = _camera_position(config, rng)
-            K = geometry.intrinsics_from_fov(rng.uniform(*config.fov_deg), size)
+            K = geometry.intrinsics_from_fov(_fov(config, rng), size)
             camera = Camera(K, *geometry.look_at(position))
             if _meets_guarantees(camera, cameras, config):
                 break
@@ -85,6 +85,15 @@ def _sample_cameras(config: SidarConfig, rng: np.random.Generator) -> list[Camer
                 f"{config.fov_deg}, max_tilt_deg={config.max_tilt_deg}; lower them or narrow the camera ranges")
         cameras.append(camera)
     return cameras
+
+
+def _fov(config: SidarConfig, rng: np.random.Generator) -> float:
+    """A view's field of view (degrees) from one draw: uniform in ``fov_deg``, or, with ``focal_uniform``,
+    the angle of a focal length uniform between those of its ends."""
+    if not config.focal_uniform:
+        return rng.uniform(*config.fov_deg)
+    longest, shortest = (1.0 / math.tan(math.radians(a) / 2) for a in config.fov_deg)  # focal / half width
+    return math.degrees(2.0 * math.atan(1.0 / rng.uniform(shortest, longest)))
 
 
 def _meets_guarantees(camera: Camera, previous: list[Camera], config: SidarConfig) -> bool:
@@ -153,17 +162,32 @@ def _plane_material(config: SidarConfig, rng: np.random.Generator) -> Material:
 
 def _sample_light(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int]) -> Light:
     """A light of a kind drawn from ``light_types``: position, colour and irradiance at the painting's
-    centre drawn here, its emitters and cones by its :data:`~.kinds.LIGHT_KINDS` row."""
+    centre drawn here (:func:`_centre_irradiance`), its emitters and cones by its
+    :data:`~.kinds.LIGHT_KINDS` row."""
     name = config.light_types[rng.integers(len(config.light_types))]
     kind = LIGHT_KINDS[name]
     xy = rng.uniform(-config.light_xy, config.light_xy, size=2)
     position = np.array([xy[0], xy[1], rng.uniform(*config.light_height)])
     color = np.array(colorsys.hsv_to_rgb(rng.uniform(), rng.uniform(0, config.light_saturation_max), 1.0))
-    beam = kind.beam(config, rng, position, rng.uniform(*getattr(config, kind.irradiance)), size)
+    beam = kind.beam(config, rng, position, _centre_irradiance(config, rng, kind.irradiance, kind.intensity, position),
+                     size)
     distance = np.linalg.norm(beam.position)
     intensity = beam.irradiance * distance**2 / (beam.position[2] / distance)
     return Light(name, beam.emitters, color, float(intensity), float(beam.inner_cone), float(beam.outer_cone),
                  beam.smooth_falloff)
+
+
+def _centre_irradiance(config: SidarConfig, rng: np.random.Generator, irradiance: str, intensity: str,
+                       position: np.ndarray) -> float:
+    """The irradiance a light at ``position (3,)`` gives the painting's centre, from one draw: from the
+    config's range field ``irradiance``, or, unless it is ``(0, 0)``, from the intensity range field
+    ``intensity`` as ``I cos / d**2`` (``d = |position|``, ``cos = z / d``: the paper's generator draws
+    a light's power, so a far light is a dim one). The beam keeps this irradiance at the centre even
+    if it moves the light back (:func:`~.kinds._covering_emitters`, never within the paper's box)."""
+    drawn = getattr(config, intensity)
+    if drawn == (0.0, 0.0):
+        return rng.uniform(*getattr(config, irradiance))
+    return rng.uniform(*drawn) * float(position[2]) / float(np.linalg.norm(position)) ** 3
 
 
 OCCLUDER_ATTEMPTS = 100
@@ -183,7 +207,7 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
     """
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
     facts = SHAPES[shape]
-    rotation = _random_rotation(rng)
+    rotation = _euler_rotation(rng) if config.paper_rotation else _random_rotation(rng)
     fixed = facts.paper_scale is not None and config.paper_torus
     scale = facts.paper_scale if fixed else rng.uniform(*config.occluder_size, size=3)
     variant = int(rng.integers(facts.variants)) if facts.variants > 1 else 0
@@ -196,6 +220,16 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
         if np.linalg.norm(cameras - position, axis=1).min() > radius + CAMERA_CLEARANCE:
             return Occluder(shape, position, rotation, scale, material, variant)
     return None
+
+
+def _euler_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A rotation matrix ``(3, 3)`` of three Euler angles uniform in [0, 2 pi), about the world's x, then
+    y, then z axis (``Rz Ry Rx``, Blender's ``XYZ`` order): the paper's ``rotation=(rx, ry, rz)``."""
+    (cx, cy, cz), (sx, sy, sz) = np.cos(angles := rng.uniform(0.0, 2.0 * np.pi, size=3)), np.sin(angles)
+    x = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
+    y = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+    z = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    return z @ y @ x
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:

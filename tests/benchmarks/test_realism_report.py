@@ -175,6 +175,28 @@ def test_verdict_ratio_and_tolerance():
         == ("0.77 (means)", "yes")
 
 
+def test_table_prints_our_diagnostics_without_a_verdict_against_blender():
+    rng = np.random.default_rng(0)
+    views = realism.ViewStats(*(rng.uniform(0.01, 0.5, 12) for _ in realism.dataclasses.fields(realism.ViewStats)))
+    sequence = realism.SequenceStats(0.6, realism.MatcherStats(np.full(6, 100), np.full(15, 20), np.ones(15)))
+    rows = {line.split(" | ")[0].lstrip("| "): line for line in
+            realism.table("preset", views, [sequence], views, [sequence]).splitlines() if line.startswith("| ")}
+    diagnostics = [label for label, *_ in realism.DIAGNOSTICS]
+    assert len(diagnostics) == 3 and all(label in rows for label in diagnostics)
+    for label, line in rows.items():
+        cells = [c.strip() for c in line.strip("| ").split(" | ")]
+        if label in diagnostics:  # no Blender figure and no verdict, our figure still printed
+            assert cells[2] == "n/a" and cells[5] == "diagnostic" and cells[1] != "n/a"
+        elif label != "statistic":
+            assert cells[5] in ("yes", "no")
+    exact = rows["cast-shadow fraction (ours exact: vs shadows=False)"]
+    assert "of ours estimated" in exact  # the estimate's recall: exact over our own estimate
+    twin = [line for label, line in rows.items() if "false shadows" in label][0]
+    assert "near 0" in twin and "of ours estimated" not in twin
+    verdicts = [label for label, *_ in realism.STATISTICS] + [label for label, _ in realism.SEQUENCE_STATISTICS]
+    assert not set(verdicts) & set(diagnostics)
+
+
 def test_dark_view_fraction_and_median_over_views():
     medians = np.array([10, 40, 60, 200, np.nan])
     assert realism.of_views(medians[:4] < realism.DARK_MEDIAN).centre == 0.5

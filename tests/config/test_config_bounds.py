@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from hang_guard import no_hang
 from sidar_torch import SidarConfig, SidarDataset, available_presets, load_config
-from sidar_torch.config import (MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT,
+from sidar_torch.config import (MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_LIGHT_INTENSITY, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT,
                                 MAX_VIEWS)
 from sidar_torch.config.memory import estimated_sample_bytes
 from sidar_torch.sample import sequence_homographies
@@ -144,11 +144,11 @@ EXTREMES = {
         camera_xy=0.0, camera_height=(1e-3, 1e-3), fov_deg=(170, 170), light_xy=0.0, light_height=(1e-3, 1e-3),
         area_light_size=TINY, occluder_xy=0.0, occluder_height=(0.0, 0.0), occluder_size=(TINY, TINY),
         light_irradiance=(0, 0), spot_irradiance=(0, 0), area_irradiance=(0, 0), ambient=(0, 0), n_lights=(8, 8),
-        light_types=("spot", "point"), n_occluders=(16, 16), spot_cone_deg=(1, 1)),
+        light_types=("spot", "point"), n_occluders=(16, 16), spot_cone_deg=(1, 1), spot_intensity=(0, TINY)),
     "grazing, lights and occluders at the box's edge": dict(
         camera_xy=MAX_CAMERA_DISTANCE, camera_height=(1e-3, 1e-3), fov_deg=(1, 170), light_xy=FAR,
         light_height=(1e-3, FAR), occluder_xy=FAR, occluder_height=(0.0, FAR), area_light_samples=24, n_lights=(1, 1),
-        light_types=("area",)),
+        light_types=("area",), focal_uniform=True, area_intensity=(MAX_LIGHT_INTENSITY,) * 2),
     "effects at their bounds": dict(
         background="view", background_level=(1, 1), exposure_jitter=True, exposure_stops=(8, 8), gamma=(10, 10),
         sensor_noise=True, read_noise=(1, 1), shot_noise=(1, 1), jpeg=True, jpeg_quality=(1, 1),

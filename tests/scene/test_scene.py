@@ -9,7 +9,7 @@ from sidar_torch import geometry
 from sidar_torch.config import OCCLUDER_SHAPES as SHAPE_NAMES
 from sidar_torch.scene import sample_sequence
 
-from conftest import small_config
+from conftest import SMALL, small_config
 
 
 def test_same_rng_state_same_sequence_and_different_seeds_differ():
@@ -214,3 +214,54 @@ def test_paper_glass_and_transparent_filter_the_painting_by_the_papers_colour_sq
     assert all(mirror_define(m) == REFRACTION for m in clear)
     blended = paper_occluders("transparent", False)
     assert all(0.2 <= m.base_color[3] <= 0.7 and m.ior == 1.0 and mirror_define(m) is None for m in blended)
+
+
+@pytest.mark.parametrize("kind, field", [("point", "light_intensity"), ("spot", "spot_intensity"), ("area", "area_intensity")])
+def test_a_drawn_intensity_dims_far_lights_and_leaves_every_other_draw(kind, field):
+    """The paper's generator draws a light's power, so its intensity is the drawn one wherever it is (the
+    painting's centre gets ``I cos / d**2``); by default the irradiance there is drawn whatever the distance."""
+    def lights(**fields):
+        cfg = small_config(n_views=8, light_types=(kind,), area_light_samples=1, **fields)
+        return [light for view in sample_sequence(cfg, np.random.default_rng(5)).views for light in view.lights]
+
+    by_irradiance, by_intensity = lights(), lights(**{field: (2.0, 2.0)})
+    assert len(by_irradiance) > 10
+    for a, b in zip(by_irradiance, by_intensity):  # the same positions, colours and cones: one draw either way
+        assert np.array_equal(a.emitters, b.emitters) and np.array_equal(a.color, b.color)
+        assert (a.inner_cone, a.outer_cone) == (b.inner_cone, b.outer_cone)
+    assert np.allclose([light.intensity for light in by_intensity], 2.0)
+    assert np.ptp([light.intensity for light in by_irradiance]) > 0.5  # the irradiance draw: far lights made strong
+
+
+def test_focal_uniform_draws_the_focal_length_not_the_angle():
+    """The paper's lens is uniform in 15-30 mm on a 36 mm sensor: its angle is not uniform in 61.9-100.4 deg."""
+    from scipy import stats
+
+    def focals(**fields):
+        cfg = small_config(n_views=40, fov_deg=(61.9, 100.4), **fields)
+        views = [v for seed in range(10) for v in sample_sequence(cfg, np.random.default_rng(seed)).views[1:]]
+        return np.array([v.camera.K[0, 0] / (SMALL[1] / 2) for v in views])  # 1 / tan(fov / 2)
+
+    shortest, longest = 1 / math.tan(math.radians(100.4) / 2), 1 / math.tan(math.radians(61.9) / 2)
+    paper, angle = focals(focal_uniform=True), focals()
+    assert paper.min() >= shortest - 1e-9 and paper.max() <= longest + 1e-9
+    assert stats.kstest((paper - shortest) / (longest - shortest), "uniform").pvalue > 0.01
+    assert stats.kstest((angle - shortest) / (longest - shortest), "uniform").pvalue < 0.01
+
+
+def test_paper_rotation_draws_blenders_euler_angles_not_a_uniform_rotation():
+    """The paper's ``rotation=(rx, ry, rz)``, each uniform in [0, 2 pi), turns an occluder's axis to
+    ``Rz Ry Rx e_z``, whose height ``cos rx cos ry`` is not uniform in [-1, 1] as a uniform rotation's is."""
+    from scipy import stats
+
+    def axis_heights(**fields):
+        cfg = small_config(n_views=60, n_occluders=(3, 3), **fields)
+        return np.array([o.rotation[2, 2] for seed in range(3)
+                         for v in sample_sequence(cfg, np.random.default_rng(seed)).views for o in v.occluders])
+
+    paper, uniform = axis_heights(paper_rotation=True), axis_heights()
+    assert len(paper) > 300
+    products = np.cos(np.random.default_rng(0).uniform(0, 2 * np.pi, (2, 20000))).prod(axis=0)
+    assert stats.ks_2samp(paper, products).pvalue > 0.01
+    assert stats.kstest(paper, "uniform", args=(-1, 2)).pvalue < 0.01
+    assert stats.kstest(uniform, "uniform", args=(-1, 2)).pvalue > 0.01
