@@ -6,8 +6,9 @@ the ``source.png`` painting), renders ``--samples`` sequences of each ``--config
 paintings as the source (painting ``index % len``, the anchors' image size), and prints one markdown
 table per preset: each statistic per view (median and interquartile range over views) or over the set
 of views, ours beside Blender's, their ratio, and whether ours is within 10 % of Blender's or inside
-the 5-95 % bootstrap interval of Blender's figure (resampling its views; for the rows of whole
-sequences, the blur and matcher rows, resampling its sequences).
+the 5-95 % interval of Blender's figure: a bootstrap resampling its views (for the rows of whole
+sequences, the blur and matcher rows, resampling its sequences), or, for a fraction of views,
+Clopper and Pearson's exact binomial interval (a bootstrap of 0 of 36 views is 0 - 0).
 
     python -m benchmarks.realism --anchors DIR --config paper_misaligned misaligned aligned --samples 12
     python -m benchmarks.realism --anchors DIR --config paper_misaligned --set plane_metallic=[0,1]
@@ -70,7 +71,7 @@ from typing import Any, Callable
 
 import numpy as np
 from PIL import Image
-from scipy import ndimage
+from scipy import ndimage, special
 
 from benchmarks.common import parse_set
 from benchmarks.exposure import CLIPPED, LUMA, STILL_COLOURED, WHITE, view_exposure
@@ -534,8 +535,9 @@ BOOTSTRAP = 2000
 class Figure:
     """A statistic over a set of views: ``centre`` (the median over views, or the fraction of views),
     ``low``/``high`` (interquartile range over views, or equal to the interval), ``mean``, and
-    ``interval`` and ``mean_interval``, the 5-95 % bootstrap intervals of ``centre`` and ``mean``
-    (resampling views, or whole sequences for :func:`pooled` and :func:`pooled_fraction`)."""
+    ``interval`` and ``mean_interval``, the 5-95 % intervals of ``centre`` and ``mean``: bootstraps
+    resampling views, or whole sequences for :func:`pooled` and :func:`pooled_fraction`; the exact
+    binomial interval for :func:`of_views`."""
 
     centre: float
     low: float
@@ -562,10 +564,20 @@ def per_view(values: np.ndarray) -> Figure:
     return Figure(float(med), float(q1), float(q3), float(v.mean()), bootstrap(v, np.median), bootstrap(v, np.mean))
 
 
+def binomial_interval(count: int, total: int) -> tuple[float, float]:
+    """Clopper and Pearson's exact 5-95 % interval of a fraction seen as ``count`` of ``total`` (``total`` >= 1)
+    independent trials: the fractions at which seeing at least (at most) ``count`` has probability 5 %.
+    Unlike a bootstrap, which can only resample what was seen, it is not a single point at 0 or at
+    ``total`` (0 of 36 views: 0 - 0.080)."""
+    low = 0.0 if count == 0 else float(special.betaincinv(count, total - count + 1, 0.05))
+    high = 1.0 if count == total else float(special.betaincinv(count + 1, total - count, 0.95))
+    return low, high
+
+
 def of_views(flags: np.ndarray) -> Figure:
-    """Fraction of views with a property (``flags (N,)`` bool)."""
-    f = np.asarray(flags, np.float64)
-    interval = bootstrap(f, np.mean)
+    """Fraction of views with a property (``flags (N,)`` bool), with :func:`binomial_interval`."""
+    f = np.asarray(flags, bool)
+    interval = binomial_interval(int(f.sum()), f.size)
     return Figure(float(f.mean()), *interval, float(f.mean()), interval, interval)
 
 
@@ -661,7 +673,7 @@ def ratio(ours: Figure, reference: Figure) -> tuple[float, str]:
 
 def verdict(ours: Figure, theirs: Figure) -> tuple[str, str]:
     """:func:`ratio` of ours to Blender's, and whether ours is within 10 % of Blender's or inside the 5-95 %
-    bootstrap interval of Blender's figure (of its mean when its centre is 0)."""
+    interval of Blender's figure (of its mean when its centre is 0)."""
     value, shown = ratio(ours, theirs)
     by_means = theirs.centre == 0
     low, high = theirs.mean_interval if by_means else theirs.interval

@@ -1,5 +1,7 @@
 """The realism report's statistics (``benchmarks/realism.py``), each on an image whose answer is known."""
 
+import math
+
 import numpy as np
 import pytest
 
@@ -202,3 +204,16 @@ def test_dark_view_fraction_and_median_over_views():
     assert realism.of_views(medians[:4] < realism.DARK_MEDIAN).centre == 0.5
     figure = realism.per_view(medians)
     assert (figure.centre, figure.low, figure.high) == (50, 32.5, 95)
+
+
+def test_a_fraction_of_views_has_the_exact_binomial_interval_not_a_point_at_zero():
+    none = realism.of_views(np.zeros(36, bool))
+    assert none.centre == 0 and none.interval[0] == 0 and none.interval[1] == pytest.approx(0.0798, abs=1e-4)
+    # at the upper end, seeing 0 of 36 has probability 5 %; at the lower end of 6 of 36, seeing 6 or more does
+    assert (1 - none.interval[1]) ** 36 == pytest.approx(0.05)
+    low, high = realism.of_views(np.arange(36) < 6).interval
+    assert sum(math.comb(36, k) * low**k * (1 - low) ** (36 - k) for k in range(6, 37)) == pytest.approx(0.05)
+    assert sum(math.comb(36, k) * high**k * (1 - high) ** (36 - k) for k in range(0, 7)) == pytest.approx(0.05)
+    assert realism.of_views(np.ones(36, bool)).interval == (pytest.approx(1 - 0.0798, abs=1e-4), 1.0)
+    # 3 of 144 views is inside 0 of 36's interval: no rate but 0 met the bootstrap's 0 - 0
+    assert realism.verdict(realism.of_views(np.arange(144) < 3), none)[1] == "yes"
