@@ -155,8 +155,6 @@ def paper_sequence(cameras: list[dict], views: list[dict], size: tuple[int, int]
                    rng: np.random.Generator) -> Any:
     """Our ``SceneSequence`` of one replayed run (:func:`paper_draws`), ``size = (H, W)``; ``config``'s
     kinds draw the occluders' materials from ``rng`` (nothing else is drawn)."""
-    from scipy.spatial.transform import Rotation
-
     from sidar_torch import geometry
     from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene
     from sidar_torch.scene.kinds import MATERIAL_KINDS, PAPER_TORUS_SCALE
@@ -175,7 +173,7 @@ def paper_sequence(cameras: list[dict], views: list[dict], size: tuple[int, int]
         plane = Material(np.ones(4), p["metallic"], p["roughness"], min(reflectance / 0.08, 1.0), p["coat"],
                          p["coat_roughness"], p["transmission"])
         occluders = tuple(Occluder(o["shape"].lower(), o["position"] / BLENDER_UNITS,
-                                   Rotation.from_euler("xyz", o["euler"]).as_matrix(),
+                                   geometry.euler_rotation(o["euler"]),
                                    PAPER_TORUS_SCALE if o["shape"] == "Torus" else o["scale"] / BLENDER_UNITS,
                                    MATERIAL_KINDS[PAPER_KINDS[o["material"]["kind"]]](rng, config))
                           for o in view["objects"])

@@ -31,6 +31,7 @@ __all__ = [
     "view_edges",
     "visible_halfplanes",
     "corner_pixels",
+    "euler_rotation",
     "fit_points",
     "homographies_from_points",
     "intrinsics_from_fov",
@@ -114,6 +115,16 @@ def intrinsics_from_fov(fov_deg: float, image_size: tuple[int, int]) -> np.ndarr
     h, w = image_size
     f = max(h, w) / 2 / math.tan(math.radians(fov_deg) / 2)
     return np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+
+
+def euler_rotation(angles: np.ndarray) -> np.ndarray:
+    """The ``(3, 3)`` rotation of Euler angles ``angles (3,)`` (radians) about the world's x, then y, then
+    z axis (``Rz Ry Rx``, Blender's ``XYZ`` order, as the paper's generator sets ``rotation=(rx, ry, rz)``)."""
+    (cx, cy, cz), (sx, sy, sz) = np.cos(angles), np.sin(angles)
+    x = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
+    y = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
+    z = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
+    return z @ y @ x
 
 
 def look_at(position: np.ndarray, target: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -207,7 +207,8 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
     """
     shape = config.occluder_shapes[rng.integers(len(config.occluder_shapes))]
     facts = SHAPES[shape]
-    rotation = _euler_rotation(rng) if config.paper_rotation else _random_rotation(rng)
+    rotation = (geometry.euler_rotation(rng.uniform(0.0, 2.0 * np.pi, size=3)) if config.paper_rotation
+                else _random_rotation(rng))
     fixed = facts.paper_scale is not None and config.paper_torus
     scale = facts.paper_scale if fixed else rng.uniform(*config.occluder_size, size=3)
     variant = int(rng.integers(facts.variants)) if facts.variants > 1 else 0
@@ -220,16 +221,6 @@ def _sample_occluder(config: SidarConfig, rng: np.random.Generator, cameras: np.
         if np.linalg.norm(cameras - position, axis=1).min() > radius + CAMERA_CLEARANCE:
             return Occluder(shape, position, rotation, scale, material, variant)
     return None
-
-
-def _euler_rotation(rng: np.random.Generator) -> np.ndarray:
-    """A rotation matrix ``(3, 3)`` of three Euler angles uniform in [0, 2 pi), about the world's x, then
-    y, then z axis (``Rz Ry Rx``, Blender's ``XYZ`` order): the paper's ``rotation=(rx, ry, rz)``."""
-    (cx, cy, cz), (sx, sy, sz) = np.cos(angles := rng.uniform(0.0, 2.0 * np.pi, size=3)), np.sin(angles)
-    x = np.array([[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]])
-    y = np.array([[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]])
-    z = np.array([[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]])
-    return z @ y @ x
 
 
 def _random_rotation(rng: np.random.Generator) -> np.ndarray:
