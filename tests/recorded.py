@@ -1,8 +1,9 @@
 """Recorded values that hold on any machine: pixels by exact digest, geometry by value within a
 stated tolerance.
 
-Pixels come from the rasteriser, so their SHA-256 digests are compared only on the GL renderer they
-were recorded on. Geometry (cameras, homographies, the fit error) is float64 arithmetic whose last
+Pixels come from the rasteriser, so their SHA-256 digests are compared only on the one they were
+recorded on (``testsets.same_rasteriser``: the GL renderer and its GL version, which names Mesa's
+release). Geometry (cameras, homographies, the fit error) is float64 arithmetic whose last
 bits differ between kornia, numpy and BLAS builds, so it is recorded as numbers and compared within
 a tolerance far below anything that moves a pixel:
 
@@ -22,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from sidar_torch.testsets import rasteriser
+
 RTOL = 1e-9
 """Tolerance of a recorded geometry array, relative to its largest entry."""
 ERROR_ATOL = 1e-12
@@ -29,19 +32,12 @@ ERROR_ATOL = 1e-12
 VERSIONED = ("torch", "kornia", "numpy", "scipy", "pyrender2", "trimesh", "Pillow", "PyOpenGL")
 
 
-def gl_renderer() -> str:
-    """The GL renderer string of this process's current context (e.g. llvmpipe's, which names its
-    LLVM version and vector width): pixels recorded on one are compared only on the same one."""
-    from OpenGL import GL
-
-    return GL.glGetString(GL.GL_RENDERER).decode()
-
-
 def environment() -> dict[str, str]:
-    """What produced a record: Python, the GL renderer and the versions of the packages that compute
-    pixels and geometry. Call it after rendering (it asks the current GL context)."""
+    """What produced a record: Python, the rasteriser (``testsets.rasteriser``: GL renderer and
+    version) and the versions of the packages that compute pixels and geometry. Call it after
+    rendering (it asks the current GL context)."""
     versions = {name: importlib.metadata.version(name) for name in VERSIONED}
-    return {"python": platform.python_version(), "gl_renderer": gl_renderer(), **versions}
+    return {"python": platform.python_version(), **rasteriser(), **versions}
 
 
 def digest(data: bytes) -> str:

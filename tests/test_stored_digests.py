@@ -6,7 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from recorded import geometry_record, gl_renderer, mismatches
+from recorded import geometry_record, mismatches
+from sidar_torch.testsets import rasteriser, rasteriser_name, same_rasteriser
 from stored_digests import PIXEL_KEYS, STORE, current_records
 
 
@@ -29,14 +30,14 @@ def test_samples_of_every_preset_match_the_stored_records():
     stored = json.loads(STORE.read_text())
     now = current_records()
     assert sorted(now) == sorted(stored["samples"]), "presets or indices differ from the stored ones"
-    recorded_on = stored["recorded_with"]["gl_renderer"]
-    same_rasteriser = gl_renderer() == recorded_on
+    recorded_on, here = stored["recorded_with"], rasteriser()  # after rendering: it asks the current context
+    comparable = same_rasteriser(recorded_on, here)
     differences = []
     for name, records in now.items():
         expected = stored["samples"][name]
         assert sorted(records) == sorted(expected), f"{name}: sample keys differ"
-        differences += [difference for key, record in records.items() if key not in PIXEL_KEYS or same_rasteriser
+        differences += [difference for key, record in records.items() if key not in PIXEL_KEYS or comparable
                         for difference in mismatches(f"{name}: {key}", expected[key], record)]
     assert not differences, "\n".join(differences)
-    if not same_rasteriser:
-        pytest.skip(f"pixels not compared: recorded on {recorded_on!r}, this is {gl_renderer()!r}")
+    if not comparable:
+        pytest.skip(f"pixels not compared: recorded on {rasteriser_name(recorded_on)!r}, this is {rasteriser_name(here)!r}")

@@ -8,7 +8,7 @@ import pytest
 
 from sidar_torch import load_config
 from sidar_torch.testsets import (available_testsets, check_digests, definition_digest, export_testset,
-                                  file_digests, gl_renderer, load_testset)
+                                  file_digests, load_testset, rasteriser, rasteriser_name, same_rasteriser)
 
 PUBLISHED = {
     "homography-v1": "a12b5b04ec85f6a72477ce38f7bd77a995f7ad0576c12a0a8684ac944ee3f052",
@@ -37,7 +37,7 @@ def test_a_definition_is_whole_and_its_configs_load(name):
         expected |= {"0-s.png"} if config.shadow_mask_output else set()
         expected |= {"0-f.png"} if config.shadow_free_output else set()
         assert expected <= first and len(names) == len(first) * category.count  # every sequence: the same files
-    assert testset.recorded_on["gl_renderer"]
+    assert testset.recorded_on["gl_renderer"] and testset.recorded_on["gl_version"]
 
 
 def test_a_digest_check_names_the_files_that_differ_and_why_they_may(tmp_path):
@@ -45,11 +45,22 @@ def test_a_digest_check_names_the_files_that_differ_and_why_they_may(tmp_path):
     name = "clean/000000/1.png"
     (tmp_path / "clean" / "000000").mkdir(parents=True)
     (tmp_path / "clean" / "000000" / "1.png").write_bytes(b"not the recorded bytes")
-    check = check_digests(testset, tmp_path, renderer="another renderer")
+    check = check_digests(testset, tmp_path, renderer={"gl_renderer": "another renderer", "gl_version": "4.5 Mesa 99"})
     assert file_digests(tmp_path) == {name: file_digests(tmp_path)[name]}
     assert check.checked == 1 and check.differing == (name,) and not check.matches
-    assert "1 of 1 files differ" in check.summary() and "another renderer" in check.summary()
+    assert "1 of 1 files differ" in check.summary() and "another renderer, 4.5 Mesa 99" in check.summary()
+    assert "Mesa 22.3.6" in check.summary()  # the v1 files name llvmpipe's LLVM only; Mesa's release drew other pixels
     assert "evaluate" in check.summary()
+
+
+def test_pixels_compare_only_on_the_renderer_and_mesa_release_they_were_recorded_on():
+    here = {"gl_renderer": "llvmpipe (LLVM 15.0.6, 256 bits)", "gl_version": "4.5 (Core Profile) Mesa 25.0.7"}
+    assert same_rasteriser(dict(here, python="3.11.7"), here)
+    # Mesa 25.0.7 on the same LLVM draws other pixels than 22.3.6: the renderer string alone cannot tell
+    assert not same_rasteriser(dict(here, gl_version="4.5 (Core Profile) Mesa 22.3.6"), here)
+    assert not same_rasteriser(dict(here, gl_renderer="llvmpipe (LLVM 19.1.7, 256 bits)"), here)
+    assert same_rasteriser({"gl_renderer": here["gl_renderer"]}, here)  # a record naming no version: the renderer
+    assert rasteriser_name({"gl_renderer": "x"}) == "x, GL version not recorded"
 
 
 @pytest.mark.gl
@@ -57,6 +68,7 @@ def test_rebuilding_the_first_sequences_of_a_set_reproduces_their_digests(tmp_pa
     testset = load_testset("homography-v1")
     first = dataclasses.replace(testset, categories=(testset.categories[0], testset.categories[-1]))  # clean, all
     check = export_testset(first, tmp_path, sequences=1, progress=False)
-    if gl_renderer() != testset.recorded_on["gl_renderer"]:
-        pytest.skip(f"pixels were recorded on {testset.recorded_on['gl_renderer']!r}, not on this {gl_renderer()!r}")
+    if not same_rasteriser(testset.recorded_on, rasteriser()):
+        pytest.skip(f"pixels were recorded on {rasteriser_name(testset.recorded_on)!r}, "
+                    f"not on this {rasteriser_name(rasteriser())!r}")
     assert check.checked == 2 * 26 and check.matches, check.summary()

@@ -4,14 +4,14 @@ A test set is a JSON file shipped here (``homography-v1.json``, ...): per catego
 kind: ``clean``, ``lights``, ``shadows``, ``occlusions``, ``all``) the full config, the seed and the
 number of sequences (indices ``0 .. count-1``); the pairs evaluated (``reference``: view 0 to each
 other view); and the SHA-256 digest of every file of its export (the folder layout, one export per
-category, ``<category>/<sequence>/<file>``), with the GL renderer and package versions that
-recorded them. The data is not shipped: :func:`export_testset` renders it and checks it against
+category, ``<category>/<sequence>/<file>``), with the rasteriser (GL renderer and version, :func:`rasteriser`)
+and package versions that recorded them. The data is not shipped: :func:`export_testset` renders it and checks it against
 the digests.
 
 A published set is never changed: a change is a new name (``homography-v2``). The test suite holds
 the SHA-256 of each shipped definition (``tests/test_testsets.py``).
 
-Pixels come from the rasteriser: on another GL renderer (another Mesa or llvmpipe build, a GPU)
+Pixels come from the rasteriser: on another one (another Mesa release or llvmpipe build, a GPU)
 PNG files may differ from the recorded digests, and ``cameras.json`` and the ``.mat`` files may
 differ in the last bits of their float64 numbers; :class:`DigestCheck` says which files differ.
 The ground truth evaluated is read from the exported files themselves, so an evaluation stays
@@ -75,7 +75,8 @@ class TestSet:
         pairs: which view pairs a homography set scores (:data:`PAIRS`).
         categories: its categories, in the order evaluation interleaves them.
         digests: ``{"<category>/<sequence>/<file>": SHA-256 hex}`` of every sequence file of its export.
-        recorded_on: the GL renderer and versions that recorded ``digests``.
+        recorded_on: the rasteriser (:func:`rasteriser`; for the v1 sets, whose files name no GL
+            version, :data:`V1_GL_VERSION`) and the package versions that recorded ``digests``.
     """
 
     __test__ = False  # not a pytest class, whatever its name
@@ -118,7 +119,14 @@ def load_testset(name: str) -> TestSet:
     data = json.loads(_definition_bytes(name))
     categories = tuple(Category(**category) for category in data["categories"])
     return TestSet(name=data["name"], task=data["task"], description=data["description"], pairs=data["pairs"],
-                   categories=categories, digests=data["digests"], recorded_on=data["recorded_on"])
+                   categories=categories, digests=data["digests"],
+                   recorded_on={"gl_version": V1_GL_VERSION, **data["recorded_on"]})
+
+
+V1_GL_VERSION = "4.5 (Core Profile) Mesa 22.3.6"
+"""The GL version of the sets published before definitions recorded one (the v1 sets, whose files
+cannot change): their digests reproduce on Mesa 22.3.6 and differ on 25.0.7 with the same LLVM
+(``tests/test_testsets.py``)."""
 
 
 def file_digests(out: Path) -> dict[str, str]:
@@ -140,8 +148,8 @@ class DigestCheck:
         checked: how many of its files have a recorded digest and were compared.
         differing: the files whose digest differs, sorted.
         unknown: files written that the definition has no digest for (none for a sound export).
-        recorded_on: the GL renderer the digests were recorded on.
-        renderer: the GL renderer that rendered this export (``None`` if none rendered here).
+        recorded_on: the rasteriser the digests were recorded on, in words (:func:`rasteriser_name`).
+        renderer: the rasteriser that rendered this export, in words (``None`` if none rendered here).
     """
 
     checked: int
@@ -165,22 +173,23 @@ class DigestCheck:
         if self.unknown:
             text += f"; {len(self.unknown)} files have no recorded digest (first: {self.unknown[0]})"
         here = "an unknown renderer (not rendered by this call)" if self.renderer is None else repr(self.renderer)
-        text += (f". The digests were recorded on GL renderer {self.recorded_on!r}, these files on {here}: pixels "
+        text += (f". The digests were recorded on {self.recorded_on!r}, these files on {here}: pixels "
                  f"may differ between renderers (by how much cannot be known without the reference files, which "
                  f"are not shipped), and float64 geometry in its last bits. The ground truth is read from these "
                  f"files, so `evaluate` on them is valid; its scores compare with others' only approximately")
         return text
 
 
-def check_digests(testset: TestSet, out: Path, renderer: str | None = None) -> DigestCheck:
+def check_digests(testset: TestSet, out: Path, renderer: dict[str, str] | None = None) -> DigestCheck:
     """Compare the sequence files under ``out`` (an export of ``testset``, whole or its first
-    sequences) with the recorded digests; ``renderer``: the GL renderer that rendered them."""
+    sequences) with the recorded digests; ``renderer``: the :func:`rasteriser` that rendered them."""
     now = file_digests(out)
     known = [name for name in now if name in testset.digests]
     return DigestCheck(checked=len(known),
                        differing=tuple(name for name in known if now[name] != testset.digests[name]),
                        unknown=tuple(name for name in now if name not in testset.digests),
-                       recorded_on=testset.recorded_on.get("gl_renderer", "(unknown)"), renderer=renderer)
+                       recorded_on=rasteriser_name(testset.recorded_on),
+                       renderer=None if renderer is None else rasteriser_name(renderer))
 
 
 def export_testset(testset: TestSet, out: str | Path, sequences: int | None = None,
@@ -203,15 +212,33 @@ def export_testset(testset: TestSet, out: str | Path, sequences: int | None = No
         count = category.count if sequences is None else min(sequences, category.count)
         summary = export_dataset(category.dataset(), out / category.name, count, progress=progress)
         if summary.written:
-            renderer = gl_renderer()
+            renderer = rasteriser()
     return check_digests(testset, out, renderer)
 
 
-def gl_renderer() -> str:
-    """The GL renderer string of this process's current context (call it after rendering)."""
+def rasteriser() -> dict[str, str]:
+    """What draws this process's pixels (call it after rendering: it asks the current GL context):
+    ``{"gl_renderer": GL_RENDERER, "gl_version": GL_VERSION}``, e.g. ``"llvmpipe (LLVM 15.0.6, 256
+    bits)"`` and ``"4.5 (Core Profile) Mesa 22.3.6"``. The renderer string names llvmpipe's LLVM and
+    vector width but not Mesa's release, and two releases on the same LLVM draw different pixels
+    (Mesa 25.0.7 against 22.3.6: the views of 2 of the 20 samples ``tests/stored_digests.py`` records differ)."""
     from OpenGL import GL
 
-    return GL.glGetString(GL.GL_RENDERER).decode()
+    return {"gl_renderer": GL.glGetString(GL.GL_RENDERER).decode(),
+            "gl_version": GL.glGetString(GL.GL_VERSION).decode()}
+
+
+def same_rasteriser(recorded: dict[str, str], here: dict[str, str]) -> bool:
+    """Whether pixels recorded on ``recorded`` (a :func:`rasteriser` record, or the ``recorded_on`` /
+    ``recorded_with`` dict holding one) can be compared byte for byte on ``here``: the same GL
+    renderer and, where ``recorded`` names one, the same GL version (records older than it name none)."""
+    return (recorded.get("gl_renderer") == here["gl_renderer"]
+            and recorded.get("gl_version", here["gl_version"]) == here["gl_version"])
+
+
+def rasteriser_name(record: dict[str, str]) -> str:
+    """``record``'s rasteriser in words: its GL renderer, then its GL version or that none was recorded."""
+    return f"{record.get('gl_renderer', '(unknown)')}, {record.get('gl_version', 'GL version not recorded')}"
 
 
 def category_config(preset: str, **overrides: Any) -> dict[str, Any]:
