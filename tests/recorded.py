@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sidar_torch.testsets import rasteriser
+from sidar_torch.testsets import rasteriser, rasteriser_name, same_rasteriser
 
 RTOL = 1e-9
 """Tolerance of a recorded geometry array, relative to its largest entry."""
@@ -38,6 +38,16 @@ def environment() -> dict[str, str]:
     rendering (it asks the current GL context)."""
     versions = {name: importlib.metadata.version(name) for name in VERSIONED}
     return {"python": platform.python_version(), **rasteriser(), **versions}
+
+
+def rasteriser_mismatch(recorded: dict[str, str]) -> str | None:
+    """``None`` where pixels recorded on ``recorded`` (a record's ``recorded_with`` / ``recorded_on``)
+    compare byte for byte in this process (``testsets.same_rasteriser``); otherwise why not, in words.
+    Call it after rendering (it asks the current GL context)."""
+    here = rasteriser()
+    if same_rasteriser(recorded, here):
+        return None
+    return f"recorded on {rasteriser_name(recorded)!r}, this is {rasteriser_name(here)!r}"
 
 
 def digest(data: bytes) -> str:

@@ -4,9 +4,9 @@ A test set is a JSON file shipped here (``homography-v1.json``, ...): per catego
 kind: ``clean``, ``lights``, ``shadows``, ``occlusions``, ``all``) the full config, the seed and the
 number of sequences (indices ``0 .. count-1``); the pairs evaluated (``reference``: view 0 to each
 other view); and the SHA-256 digest of every file of its export (the folder layout, one export per
-category, ``<category>/<sequence>/<file>``), with the rasteriser (GL renderer and version, :func:`rasteriser`)
-and package versions that recorded them. The data is not shipped: :func:`export_testset` renders it and checks it against
-the digests.
+category, ``<category>/<sequence>/<file>``), with the rasteriser (GL renderer and version,
+:func:`rasteriser`) and package versions that recorded them. The data is not shipped:
+:func:`export_testset` renders it and checks it against the digests.
 
 A published set is never changed: a change is a new name (``homography-v2``). The test suite holds
 the SHA-256 of each shipped definition (``tests/test_testsets.py``).
@@ -221,7 +221,8 @@ def rasteriser() -> dict[str, str]:
     ``{"gl_renderer": GL_RENDERER, "gl_version": GL_VERSION}``, e.g. ``"llvmpipe (LLVM 15.0.6, 256
     bits)"`` and ``"4.5 (Core Profile) Mesa 22.3.6"``. The renderer string names llvmpipe's LLVM and
     vector width but not Mesa's release, and two releases on the same LLVM draw different pixels
-    (Mesa 25.0.7 against 22.3.6: the views of 2 of the 20 samples ``tests/stored_digests.py`` records differ)."""
+    (Mesa 25.0.7 against 22.3.6: the views of 2 of the 20 samples ``tests/stored_digests.py``
+    records differ)."""
     from OpenGL import GL
 
     return {"gl_renderer": GL.glGetString(GL.GL_RENDERER).decode(),
