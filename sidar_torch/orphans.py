@@ -9,9 +9,15 @@ whatever it is doing: rendering, waiting for a task, or blocked sending a reply 
 
 Three mechanisms, because each alone has a gap:
 
-* ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (Linux): the kernel kills the child when the parent *thread*
-  that forked it ends. Used only if that thread is the parent's main thread (``death_signal``):
-  a pool started from a short-lived thread would otherwise lose its workers with the thread.
+* ``prctl(PR_SET_PDEATHSIG, signal)`` (Linux): the kernel sends the child ``signal`` when the parent
+  *thread* that forked it ends (and again whenever the thread it was handed to ends, the last time
+  when the whole parent dies). Forked by the parent's main thread (``death_signal``), the signal is
+  ``SIGKILL``, which ends the child even if it is stopped (``SIGSTOP``). Forked by another thread,
+  ``SIGKILL`` would end the child with that thread (a pool started from a short-lived thread would
+  lose its workers), so the signal is ``SIGCONT``: harmless to a running child, it wakes a stopped
+  one, whose watching thread (next) then sees the parent gone. Without it a stopped child of a
+  killed parent stayed stopped for good (state ``T``, parent pid 1): a stopped process runs no
+  thread, and ``SIGKILL`` and ``SIGCONT`` are the only signals it acts on.
 * a daemon thread that checks ``os.getppid()`` every :data:`POLL_S` seconds and leaves with
   ``os._exit(1)`` when the parent is gone (it is reparented): works on every POSIX system and for
   children forked by any thread; it needs the GIL, which a blocked ``send`` or a GL call releases.
@@ -53,30 +59,32 @@ POLL_S = 0.25
 _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 
 
-def _arm_death_signal() -> bool:
-    """Ask Linux to send this process SIGKILL when its parent thread ends; False where unavailable."""
+def _arm_death_signal(sent: signal.Signals) -> bool:
+    """Ask Linux to send this process ``sent`` when its parent thread ends; False where unavailable."""
     if not sys.platform.startswith("linux"):
         return False
     try:
         libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0) == 0
+        return libc.prctl(_PR_SET_PDEATHSIG, int(sent), 0, 0, 0) == 0
     except (OSError, AttributeError):
         return False
 
 
 def exit_with_parent(parent_pid: int, *, death_signal: bool = True) -> None:
-    """Make this process (a forked child) end within :data:`POLL_S` seconds of its parent's death.
+    """Make this process (a forked child) end within :data:`POLL_S` seconds of its parent's death,
+    even if it is stopped (``SIGSTOP``) then.
 
     Args:
         parent_pid: the pid of the parent, read *before* the fork (or at once after it), so that a
             parent that died in between is noticed.
-        death_signal: also arm Linux's parent-death signal (SIGKILL); pass False when the fork was
-            made by a thread other than the parent's main thread (see the module docstring).
+        death_signal: the fork was made by the parent's main thread: Linux's parent-death signal is
+            ``SIGKILL``. Pass False when another thread made it: the signal is then ``SIGCONT``, which
+            that thread's end sends harmlessly and which wakes this process, if stopped, when the
+            parent dies (see the module docstring).
 
     Ends the process at once (``os._exit(1)``) if the parent is already gone.
     """
-    if death_signal:
-        _arm_death_signal()
+    _arm_death_signal(signal.SIGKILL if death_signal else signal.SIGCONT)
     if os.getppid() != parent_pid:
         os._exit(1)
     _exit_when(lambda: os.getppid() == parent_pid, "sidar-exit-with-parent")

@@ -26,10 +26,39 @@ if os.fork() == 0:
 time.sleep(600)
 """
 
+# The same, but a thread of the child forks the grandchild (as when a render pool is started from a
+# thread) and ends; the child prints "thread ended" after it, then lives on.
+FAMILY_BY_A_THREAD = """
+import os, sys, threading, time
+from sidar_torch.orphans import exit_with_parent
+parent = os.getpid()
 
-def _grandchild_outlives_its_parent(mode):
-    child = subprocess.Popen([sys.executable, "-c", FAMILY, mode], stdout=subprocess.PIPE, text=True)
+def fork():
+    if os.fork() == 0:
+        exit_with_parent(parent, death_signal=False)
+        print(os.getpid(), flush=True)
+        time.sleep(600)
+        os._exit(0)
+
+thread = threading.Thread(target=fork)
+thread.start()
+thread.join()
+time.sleep(0.5)
+print("thread ended", flush=True)
+time.sleep(600)
+"""
+
+
+def _grandchild_outlives_its_parent(mode, family=FAMILY, stop=False):
+    """Whether the grandchild of ``family`` lives on 5 s after its parent is killed (the grandchild is
+    stopped with ``SIGSTOP`` first if ``stop``); ended here if it does."""
+    child = subprocess.Popen([sys.executable, "-c", family, mode], stdout=subprocess.PIPE, text=True)
     grandchild = int(child.stdout.readline())
+    if family is FAMILY_BY_A_THREAD:
+        assert child.stdout.readline() == "thread ended\n"
+        assert alive(grandchild), "the grandchild ended with the thread that forked it, not with its parent"
+    if stop:
+        os.kill(grandchild, signal.SIGSTOP)
     os.kill(child.pid, signal.SIGKILL)
     child.wait()
     deadline = time.monotonic() + 5.0
@@ -44,6 +73,14 @@ def _grandchild_outlives_its_parent(mode):
 def test_a_child_ends_when_its_parent_is_killed_with_or_without_the_death_signal():
     assert not _grandchild_outlives_its_parent("signal")
     assert not _grandchild_outlives_its_parent("watch")
+
+
+def test_a_stopped_child_ends_when_its_parent_is_killed_whichever_thread_forked_it():
+    # issue 48: forked by a thread (no SIGKILL death signal), a child stopped with SIGSTOP when its parent
+    # was killed stayed stopped for good, reparented to pid 1: its watching thread never ran.
+    assert not _grandchild_outlives_its_parent("signal", stop=True)
+    assert not _grandchild_outlives_its_parent("thread", FAMILY_BY_A_THREAD, stop=True)
+    assert not _grandchild_outlives_its_parent("thread", FAMILY_BY_A_THREAD)
 
 
 def test_a_child_whose_parent_died_before_the_call_ends_at_once():
