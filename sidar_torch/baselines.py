@@ -167,18 +167,27 @@ ESTIMATORS: dict[str, tuple[Estimator, str]] = {
 
 def resolve_estimator(spec: str) -> tuple[str, Estimator]:
     """``(name, estimator)`` for a baseline's name (:data:`ESTIMATORS`) or ``"module:function"``
-    (``module`` importable, e.g. ``my_package.models:estimate``).
+    (``module`` importable, e.g. ``my_package.models:estimate``: a module or package in a folder of
+    ``sys.path``, which holds the current directory under ``python -m`` and the folders of ``PYTHONPATH``).
 
     Raises:
         ValueError: neither (the message lists the baselines), or the function is not callable.
-        ImportError: the module does not import (its error, naming it).
+        ImportError: no such module (the message says where it must be), or importing it failed
+            (its error, the estimator named).
     """
     if spec in ESTIMATORS:
         return spec, ESTIMATORS[spec][0]
     module_name, sep, function_name = spec.partition(":")
     if not sep or not module_name or not function_name:
         raise ValueError(f"estimator: expected one of {sorted(ESTIMATORS)} or MODULE:FUNCTION, got {spec!r}")
-    function = importlib.import_module(module_name)
+    try:
+        function = importlib.import_module(module_name)
+    except ModuleNotFoundError as error:
+        if error.name is None or not (module_name == error.name or module_name.startswith(f"{error.name}.")):
+            raise ImportError(f"estimator {spec!r}: importing {module_name!r} failed: {error}") from error
+        raise ImportError(f"estimator {spec!r}: no module named {error.name!r}; MODULE must be importable: a "
+                          f"module or package in the current directory ({os.getcwd()}) or in a folder on "
+                          f"PYTHONPATH") from None
     for part in function_name.split("."):
         if not hasattr(function, part):
             raise ValueError(f"estimator {spec!r}: module {module_name!r} has no {function_name!r}")

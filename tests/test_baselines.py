@@ -48,9 +48,26 @@ def test_names_resolve_and_wrong_ones_are_errors_naming_them():
         resolve_estimator("math:nope")
     with pytest.raises(ValueError, match=r"expected a callable, got float"):
         resolve_estimator("math:pi")
-    with pytest.raises(ImportError):
-        resolve_estimator("no_such_module_here:f")
     assert set(ESTIMATORS) == {"identity", "sift", "sift-magsac", "orb", "ecc", "homographynet"}
+
+
+@pytest.mark.parametrize("spec, missing", [("no_such_module_here:f", "no_such_module_here"),
+                                           ("no_such_package_here.models:f", "no_such_package_here"),
+                                           ("sidar_torch.no_such_module:f", "sidar_torch.no_such_module")])
+def test_a_module_that_is_not_there_is_an_error_saying_where_it_must_be(spec, missing):
+    """Issue 48: ``--estimator myest:orb`` said "No module named 'myest'", nothing about where it is looked for."""
+    with pytest.raises(ImportError, match=rf"estimator {spec!r}: no module named {missing!r}; MODULE must be "
+                                          r"importable: a module or package in the current directory \(.*\) or in a "
+                                          r"folder on PYTHONPATH"):
+        resolve_estimator(spec)
+
+
+def test_a_module_whose_own_import_fails_keeps_its_error_and_names_the_estimator(tmp_path, monkeypatch):
+    (tmp_path / "estimator_needing_more.py").write_text("import no_such_dependency_here\n")
+    monkeypatch.syspath_prepend(tmp_path)
+    with pytest.raises(ImportError, match=r"estimator 'estimator_needing_more:f': importing 'estimator_needing_more' "
+                                          r"failed: No module named 'no_such_dependency_here'"):
+        resolve_estimator("estimator_needing_more:f")
 
 
 def test_without_opencv_a_baseline_names_the_extra(monkeypatch):
