@@ -31,7 +31,7 @@ import torch
 from torch import nn
 
 from .augment_pool import RenderPool, RenderTask, render_tasks
-from .config import SidarConfig, as_float, as_int, load_config
+from .config import MAX_WORKERS, SidarConfig, as_float, as_int, load_config
 from .sample import stack_arrays
 from .scene import SceneSequence, sample_sequence
 from .paintings import CROP_MODES, array_to_uint8, tensor_to_uint8
@@ -53,7 +53,8 @@ class SidarAugment(nn.Module):
             ``kornia.augmentation``; ``torch.manual_seed`` then makes runs repeatable).
         crop: how images are fitted to ``image_size``, ``"center"`` or ``"none"`` (see below).
         num_workers: ``0`` (default): render in this process; ``n >= 1``: render each batch in a
-            pool of ``n`` render processes (see "Render pool").
+            pool of ``n`` render processes (see "Render pool"), at most
+            :data:`sidar_torch.config.MAX_WORKERS` (256; each holds its own renderer).
         timeout: with a pool, the most seconds a call may take: sending the images to the workers,
             rendering them and receiving the results (as ``DataLoader``'s ``timeout`` bounds
             fetching a batch); ``0`` (default): no limit, also like ``DataLoader`` (any fixed
@@ -159,7 +160,7 @@ class SidarAugment(nn.Module):
         if crop not in CROP_MODES:
             raise ValueError(f"crop: expected one of {CROP_MODES}, got {crop!r}")
         self.crop = crop
-        self.num_workers = as_int("num_workers", num_workers, 0)
+        self.num_workers = as_int("num_workers", num_workers, 0, MAX_WORKERS)
         self.timeout, self.warm_up_timeout = (_seconds(name, value) for name, value in
                                               (("timeout", timeout), ("warm_up_timeout", warm_up_timeout)))
         self.calls = 0

@@ -15,14 +15,17 @@ results are put back in batch order.
 
 Bounded waits. The parent never blocks on a worker: each message (an 8-byte length, then a pickle)
 goes out and comes in piece by piece on a non-blocking socket (:class:`_Outgoing`,
-:class:`_Incoming`), between ``select`` calls that wait at most until the call's deadline. A worker
+:class:`_Incoming`), between waits (``selectors.DefaultSelector``: epoll or poll, which take any
+descriptor number, where ``select`` fails for one of 1024 or more) that end at the call's deadline
+or after :data:`LONGEST_WAIT_S`, whichever comes first, so any finite limit works. A worker
 stopped (``SIGSTOP``) or hung while the parent sends it a task larger than the socket buffer, while it
 renders, or in the middle of its reply is thus caught by the same ``timeout``, and named with its pid
 and state. A new pool's workers warm up (``sidar_torch.warm_up``) before the pool takes tasks, under
 their own limit, so a call's ``timeout`` counts no shader compilation.
 
-A worker ends with its parent, whatever it is doing (rendering, waiting, or blocked sending a reply
-no one reads): right after the fork it calls :func:`sidar_torch.orphans.exit_with_parent` and lets
+A worker ends with its parent, whatever it is doing (rendering, waiting, blocked sending a reply
+no one reads, or stopped, from whichever thread the pool was started): right after the fork it
+calls :func:`sidar_torch.orphans.exit_with_parent` and lets
 go of every descriptor it inherited but its own socket end (the parent's ends of every socket pair,
 its own included, and any file of the parent's), see :mod:`sidar_torch.orphans`.
 
@@ -42,7 +45,7 @@ import math
 import multiprocessing
 import os
 import pickle
-import select
+import selectors
 import signal
 import socket
 import struct
@@ -55,7 +58,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import torch
 
-from .config import SidarConfig
+from .config import MAX_WORKERS, SidarConfig, as_int
 from .orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
 from .render import preload
 from .render.context import forks_nothing
@@ -64,7 +67,13 @@ from .scene import sample_sequence
 from .paintings import TensorPaintings
 from .warm_up import warm_renderer
 
-__all__ = ["RenderPool", "RenderTask", "render_tasks"]
+__all__ = ["LONGEST_WAIT_S", "RenderPool", "RenderTask", "render_tasks"]
+
+LONGEST_WAIT_S = 3600.0
+"""The longest one wait for the workers' sockets lasts, seconds; a longer ``timeout`` or
+``warm_up_timeout`` is waited out in several. The OS's waits take at most about 24 days (poll's
+milliseconds in a C ``int``; ``select`` failed with an ``OverflowError`` from 1e10 s), so without
+this a limit such as ``1e300`` (no limit, in practice) raised instead of waiting."""
 
 RenderTask = tuple[int, Sequence[int], np.ndarray]
 """``(position, entropy, image)``: image ``position`` of the batch, the entropy of its generator
@@ -170,10 +179,12 @@ class RenderPool:
 
     Args:
         config, crop: what every task is rendered with (copied into the workers at the fork).
-        num_workers: number of processes (``>= 1``).
+        num_workers: number of processes, from 1 to :data:`sidar_torch.config.MAX_WORKERS` (256:
+            each holds its own renderer, about 100 MiB, and renders on one CPU thread).
         warm_up_timeout: the most seconds the constructor waits for every worker to warm up (compile
             the shader variants of ``config``, :func:`sidar_torch.warm_up.warm_renderer`; at once
-            when the parent's renderer was warm at the fork); ``0``: no limit.
+            when the parent's renderer was warm at the fork); ``0``: no limit. Any finite number
+            (see :data:`LONGEST_WAIT_S`).
 
     The processes start and warm up in the constructor and live until :meth:`close` (also called
     when the pool is garbage-collected and at interpreter exit). A worker exits by itself within a
@@ -181,15 +192,17 @@ class RenderPool:
     it: a forked copy of it (e.g. inside a DataLoader worker) is :attr:`usable` nowhere but there.
 
     Raises:
+        ValueError: ``num_workers`` out of its range (before any process starts).
         TimeoutError: a worker did not warm up within ``warm_up_timeout`` (naming its pid and state);
             the exception a worker's warm-up raised (no GL context, ...). The workers are ended.
     """
 
     def __init__(self, config: SidarConfig, crop: str, num_workers: int, warm_up_timeout: float = 0.0):
+        num_workers = as_int("num_workers", num_workers, 1, MAX_WORKERS)
         context = multiprocessing.get_context("fork")
         preload()  # the workers inherit the renderer's imports
         self.pid = os.getpid()
-        # Linux's parent-death signal follows the forking thread: armed only if that is the main thread.
+        # Linux's parent-death signal follows the forking thread: SIGKILL only if that is the main thread.
         death_signal = threading.current_thread() is threading.main_thread()
         self._sockets: list[socket.socket] = []
         processes = []
@@ -227,8 +240,8 @@ class RenderPool:
         Args:
             tasks: what to render.
             timeout: the most seconds the whole call may take: sending the tasks, rendering them and
-                receiving the results (``0``: no limit). The workers are warm (see the constructor):
-                no shader compilation falls in it.
+                receiving the results (``0``: no limit; any finite number, see :data:`LONGEST_WAIT_S`).
+                The workers are warm (see the constructor): no shader compilation falls in it.
 
         Raises:
             The exception a worker raised (its traceback in the exception's notes), after the
@@ -272,9 +285,10 @@ class RenderPool:
 
     def _step(self, jobs: dict[socket.socket, _Job], deadline: float, limit_name: str,
               limit: float) -> list[tuple[socket.socket, Any]]:
-        """Wait (until ``deadline`` at most, on ``time.monotonic``) for a socket of ``jobs`` to be
-        ready, move what it can of each job's task out and of its reply in, and return the
-        ``(socket, reply)`` of the jobs whose reply is complete.
+        """Wait (until ``deadline`` at most, on ``time.monotonic``, and :data:`LONGEST_WAIT_S`) for a
+        socket of ``jobs`` to be ready, move what it can of each job's task out and of its reply in,
+        and return the ``(socket, reply)`` of the jobs whose reply is complete (none if the wait
+        ended first).
 
         Raises:
             TimeoutError: the deadline passed with ``jobs`` unfinished (``limit_name=limit`` named).
@@ -283,14 +297,17 @@ class RenderPool:
         left = deadline - time.monotonic()
         if left <= 0:
             raise self._timed_out(jobs, limit_name, limit)
-        sending = [sock for sock, job in jobs.items() if job.sending]
-        readable, writable, _ = select.select(list(jobs), sending, [], None if math.isinf(left) else left)
+        with selectors.DefaultSelector() as selector:
+            for sock, job in jobs.items():
+                selector.register(sock, selectors.EVENT_READ | (selectors.EVENT_WRITE if job.sending else 0))
+            ready = [(key.fileobj, events) for key, events in selector.select(min(left, LONGEST_WAIT_S))]
         done = []
         try:
-            for sock in writable:
-                jobs[sock].outgoing.pump(sock)
-            for sock in readable:
-                if jobs[sock].incoming.pump(sock):
+            for sock, events in ready:
+                if events & selectors.EVENT_WRITE and jobs[sock].sending:  # epoll reports a hang-up as both
+                    jobs[sock].outgoing.pump(sock)
+            for sock, events in ready:
+                if events & selectors.EVENT_READ and jobs[sock].incoming.pump(sock):
                     done.append((sock, jobs[sock].incoming.message()))
         except (EOFError, OSError):  # BrokenPipeError, ConnectionResetError, a closed socket: the worker is gone
             raise self._died(sock) from None

@@ -3,6 +3,7 @@
 import copy
 import os
 import pickle
+import resource
 import signal
 import socket
 import subprocess
@@ -15,7 +16,8 @@ import torch
 import sidar_torch.augment_pool
 from conftest import alive, assert_same_batch, child_pids
 from hang_guard import no_hang
-from sidar_torch import SidarAugment
+from sidar_torch import SidarAugment, load_config
+from sidar_torch.augment_pool import RenderPool
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -291,3 +293,71 @@ def test_workers_blocked_sending_a_reply_exit_when_the_parent_is_killed():
         for pid in pids:
             if alive(pid):
                 os.kill(pid, signal.SIGKILL)
+
+
+def test_a_pool_works_in_a_process_with_more_than_1024_descriptors_open():
+    # issue 48: select() refused descriptors of 1024 and more ("filedescriptor out of range in select()").
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if hard != resource.RLIM_INFINITY and hard < 1200:
+        pytest.skip(f"this system allows {hard} open files, fewer than the test needs")
+    resource.setrlimit(resource.RLIMIT_NOFILE, (max(soft, 1200) if soft != resource.RLIM_INFINITY else soft, hard))
+    held = [os.open(os.devnull, os.O_RDONLY) for _ in range(1100)]
+    try:
+        images = torch.rand(2, 3, *TINY)
+        with augment(1) as module:
+            got = module(images)
+            assert min(s.fileno() for s in module._pool._sockets) >= 1024
+        assert_same_batch(got, augment(0)(images))
+    finally:
+        for fd in held:
+            os.close(fd)
+        resource.setrlimit(resource.RLIMIT_NOFILE, (soft, hard))
+
+
+def test_any_finite_timeout_is_waited_for_and_worker_counts_are_bounded():
+    # issue 48: timeout=1e10 and warm_up_timeout=1e300 were accepted, then raised OverflowError in select().
+    images = torch.rand(2, 3, *TINY)
+    with augment(1, timeout=1e10, warm_up_timeout=1e300) as module:
+        assert_same_batch(module(images), augment(0)(images))
+    for count in (257, 10**6):
+        with pytest.raises(ValueError, match=rf"num_workers: expected an integer from 0 to 256, got {count}"):
+            augment(count)
+    config = load_config("misaligned", image_size=TINY, n_views=2)
+    for count in (0, 257):
+        with pytest.raises(ValueError, match=rf"num_workers: expected an integer from 1 to 256, got {count}"):
+            RenderPool(config, "center", count)
+
+
+THREAD_PARENT = f"""
+import threading, time, numpy as np
+from sidar_torch import load_config
+from sidar_torch.augment_pool import RenderPool
+pools = []
+thread = threading.Thread(target=lambda: pools.append(
+    RenderPool(load_config("misaligned", image_size={TINY}, n_views=2), "center", 1)))
+thread.start()
+thread.join()
+pools[0].run([(0, [0], np.zeros((3, *{TINY}), np.uint8))])  # the workers outlive the thread that forked them
+print(pools[0].processes[0].pid, flush=True)
+time.sleep(600)
+"""
+
+
+def test_a_stopped_worker_of_a_pool_started_by_a_thread_ends_when_the_parent_is_killed():
+    # issue 48: such a worker, stopped with SIGSTOP when its parent was killed, stayed stopped for good
+    # (state T, parent pid 1): with no SIGKILL death signal, only its getppid thread could end it, and
+    # a stopped process runs no thread.
+    parent = subprocess.Popen([sys.executable, "-c", THREAD_PARENT], stdout=subprocess.PIPE, text=True,
+                              cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    worker = None
+    try:
+        worker = int(parent.stdout.readline())
+        os.kill(worker, signal.SIGSTOP)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait(10)
+        assert wait_gone([worker], 5.0) == []
+    finally:
+        parent.kill()
+        parent.wait()
+        if worker is not None and alive(worker):
+            os.kill(worker, signal.SIGKILL)

@@ -4,7 +4,8 @@
   units are in its docstring.
 * ``allowed``: the choices of the text fields, the renderer's limits and the bounds of the number
   fields (``MAX_CAMERA_DISTANCE``, ``MAX_SCENE_EXTENT``, ``MAX_LIGHT_LEVEL``,
-  ``MAX_LIGHT_INTENSITY``, ``MAX_VIEWS``, ``MAX_SAMPLE_BYTES``), each with how it was derived.
+  ``MAX_LIGHT_INTENSITY``, ``MAX_VIEWS``, ``MAX_SAMPLE_BYTES``) and of the render processes
+  (``MAX_WORKERS``), each with how it was derived.
 * ``memory``: :func:`~memory.estimated_sample_bytes`, the memory a sample needs (measured figures).
 * ``numbers``: :func:`as_int` and :func:`as_float`, accepting NumPy and 0-d torch scalars (and
   refusing anything else, a ``Fraction`` beyond float's range or a ``Decimal`` included, with a
@@ -19,15 +20,15 @@
 """
 
 from .allowed import (ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, BACKGROUNDS, GEOMETRY_DTYPES, LIGHT_TYPES, MAX_CAMERA_DISTANCE, MAX_GL_SIZE,
-                      MAX_LIGHT_INTENSITY, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MESH_DETAILS,
-                      OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
+                      MAX_LIGHT_INTENSITY, MAX_LIGHT_LEVEL, MAX_SAMPLE_BYTES, MAX_SCENE_EXTENT, MAX_SHADOWED_LIGHTS, MAX_VIEWS, MAX_WORKERS,
+                      MESH_DETAILS, OCCLUDER_MATERIALS, OCCLUDER_SHAPES, ON_BAD_IMAGE, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS)
 from .fields import SidarConfig, field_meaning
 from .loader import PRESET_DIR, available_presets, load_config
 from .numbers import as_float, as_int
 
 __all__ = [
     "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
-    "MAX_LIGHT_INTENSITY", "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
+    "MAX_LIGHT_INTENSITY", "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MAX_WORKERS", "MESH_DETAILS",
     "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "PRESET_DIR", "SHADOW_FILTERS", "SHADOW_FRUSTA",
     "TEXTURE_FILTERS",
     "SidarConfig", "as_float", "as_int", "available_presets", "field_meaning", "load_config",

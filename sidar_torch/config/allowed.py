@@ -8,7 +8,7 @@ from ..render_choices import ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, MAX_SHADOWE
 
 __all__ = [
     "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LENS_MODELS", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
-    "MAX_LIGHT_INTENSITY", "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MESH_DETAILS",
+    "MAX_LIGHT_INTENSITY", "MAX_LIGHT_LEVEL", "MAX_SAMPLE_BYTES", "MAX_SCENE_EXTENT", "MAX_SHADOWED_LIGHTS", "MAX_VIEWS", "MAX_WORKERS", "MESH_DETAILS",
     "OCCLUDER_MATERIALS", "OCCLUDER_SHAPES", "ON_BAD_IMAGE", "SHADOW_FILTERS", "SHADOW_FRUSTA", "SPOT_FALLOFFS",
     "TEXTURE_FILTERS",
 ]
@@ -74,3 +74,12 @@ MAX_SAMPLE_BYTES = 2**32
 buffers and shadow maps, the homographies): a config over it is refused when it is made, naming
 ``image_size`` and ``n_views``, instead of failing (or being killed) minutes into the first sample.
 The default preset needs about 0.2 GiB."""
+
+MAX_WORKERS = 256
+"""Most render processes one call may start (``SidarAugment``'s ``num_workers``, the render pool's,
+``export``'s ``workers``). Each is a forked process that renders on one CPU thread (llvmpipe,
+``LP_NUM_THREADS=0``) with its own renderer: about 100 MiB of memory of its own once it has
+rendered a 3-view 384x512 sample (``/proc/<pid>/smaps_rollup``, private dirty 91-108 MiB), so 256
+take about 25 GiB and need 256 hardware threads to render at once, more than a single machine
+usually has. A larger count is a mistake (a sample count for a worker count) that would fork until
+memory or the process limit ran out; it is refused, naming the argument."""

@@ -71,22 +71,26 @@ def _scalar(name: str, value: Any) -> int | float:
         return math.inf if value > 0 else -math.inf
 
 
-def as_int(name: str, value: Any, minimum: int | None = None) -> int:
+def as_int(name: str, value: Any, minimum: int | None = None, maximum: int | None = None) -> int:
     """``value`` as a Python ``int``: any integer scalar (Python, NumPy of any width, a 0-d integer
     tensor), or a float with an integral value (``3.0``).
 
     Args:
         name: what the value is, for the error (e.g. ``"config field 'n_views'"``, ``"seed"``).
-        minimum: the least value allowed, if any.
+        minimum, maximum: the least and the largest value allowed, if any.
 
     Raises:
-        ValueError: a bool, not a number, not integral, or below ``minimum`` (the message starts with ``name``).
+        ValueError: a bool, not a number, not integral, below ``minimum`` or above ``maximum`` (the
+            message starts with ``name`` and gives the range).
     """
     number = _scalar(name, value)
     if isinstance(number, float) and not number.is_integer():
         raise ValueError(f"{name}: expected an integer, got {shown(value)}")
-    if minimum is not None and number < minimum:
-        raise ValueError(f"{name}: expected an integer >= {minimum}, got {shown(value)}")
+    too_small, too_large = minimum is not None and number < minimum, maximum is not None and number > maximum
+    if too_small or too_large:
+        expected = (f">= {minimum}" if maximum is None else f"<= {maximum}" if minimum is None
+                    else f"from {minimum} to {maximum}")
+        raise ValueError(f"{name}: expected an integer {expected}, got {shown(value)}")
     return int(number)
 
 
