@@ -234,8 +234,8 @@ class SidarConfig:
     flow_output: bool = _field(False, meaning=(
         "also hand out ``flow_to_reference``, per view where each pixel lands in view 0 minus the pixel (pixels, "
         "float32 ``(du, dv)``), NaN where that is not a seen correspondence: ``sidar_torch.flow(sample, i, 0)`` "
-        "for every view, computed on the CPU from the depth (drawn for it whether or not ``depth_output`` is on). "
-        "See docs/parallax.md."))
+        "for every view, computed on the CPU from the depth (drawn for it whether or not ``depth_output`` is on); "
+        "needs an ``image_size`` of at least 2 x 2. See docs/parallax.md."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

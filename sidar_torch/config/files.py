@@ -7,6 +7,7 @@ its own check that a file lies inside the export and opens it here too.
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from contextlib import contextmanager
@@ -43,12 +44,17 @@ def open_regular(path: str | os.PathLike, what: str = "") -> Iterator[BinaryIO]:
 
     Raises:
         FileNotFoundError: ``path`` does not exist (the message names it, after ``what``).
-        ValueError: as :func:`check_regular`.
+        ValueError: as :func:`check_regular`, or ``path`` is a loop of symbolic links.
     """
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
         raise FileNotFoundError(f"{what}{str(path)!r} does not exist") from None
+    except OSError as error:
+        if error.errno != errno.ELOOP:
+            raise
+        raise ValueError(f"{what}{str(path)!r}: not a regular file: expected a regular file, got a loop of symbolic "
+                         f"links (each names the next, none a file)") from None
     check_regular(path, mode, what)
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     with os.fdopen(fd, "rb") as f:

@@ -7,6 +7,7 @@ installed wheel loads them wherever it runs. A YAML file of the user's own may n
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from pathlib import Path
@@ -16,7 +17,7 @@ import yaml
 
 from .fields import SidarConfig
 from .files import read_regular
-from .numbers import long_integer_text
+from .numbers import long_integer_text, shown
 from .validation import check_field, check_names, did_you_mean
 
 __all__ = ["PRESET_DIR", "available_presets", "load_config", "parse_yaml"]
@@ -120,7 +121,7 @@ def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[s
     """``{field: (value, file)}`` of a preset name or YAML path, with its ``base`` chain resolved
     (a file's values replace its base's), each value with the file it came from."""
     path = _yaml_path(source)
-    if path.resolve() in seen:
+    if _resolved(path) in seen:
         raise ValueError(f"config {str(path)!r}: 'base' chain loops back to itself")
     data = _parse(path)
     base = data.pop("base", None)
@@ -129,7 +130,13 @@ def _read_yaml(source: str | os.PathLike, seen: tuple[Path, ...] = ()) -> dict[s
     if base is None:
         return fields
     base_path = base if str(base) in available_presets() else path.parent / str(base)
-    return {**_read_yaml(base_path, seen + (path.resolve(),)), **fields}
+    return {**_read_yaml(base_path, seen + (_resolved(path),)), **fields}
+
+
+def _resolved(path: Path) -> Path:
+    """``path`` absolute, its links followed as far as they go: a loop of links is left for the file's
+    reading to refuse by name (``Path.resolve`` raises ``RuntimeError`` on Python 3.11)."""
+    return Path(os.path.realpath(path))
 
 
 def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", **overrides: Any) -> SidarConfig:
@@ -143,29 +150,45 @@ def load_config(preset: str | os.PathLike | SidarConfig | None = "misaligned", *
 
     Raises:
         ValueError: unknown preset or field (with the closest names), a YAML file that is not a
-            regular file (a FIFO), not UTF-8 text, malformed (naming the file and line) or nested too
-            deeply, or a value of any type (a ``Fraction``, a ``Decimal``, an integer of 5000 digits,
-            a bool, ...) that is not one the field takes or lies out of its range (the message names
-            the field, and the file the value came from; a rule between fields names ``preset``'s
-            file). Nothing else: no ``TypeError`` or ``OverflowError`` for a wrong value.
+            regular file (a FIFO, a loop of symbolic links), not UTF-8 text, malformed (naming the
+            file and line) or nested too deeply, or a value of any type (a ``Fraction``, a
+            ``Decimal``, an integer of 5000 digits, a bool, ...) that is not one the field takes or
+            lies out of its range. The message names the field and where the value came from: the
+            file (``config file '<path>': ...``) or the override (``override n_views='x': ...``); a
+            rule between fields names the overrides when ``preset``'s values alone keep it
+            (``overrides n_views=64 on config file '<path>': ...``), else ``preset``'s file. Nothing
+            else: no ``TypeError`` or ``OverflowError`` for a wrong value.
         FileNotFoundError: a YAML path, or a ``base`` it names, does not exist.
     """
     check_names(overrides, SidarConfig, "override")
     if isinstance(preset, SidarConfig):
-        return preset.replace(**overrides)
-    fields = {} if preset is None else _read_yaml(preset)
+        fields = {f.name: (getattr(preset, f.name), None) for f in dataclasses.fields(preset)}
+    else:
+        fields = {} if preset is None else _read_yaml(preset)
     values = {name: value for name, (value, _) in fields.items()}
-    for name, value in {**values, **overrides}.items():  # each value alone, naming its file if it has one
+    for name, value in {**values, **overrides}.items():  # each value alone, naming where it came from
         try:
             check_field(SidarConfig.__dataclass_fields__[name], value)
         except ValueError as error:
-            if name in overrides:
-                raise
-            raise ValueError(f"config file {str(fields[name][1])!r}: {error}") from None
+            source = f"override {name}={shown(value)}" if name in overrides else f"config file {str(fields[name][1])!r}"
+            raise ValueError(f"{source}: {error}") from None
     try:
         return SidarConfig(**{**values, **overrides})
-    except ValueError as error:  # every value passed alone: a rule between fields, the file's (and its bases') among them
-        if not fields.keys() - overrides.keys():
-            raise
-        raise ValueError(f"config file {str(_yaml_path(preset))!r}{' with overrides' if overrides else ''}: "
-                         f"{error}") from None
+    except ValueError as error:  # every value passed alone: a rule between fields
+        raise ValueError(f"{_broken_by(preset, values, overrides)}: {error}") from None
+
+
+def _broken_by(preset: str | os.PathLike | SidarConfig | None, values: dict[str, Any], overrides: dict[str, Any]) -> str:
+    """Whom a rule between fields that ``values`` (``preset``'s) with ``overrides`` break is blamed on:
+    ``"overrides a=1, b=2 on config file '<path>'"`` if ``preset``'s values alone keep every rule,
+    else ``"config file '<path>'"`` (``" with overrides a=1"`` when there are some)."""
+    source = ("the defaults" if preset is None else "the SidarConfig given" if isinstance(preset, SidarConfig)
+              else f"config file {str(_yaml_path(preset))!r}")
+    named = ", ".join(f"{name}={shown(value)}" for name, value in overrides.items())
+    if not overrides:
+        return source
+    try:
+        SidarConfig(**values)
+    except ValueError:
+        return f"{source} with overrides {named}"
+    return f"overrides {named} on {source}"

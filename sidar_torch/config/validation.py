@@ -146,7 +146,7 @@ def check_field(f: dataclasses.Field, value: Any) -> Any:
 def validate(config: Any) -> None:
     """Check the coerced fields of a ``SidarConfig`` against their ``bounds`` and ``choices``
     metadata and the rules between fields (the camera box's tilt, the shadow maps the renderer can
-    bind, the memory a sample needs).
+    bind, flow's least image size, the lens, the memory a sample needs).
 
     Raises:
         ValueError: the first field out of range (the message names it and what was expected).
@@ -171,8 +171,18 @@ def validate(config: Any) -> None:
     need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
          f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
          f"config field 'n_lights' is {c.n_lights})")
+    _check_flow(c)
     _check_lens(c)
     _check_memory(c)
+
+
+def _check_flow(config: Any) -> None:
+    """Flow needs views of at least 2 x 2 pixels: whether view j sees a point is read from the four
+    pixel centres around it (``sidar_torch.dense``), which a side of one pixel does not have."""
+    if config.flow_output and min(config.image_size) < 2:
+        raise ValueError(f"config fields 'flow_output' and 'image_size': expected an image_size of at least 2 x 2 "
+                         f"pixels (H, W) with flow_output true (flow reads the four pixel centres around each "
+                         f"point), got {config.image_size}; set flow_output false or enlarge image_size")
 
 
 def _check_lens(config: Any) -> None:

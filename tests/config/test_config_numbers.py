@@ -3,6 +3,7 @@ field; a config file names itself in every error; a FIFO is refused as not a reg
 blocking."""
 
 import os
+import re
 import subprocess
 import sys
 from decimal import Decimal
@@ -26,7 +27,7 @@ HUGE = Fraction(10**400, 3)
     ("n_views", True), ("camera_xy", np.bool_(False)), ("n_views", 3 + 0j), ("n_views", "3"), ("n_views", None),
 ], ids=lambda v: v if isinstance(v, str) else type(v).__name__)
 def test_a_number_of_any_type_is_a_value_error_naming_the_field(field, value):
-    with pytest.raises(ValueError, match=f"^config field '{field}': expected"):
+    with pytest.raises(ValueError, match=f"^override {field}=.*: config field '{field}': expected"):
         load_config("misaligned", **{field: value})
 
 
@@ -58,10 +59,64 @@ def test_every_error_of_a_config_file_names_the_file(tmp_path, text, named):
 def test_an_override_is_named_alone_and_a_rule_between_a_file_and_overrides_names_both(tmp_path):
     path = tmp_path / "mine.yaml"
     path.write_text("base: misaligned\nimage_size: [3000, 4000]\n")
-    with pytest.raises(ValueError, match="^config field 'n_views': expected 1 <= value <= 256, got 1000$"):
+    with pytest.raises(ValueError, match="^override n_views=1000: config field 'n_views': expected 1 <= value <= 256, "
+                                         "got 1000$"):
         load_config(path, n_views=1000)
-    with pytest.raises(ValueError, match=rf"^config file {str(path)!r} with overrides: config fields 'image_size'"):
+    with pytest.raises(ValueError, match=rf"^overrides n_views=64 on config file {str(path)!r}: config fields 'image_size'"):
         load_config(path, n_views=64)
+
+
+def test_an_overrides_own_mistake_names_the_override_not_the_preset_file(tmp_path):
+    # issue 48: load_config("misaligned", n_views="x") and a rule that only the overrides break were
+    # blamed on the preset's file ("config file '.../misaligned.yaml' with overrides: ...").
+    with pytest.raises(ValueError, match=r"^override n_views='x': config field 'n_views': expected a number, got 'x'$"):
+        load_config("misaligned", n_views="x")
+    preset = "misaligned.yaml'"
+    with pytest.raises(ValueError, match=rf"^overrides max_tilt_deg=89 on config file '[^']*{preset}: config field "
+                                         r"'max_tilt_deg': expected at most"):
+        load_config("misaligned", max_tilt_deg=89)
+    with pytest.raises(ValueError, match=r"^overrides max_tilt_deg=89 on the defaults: config field 'max_tilt_deg'"):
+        load_config(None, max_tilt_deg=89)
+    with pytest.raises(ValueError, match=r"^overrides max_tilt_deg=89 on the SidarConfig given: config field"):
+        load_config(load_config("misaligned"), max_tilt_deg=89)
+    # A file that breaks a rule by itself is still named as the one to fix, with the overrides beside it.
+    path = tmp_path / "steep.yaml"
+    path.write_text("base: misaligned\nmax_tilt_deg: 89\n")
+    with pytest.raises(ValueError, match=rf"^config file {str(path)!r} with overrides n_views=2: config field 'max_tilt_deg'"):
+        load_config(path, n_views=2)
+
+
+def test_a_loop_of_symbolic_links_named_as_a_config_is_a_value_error_naming_it(tmp_path):
+    # issue 48: Path.resolve raised RuntimeError("Symlink loop from ...").
+    first, second = tmp_path / "first.yaml", tmp_path / "second.yaml"
+    first.symlink_to(second)
+    second.symlink_to(first)
+    with pytest.raises(ValueError, match=rf"^config file {str(first)!r}: not a regular file: expected a regular file, "
+                                         r"got a loop of symbolic links"):
+        load_config(first)
+    (tmp_path / "child.yaml").write_text("base: first.yaml\n")
+    with pytest.raises(ValueError, match=rf"^config file {str(first)!r}: not a regular file"):
+        load_config(tmp_path / "child.yaml")
+
+
+@pytest.mark.parametrize("size", [(1, 64), (64, 1), (1, 1)])
+def test_flow_at_a_side_of_one_pixel_is_refused_naming_both_fields(size):
+    # issue 48: accepted, then RuntimeError ("index -64 is out of bounds") in the first sample's flow.
+    with pytest.raises(ValueError, match=rf"config fields 'flow_output' and 'image_size': expected an image_size of at "
+                                         rf"least 2 x 2 pixels \(H, W\) with flow_output true .*got {re.escape(str(size))}"):
+        load_config("misaligned", image_size=size, flow_output=True)
+    assert load_config("misaligned", image_size=size, depth_output=True).image_size == size  # depth alone renders
+    assert load_config("misaligned", image_size=(2, 2), flow_output=True).flow_output
+
+
+def test_as_int_refuses_a_value_above_its_maximum_giving_the_range():
+    from sidar_torch.config import MAX_WORKERS, as_int
+
+    assert as_int("num_workers", np.int64(MAX_WORKERS), 0, MAX_WORKERS) == MAX_WORKERS
+    with pytest.raises(ValueError, match=r"^num_workers: expected an integer from 0 to 256, got 257$"):
+        as_int("num_workers", 257, 0, MAX_WORKERS)
+    with pytest.raises(ValueError, match=r"^count: expected an integer <= 4, got 5$"):
+        as_int("count", 5, maximum=4)
 
 
 def test_a_value_names_the_file_it_came_from_in_a_base_chain(tmp_path):
