@@ -16,6 +16,7 @@ from typing import Any, Mapping
 
 import torch
 
+from .config import as_float, as_int
 from .dense import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
 from .sample import KEYS, float_tensor
 
@@ -29,9 +30,9 @@ def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOL
     Args:
         sample: a sample dict with ``depth`` (``(V, 1, H, W)``, config ``depth_output``), ``K``, ``R``
             ``(V, 3, 3)`` and ``t`` ``(V, 3)``, or a batch of them (a leading ``B`` on each).
-        i, j: the two views (``0 <= i, j < V``).
+        i, j: the two views (``0 <= i, j < V``): integers of any kind (Python, NumPy, a 0-d tensor).
         tolerance: the relative depth disagreement (see :data:`DEPTH_TOLERANCE`) that still counts as
-            the same surface.
+            the same surface, a positive number.
 
     Returns:
         ``flow`` ``(2, H, W)`` float32, pixels: ``(du, dv)`` such that pixel ``(u, v)`` of view i lands at
@@ -45,21 +46,56 @@ def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOL
 
     Raises:
         KeyError: the sample has no ``depth`` (rendered without ``depth_output``).
-        ValueError: a view index out of range, a tolerance that is not a positive number, or
-            keys whose shapes do not fit together (each named).
+        ValueError: a view index out of range, a tolerance that is not a positive number, keys
+            whose shapes do not fit together, or intrinsics ``K`` of view i or j that are not finite
+            and invertible (each named).
     """
     if "depth" not in sample:
         raise KeyError("sample: no 'depth' key; render with the config field depth_output: true")
     depth, K, R, t, batched = _checked(sample)
-    n_views = depth.shape[1]
-    for name, view in (("i", i), ("j", j)):
-        if isinstance(view, bool) or not isinstance(view, int) or not 0 <= view < n_views:
-            raise ValueError(f"{name}: expected a view index in [0, {n_views}), got {view!r}")
-    if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not tolerance > 0:
+    i, j = (_view_index(name, view, depth.shape[1]) for name, view in (("i", i), ("j", j)))
+    tolerance = as_float("tolerance", tolerance, finite=False)
+    if not tolerance > 0:
         raise ValueError(f"tolerance: expected a positive number, got {tolerance!r}")
+    for name, view in (("i", i), ("j", j)):
+        _check_intrinsics(K, view, name, batched)
     flows, valid = depth_flow(depth[:, :, 0], K, R, t, i, j, tolerance)
     flows = flows.float()
     return (flows, valid) if batched else (flows[0], valid[0])
+
+
+def _view_index(name: str, value: Any, n_views: int) -> int:
+    """``value`` as a view index in ``[0, n_views)`` (any integer scalar, ``config.as_int``).
+
+    Raises:
+        ValueError: not an integer (a bool included) or out of range, naming ``name``.
+    """
+    expected = f"{name}: expected a view index in [0, {n_views})"
+    try:
+        view = as_int(name, value)
+    except ValueError:
+        raise ValueError(f"{expected}, got {value!r}") from None
+    if not 0 <= view < n_views:
+        raise ValueError(f"{expected}, got {value!r}")
+    return view
+
+
+def _check_intrinsics(K: torch.Tensor, view: int, name: str, batched: bool) -> None:
+    """Refuse intrinsics of ``view`` (``K`` ``(B, V, 3, 3)`` float64) that are not finite or not
+    invertible (rank below 3, ``torch.linalg.matrix_rank``'s tolerance): view ``i``'s pixels are lifted
+    through ``K^-1``, view ``j``'s projected through ``K``.
+
+    Raises:
+        ValueError: naming the view (``name`` and index), the batch item if ``batched``, and the matrix.
+    """
+    k = K[:, view]
+    finite = torch.isfinite(k).all(dim=(1, 2))
+    ranks = torch.linalg.matrix_rank(torch.where(finite[:, None, None], k, torch.eye(3, dtype=k.dtype)))
+    for item in torch.nonzero(~finite | (ranks < 3)).flatten().tolist():
+        where = f"[{item}, {view}]" if batched else f"[{view}]"
+        problem = "not finite" if not finite[item] else f"singular (rank {int(ranks[item])})"
+        raise ValueError(f"sample['K']{where}: expected the invertible 3 x 3 intrinsics of view {name}={view}, got "
+                         f"{k[item].tolist()}, {problem}")
 
 
 def _checked(sample: Mapping[str, Any]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, bool]:

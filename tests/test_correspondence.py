@@ -1,6 +1,9 @@
 """``sidar_torch.flow``'s inputs: what it refuses, and that a batch gives each item's answer. Its
 geometry is proved by rendering (``tests/render/test_depth_flow.py``)."""
 
+import re
+
+import numpy as np
 import pytest
 import torch
 
@@ -49,6 +52,38 @@ def test_wrong_inputs_name_what_is_wrong():
         flow({**sample, "depth": sample["depth"][:, 0]}, 0, 1)
     with pytest.raises(ValueError, match=r"batch\['t'\]: expected a float tensor"):
         flow({**sample, "t": sample["t"].long()}, 0, 1)
+
+
+def test_view_indices_and_tolerances_of_any_number_type_are_taken():
+    # issue 48: flow(s, np.int64(1), 0) was refused, though config fields take NumPy numbers.
+    sample = plane_sample()
+    expected = flow(sample, 1, 0)
+    for i, j in ((np.int64(1), np.int32(0)), (torch.tensor(1), np.uint8(0))):
+        got = flow(sample, i, j, tolerance=np.float32(1e-3))
+        assert torch.equal(got[0].nan_to_num(7.0), expected[0].nan_to_num(7.0)) and torch.equal(got[1], expected[1])
+    for bad in (np.int64(3), np.float64(0.5), "1"):
+        with pytest.raises(ValueError, match=rf"i: expected a view index in \[0, 3\), got {re.escape(repr(bad))}$"):
+            flow(sample, bad, 0)
+    with pytest.raises(ValueError, match="tolerance: expected a positive number, got nan"):
+        flow(sample, 0, 1, tolerance=np.float64("nan"))
+
+
+@pytest.mark.parametrize("view, name", [(1, "i"), (2, "j")])
+@pytest.mark.parametrize("K, problem", [(torch.zeros(3, 3), r"singular \(rank 0\)"),
+                                        (torch.tensor([[10.0, 0, 3.5], [20.0, 0, 7], [0, 0, 1]]), r"singular \(rank 2\)"),
+                                        (torch.full((3, 3), float("nan")), "not finite")], ids=["zeros", "rank-2", "nan"])
+def test_intrinsics_that_are_not_invertible_are_named_with_their_view(view, name, K, problem):
+    # issue 48: a singular K of view i gave torch's LinAlgError, naming neither the view nor K.
+    sample = plane_sample()
+    sample["K"][view] = K
+    i, j = (view, 0) if name == "i" else (0, view)
+    with pytest.raises(ValueError, match=rf"^sample\['K'\]\[{view}\]: expected the invertible 3 x 3 intrinsics of view "
+                                         rf"{name}={view}, got .*{problem}$"):
+        flow(sample, i, j)
+    batch = {key: torch.stack([plane_sample()[key], sample[key]]) for key in sample}
+    with pytest.raises(ValueError, match=rf"^sample\['K'\]\[1, {view}\]: expected the invertible"):
+        flow(batch, i, j)
+    flow(sample, 0, 3 - view)  # the other views' intrinsics are fine
 
 
 def test_depth_and_flow_are_refused_through_a_lens():
