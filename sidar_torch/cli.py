@@ -7,6 +7,7 @@ Measurements (speed, accuracy, the quality sweep) live outside the package, in t
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import difflib
 import json
 import os
@@ -19,11 +20,11 @@ from typing import Any, ContextManager, Sequence
 import yaml
 from PIL import Image
 
-from .config import as_int, available_presets, load_config
+from .config import SidarConfig, as_int, available_presets, load_config
 from .config.loader import parse_yaml
 from .baselines import ESTIMATORS, resolve_estimator
 from .dataset import SidarDataset
-from .evaluation import evaluate, format_table
+from .evaluation import DEFAULT_TIMEOUT, checked_timeout, evaluate, format_table
 from .io import LAYOUTS, ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
 from .orphans import process_age
@@ -120,12 +121,25 @@ def _dataset(args: argparse.Namespace, clock: WallClock) -> SidarDataset:
     Raises:
         UsageError: any of them is wrong (the message says which and why).
     """
+    overrides = parse_overrides(args.set)
     try:
         with clock.part("set-up"):
-            config = load_config(args.config, **parse_overrides(args.set))
+            config = load_config(args.config, **overrides)
             return SidarDataset(source=args.source, config=config, seed=args.seed)
     except USER_MISTAKES as error:
-        raise UsageError(str(error)) from error
+        raise UsageError(f"{error}{_list_syntax(str(error), overrides)}") from error
+
+
+def _list_syntax(message: str, overrides: dict[str, Any]) -> str:
+    """How ``--set`` writes a list, when ``message`` is about a list-valued field that ``--set`` gave
+    (the config's messages name it as ``config field '<name>'``): `` (--set reads a list as
+    image_size=[384, 512] or image_size=(384, 512))``, with the field's default; else ``""``."""
+    defaults = {f.name: f.default for f in dataclasses.fields(SidarConfig)}
+    for key in overrides:
+        if f"config field {key!r}" in message and isinstance(defaults.get(key), tuple):
+            items = ", ".join(f"{x:g}" if isinstance(x, float) else str(x) for x in defaults[key])
+            return f" (--set reads a list as {key}=[{items}] or {key}=({items}))"
+    return ""
 
 
 def _warm_up(dataset: SidarDataset, clock: WallClock) -> None:
@@ -144,6 +158,9 @@ def _preview(args: argparse.Namespace, clock: WallClock) -> None:
     dataset = _dataset(args, clock)
     config = dataset.config
     out = Path(args.out)
+    if out.is_dir() or out.suffix.lower() not in _image_extensions():
+        raise UsageError(f"--out {args.out!r}: expected a file path ending in .png, .jpg or another image extension "
+                         f"Pillow writes{' (this is a folder)' if out.is_dir() else ''}")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)  # before rendering, so a wrong --out costs no wait
     except OSError as error:
@@ -167,6 +184,11 @@ def _preview(args: argparse.Namespace, clock: WallClock) -> None:
           f"{views / elapsed:.1f} views/s")
 
 
+def _image_extensions() -> set[str]:
+    """The file extensions (``.png``, ``.jpg``, ...) of the formats Pillow can write."""
+    return {ext for ext, name in Image.registered_extensions().items() if name in Image.SAVE}
+
+
 def _export(args: argparse.Namespace, clock: WallClock) -> None:
     if args.testset is not None:
         return _export_testset(args, clock)
@@ -181,8 +203,11 @@ def _export(args: argparse.Namespace, clock: WallClock) -> None:
                          f"Ray's workers render (drop --workers)")
     try:  # export_dataset checks them too: here before the warm-up, so that a wrong number costs no wait
         as_int("count", args.count, 1), as_int("start", args.start, 0)
+        if args.shard_size is not None:
+            as_int("--shard-size", args.shard_size, 1)
     except ValueError as error:
         raise UsageError(str(error)) from error
+    _check_layout(args)
     dataset = _dataset(args, clock)
     if not args.ray:  # Ray's workers are other processes: each warms its own renderer up
         _warm_up(dataset, clock)
@@ -196,6 +221,21 @@ def _export(args: argparse.Namespace, clock: WallClock) -> None:
     print(f"wrote {counted(len(summary.written), 'sequence')} to {args.out} in {summary.seconds:.1f} s "
           f"({summary.present} of the {counted(args.count, 'requested sequence')} already there); "
           f"read them with sidar_torch.ExportedDataset({args.out!r})")
+
+
+def _check_layout(args: argparse.Namespace) -> None:
+    """``--layout`` and ``--shard-size`` agree (the layout's row of :data:`LAYOUTS` takes the shard size
+    given, or none), before any work; the message names the flags, where the layout's names the
+    manifest's field."""
+    if args.layout is None:
+        return
+    try:
+        LAYOUTS[args.layout].from_record(args.shard_size)
+    except ValueError:
+        if args.shard_size is None:
+            raise UsageError(f"--layout {args.layout}: needs --shard-size SEQUENCES") from None
+        raise UsageError(f"--shard-size {args.shard_size}: --layout {args.layout} writes no shards (drop --shard-size, "
+                         f"or --layout for shards)") from None
 
 
 def _run_export(args: argparse.Namespace, dataset: SidarDataset) -> ExportSummary:
@@ -248,20 +288,21 @@ def _evaluate(args: argparse.Namespace, clock: WallClock) -> None:
         raise UsageError(f"--testset {args.testset!r}: expected one of {', '.join(available_testsets())} or a folder")
     if args.cache is not None and args.testset not in available_testsets():
         raise UsageError(f"--cache {args.cache!r}: only a named test set is rendered; {args.testset!r} is read as it is")
+    _importable_here()
     try:
-        name, estimator = resolve_estimator(args.estimator)
+        checked_timeout(args.timeout)
+        resolve_estimator(args.estimator)  # here, so that a wrong name costs no rendering
     except (ValueError, ImportError) as error:
-        raise UsageError(f"--{error}" if str(error).startswith("estimator") else str(error)) from error
+        raise UsageError(f"--{error}" if str(error).startswith(("estimator", "timeout")) else str(error)) from error
     if args.testset in available_testsets():
         where = args.cache if args.cache is not None else "a temporary folder, deleted afterwards (--cache DIR keeps it)"
         print(f"rendering {args.testset} into {where} (what is there already is reused)", file=sys.stderr)
     try:
         with clock.part("evaluate"):
-            result = evaluate(estimator, testset=args.testset, limit=args.limit, cache=args.cache,
-                              progress=not args.no_progress)
-    except (ImportError, FileNotFoundError) as error:  # a baseline without OpenCV or without its weights
-        raise UsageError(str(error)) from error
-    result["estimator"] = name
+            result = evaluate(args.estimator, testset=args.testset, limit=args.limit, cache=args.cache,
+                              progress=not args.no_progress, timeout=args.timeout)
+    except (ValueError, OSError, ImportError) as error:  # not a test set, a damaged file (named), an estimator
+        raise UsageError(str(error)) from error  # answering no matrix, a baseline without OpenCV or its weights
     if result["digests"] is not None:
         print(f"{args.testset}: {result['digests']['summary']}")
     print(format_table(result))
@@ -271,6 +312,14 @@ def _evaluate(args: argparse.Namespace, clock: WallClock) -> None:
         except OSError as error:
             raise UsageError(f"--json {args.json!r}: {error}") from error
         print(f"wrote {args.json}")
+
+
+def _importable_here() -> None:
+    """Let ``--estimator MODULE:FUNCTION`` find MODULE in the current directory under the ``sidar-torch``
+    script too: ``python -m`` puts the directory first on ``sys.path``; here it goes last, after what
+    is installed."""
+    if "" not in sys.path and os.getcwd() not in sys.path:
+        sys.path.append(os.getcwd())
 
 
 def _interrupted(what: str) -> SystemExit:
@@ -362,9 +411,14 @@ def _parser() -> argparse.ArgumentParser:
                             help=f"{', '.join(available_testsets())} or a folder (default homography-v1)")
     evaluation.add_argument("--estimator", required=True, metavar="NAME_OR_MODULE:FUNC",
                             help=f"a baseline ({', '.join(ESTIMATORS)}) or MODULE:FUNCTION, a function of two "
-                                 "(H, W, 3) uint8 views returning a 3x3 homography (source to target pixels) or None")
+                                 "(H, W, 3) uint8 views returning a 3x3 homography (source to target pixels) or None "
+                                 "(MODULE in the current directory or on PYTHONPATH)")
     evaluation.add_argument("--limit", type=int, default=None, metavar="N",
-                            help="score the first N pairs only, taken in turn from each category")
+                            help="score N pairs only, one from each category in turn (round robin)")
+    evaluation.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT, metavar="SECONDS",
+                            help=f"stop a call of the estimator after SECONDS and score its pair as a failure "
+                                 f"(default {DEFAULT_TIMEOUT:g}); one that raises is scored so too, its traceback "
+                                 f"printed, and the run goes on")
     evaluation.add_argument("--cache", default=None, metavar="DIR",
                             help="render a named test set into DIR and keep it (default: a temporary folder)")
     evaluation.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON to OUT")

@@ -1,6 +1,6 @@
-"""The command line's handling of what users type (issue 20 item 6, issue 25 item 4): tuples in
-parentheses, "did you mean" for presets, one line and exit code 2 for every user mistake, and a
-quiet stop when the reader of the output goes away."""
+"""The command line's handling of what users type (issue 20 item 6, issue 25 item 4, issue 48): tuples
+in parentheses, "did you mean" for presets, one line and exit code 2 for every user mistake (evaluate's
+included), and a quiet stop when the reader of the output goes away."""
 
 import os
 import re
@@ -9,9 +9,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from sidar_torch import cli, load_config
+from test_evaluation import H_TRUE, export
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,13 +32,13 @@ def test_set_reads_a_tuple_in_parentheses_like_a_list(item, expected):
         assert getattr(config, key) == (tuple(value) if isinstance(value, list) else value)
 
 
-def _one_line_error(argv, capsys) -> str:
-    """The message ``sidar_torch preview`` prints for ``argv``, checked to be one line with exit code 2."""
+def _one_line_error(argv, capsys, command="preview") -> str:
+    """The message ``sidar_torch <command>`` prints for ``argv``, checked to be one line with exit code 2."""
     with pytest.raises(SystemExit) as exit_info:
-        cli.main(["preview", *argv])
+        cli.main([command, *argv])
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
-    assert err.startswith("sidar_torch preview: ") and err.count("\n") == 1 and "Traceback" not in err, err
+    assert err.startswith(f"sidar_torch {command}: ") and err.count("\n") == 1 and "Traceback" not in err, err
     return err
 
 
@@ -137,3 +139,122 @@ def test_export_refuses_a_count_below_one_before_any_work(capsys, monkeypatch):
     with pytest.raises(SystemExit):
         cli.main(["export", "--out", "unused", "--count", "0"])
     assert "count: expected an integer >= 1, got 0" in capsys.readouterr().err
+
+
+ESTIMATORS = """
+import time
+import numpy as np
+
+H_TRUE = np.array({H_TRUE})
+calls = {{"raises_once": 0, "sleeps_once": 0}}
+
+
+def two_by_two(source, target):
+    return np.eye(2)
+
+
+def text(source, target):
+    return "a homography"
+
+
+def raises_once(source, target):
+    calls["raises_once"] += 1
+    if calls["raises_once"] == 1:
+        raise RuntimeError("no estimate here")
+    return H_TRUE
+
+
+def sleeps_once(source, target):
+    calls["sleeps_once"] += 1
+    if calls["sleeps_once"] == 1:
+        time.sleep(20)
+    return H_TRUE
+"""
+
+
+@pytest.fixture
+def estimators(tmp_path, monkeypatch):
+    """A module ``cli_estimators`` of estimators (a fresh one for each test: ``calls`` count from 0)."""
+    folder = tmp_path / "modules"
+    folder.mkdir()
+    (folder / "cli_estimators.py").write_text(ESTIMATORS.format(H_TRUE=H_TRUE.tolist()))
+    monkeypatch.syspath_prepend(folder)
+    monkeypatch.delitem(sys.modules, "cli_estimators", raising=False)
+
+
+def _truncated_png(tmp_path):
+    folder = export(tmp_path / "set", count=1)
+    png = folder / "000000" / "1.png"
+    png.write_bytes(png.read_bytes()[:60])
+    return folder
+
+
+@pytest.mark.parametrize("make, argv, message", [
+    (lambda tmp_path: tmp_path, ["--estimator", "identity"], "not a sidar_torch export (no export.json)"),
+    (_truncated_png, ["--estimator", "identity"], "1.png': not a readable PNG"),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "cli_estimators:two_by_two"],
+     "estimator cli_estimators:two_by_two: expected a (3, 3) homography or None, got shape (2, 2)"),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "cli_estimators:text"],
+     "estimator cli_estimators:text: expected a (3, 3) homography or None, got str 'a homography'"),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "sfit"],
+     "--estimator: expected one of ["),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "myest:orb"],
+     "--estimator 'myest:orb': no module named 'myest'; MODULE must be importable: a module or package in the "
+     "current directory"),
+    (lambda tmp_path: export(tmp_path / "set", count=1, n_views=1), ["--estimator", "identity"],
+     "nothing to score, no sequence of 2 views or more"),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "identity", "--timeout", "0"],
+     "--timeout: expected seconds > 0"),
+    (lambda tmp_path: export(tmp_path / "set", count=1), ["--estimator", "identity", "--timeout", "nan"],
+     "--timeout: expected a finite number, got nan"),
+], ids=["not-an-export", "truncated-png", "2x2", "text", "unknown", "not-importable", "no-pairs", "timeout-0",
+        "timeout-nan"])
+def test_evaluate_user_mistakes_print_one_line_and_exit_2(make, argv, message, tmp_path, capsys, estimators):
+    """Issue 48: a folder that is not an export, a truncated PNG and an estimator returning a 2 x 2
+    matrix printed tracebacks."""
+    err = _one_line_error(["--testset", str(make(tmp_path)), "--no-progress", *argv], capsys, "evaluate")
+    assert message in err
+
+
+def test_evaluate_goes_on_past_an_estimator_that_raises_or_hangs(tmp_path, capsys, estimators):
+    """The pair is a failure, the table printed, exit status 0; the sleep holds out 20 s at most."""
+    folder = export(tmp_path / "set")
+    cli.main(["evaluate", "--testset", str(folder), "--estimator", "cli_estimators:raises_once"])
+    out, err = capsys.readouterr()
+    assert "4 pairs, estimator cli_estimators:raises_once" in out and "1 raised, 0 ran past the 60 s timeout" in out
+    assert "Traceback (most recent call last)" in err and "RuntimeError: no estimate here" in err
+    cli.main(["evaluate", "--testset", str(folder), "--estimator", "cli_estimators:sleeps_once", "--timeout", "0.2"])
+    out, err = capsys.readouterr()
+    assert "0 raised, 1 ran past the 0.2 s timeout" in out and "after 0.2 s: stopped, scored as a failure" in err
+    assert "| **total** | 4 |" in out
+
+
+def test_export_names_the_flags_when_layout_and_shard_size_disagree(capsys, monkeypatch):
+    """Issue 48: ``--layout paper --shard-size 4`` said "field 'shard_size': expected null for the folder
+    layout", after the warm-up."""
+    monkeypatch.setattr(cli.SidarDataset, "warm_up", lambda self: pytest.fail("warmed up before checking the layout"))
+    base = ["--out", "unused", "--count", "1"]
+    assert ("--shard-size 4: --layout paper writes no shards" in
+            _one_line_error([*base, "--layout", "paper", "--shard-size", "4"], capsys, "export"))
+    assert "--layout shards: needs --shard-size SEQUENCES" in _one_line_error([*base, "--layout", "shards"], capsys,
+                                                                              "export")
+    assert ("--shard-size: expected an integer >= 1, got 0" in
+            _one_line_error([*base, "--layout", "shards", "--shard-size", "0"], capsys, "export"))
+
+
+def test_set_of_a_list_field_shows_how_to_write_a_list(capsys):
+    """Issue 48: ``--set image_size=240x320`` did not show the accepted syntax."""
+    err = _one_line_error(["--set", "image_size=240x320"], capsys)
+    assert "config field 'image_size': expected a list or tuple, got '240x320'" in err
+    assert re.search(r"\(--set reads a list as image_size=\[\d+, \d+\] or image_size=\(\d+, \d+\)\)$", err), err
+    assert "reads a list" not in _one_line_error(["--set", "n_views=x"], capsys)
+
+
+@pytest.mark.parametrize("name", ["folder", "sheet.xyz", "sheet"])
+def test_preview_out_must_be_an_image_file_path_before_any_work(name, tmp_path, capsys, monkeypatch):
+    """Issue 48: ``preview --out DIR`` said "unknown file extension: ", after rendering."""
+    (tmp_path / "folder").mkdir()
+    monkeypatch.setattr(cli.SidarDataset, "warm_up", lambda self: pytest.fail("warmed up before checking --out"))
+    err = _one_line_error(["--out", str(tmp_path / name)], capsys)
+    assert "expected a file path ending in .png, .jpg or another image extension Pillow writes" in err
+    assert ("(this is a folder)" in err) == (name == "folder")
