@@ -155,12 +155,12 @@ def _warm_up(dataset: SidarDataset, clock: WallClock) -> None:
 def _preview(args: argparse.Namespace, clock: WallClock) -> None:
     if args.samples < 1:
         raise UsageError(f"--samples {args.samples}: expected at least 1")
-    dataset = _dataset(args, clock)
-    config = dataset.config
     out = Path(args.out)
     if out.is_dir() or out.suffix.lower() not in _image_extensions():
         raise UsageError(f"--out {args.out!r}: expected a file path ending in .png, .jpg or another image extension "
                          f"Pillow writes{' (this is a folder)' if out.is_dir() else ''}")
+    dataset = _dataset(args, clock)
+    config = dataset.config
     try:
         out.parent.mkdir(parents=True, exist_ok=True)  # before rendering, so a wrong --out costs no wait
     except OSError as error:
@@ -234,8 +234,8 @@ def _check_layout(args: argparse.Namespace) -> None:
     except ValueError:
         if args.shard_size is None:
             raise UsageError(f"--layout {args.layout}: needs --shard-size SEQUENCES") from None
-        raise UsageError(f"--shard-size {args.shard_size}: --layout {args.layout} writes no shards (drop --shard-size, "
-                         f"or --layout for shards)") from None
+        raise UsageError(f"--shard-size {args.shard_size}: --layout {args.layout} writes no shards (drop --shard-size; "
+                         f"for shards, --layout shards or no --layout)") from None
 
 
 def _run_export(args: argparse.Namespace, dataset: SidarDataset) -> ExportSummary:

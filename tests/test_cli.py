@@ -231,8 +231,8 @@ def test_evaluate_goes_on_past_an_estimator_that_raises_or_hangs(tmp_path, capsy
 
 def test_export_names_the_flags_when_layout_and_shard_size_disagree(capsys, monkeypatch):
     """Issue 48: ``--layout paper --shard-size 4`` said "field 'shard_size': expected null for the folder
-    layout", after the warm-up."""
-    monkeypatch.setattr(cli.SidarDataset, "warm_up", lambda self: pytest.fail("warmed up before checking the layout"))
+    layout", after the warm-up; now before the config is read."""
+    monkeypatch.setattr(cli, "_dataset", lambda args, clock: pytest.fail("read the config before checking the layout"))
     base = ["--out", "unused", "--count", "1"]
     assert ("--shard-size 4: --layout paper writes no shards" in
             _one_line_error([*base, "--layout", "paper", "--shard-size", "4"], capsys, "export"))
@@ -254,7 +254,7 @@ def test_set_of_a_list_field_shows_how_to_write_a_list(capsys):
 def test_preview_out_must_be_an_image_file_path_before_any_work(name, tmp_path, capsys, monkeypatch):
     """Issue 48: ``preview --out DIR`` said "unknown file extension: ", after rendering."""
     (tmp_path / "folder").mkdir()
-    monkeypatch.setattr(cli.SidarDataset, "warm_up", lambda self: pytest.fail("warmed up before checking --out"))
+    monkeypatch.setattr(cli, "_dataset", lambda args, clock: pytest.fail("read the config before checking --out"))
     err = _one_line_error(["--out", str(tmp_path / name)], capsys)
     assert "expected a file path ending in .png, .jpg or another image extension Pillow writes" in err
     assert ("(this is a folder)" in err) == (name == "folder")
