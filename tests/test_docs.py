@@ -40,9 +40,10 @@ def run(code: str, env: dict | None = None) -> subprocess.CompletedProcess:
 
 def test_every_snippet_is_checked_here():
     blocks = python_blocks()
-    assert len(blocks) == 5
-    assert "torchrun" in blocks[3] and "torchrun" not in "".join(blocks[:3])
-    assert "ray_dataset" in blocks[4] and "ray_dataset" not in "".join(blocks[:4])
+    assert len(blocks) == 6
+    assert "AugmentationSequential" in blocks[3] and "AugmentationSequential" not in "".join(blocks[:3])
+    assert "torchrun" in blocks[4] and "torchrun" not in "".join(blocks[:4])
+    assert "ray_dataset" in blocks[5] and "ray_dataset" not in "".join(blocks[:5])
 
 
 @pytest.mark.slow
@@ -57,12 +58,53 @@ def test_dataset_augmentation_and_pairs_snippets_run():
 
 
 @pytest.mark.gl
+def test_kornia_pipeline_snippet_runs():
+    # issue 48: the AugmentationSequential example lived only in a docstring.
+    code = python_blocks()[3] + (
+        "\nassert out.shape == (4, 3, 192, 256) and step.last['applied'].shape == (4,)"
+        "\nn = int(step.last['applied'].sum())"
+        "\nassert step.last['homographies'][:, 0, 1].shape == (n, 3, 3) and step.last['images'].shape[:2] == (n, 2)\n")
+    result = run(code)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+README_WARP = re.compile(r"`(kornia\.geometry\.transform\.warp_perspective\(images\[i\][^`]*)`")
+"""The README's inline call that warps view i onto view j."""
+
+
+@pytest.mark.gl
+def test_the_readmes_warp_of_view_i_lands_on_view_j():
+    # issue 48: the README's warp_perspective(images[i], homographies[i, j], (H, W)) failed as written
+    # (kornia warps batches). Its line, as written, run on a rendered sample.
+    import kornia
+    import torch
+
+    from sidar_torch import SidarDataset, load_config
+
+    (call,) = README_WARP.findall(README.read_text().replace("\n", " "))
+    config = load_config("ambient", image_size=(96, 128), n_views=2, max_tilt_deg=40, fov_deg=(50, 70))
+    sample = SidarDataset(config=config, seed=0).sample(0)
+    (H, W), i, j = config.image_size, 0, 1
+    names = {"kornia": kornia, "images": sample["images"], "homographies": sample["homographies"],
+             "i": i, "j": j, "H": H, "W": W}
+    warped = eval(call, names)
+    assert warped.shape == sample["images"][j].shape, call
+    seen = kornia.geometry.transform.warp_perspective(1 - sample["masks"][i][None], sample["homographies"][i, j][None],
+                                                      (H, W), mode="nearest")[0] * (1 - sample["masks"][j])
+    seen = -torch.nn.functional.max_pool2d(-seen[None], 7, stride=1, padding=3)[0]  # 3 px from any edge
+    assert seen.sum() > 500
+    error = ((warped - sample["images"][j]).abs() * seen).sum() / (3 * seen.sum())
+    unwarped = ((sample["images"][i] - sample["images"][j]).abs() * seen).sum() / (3 * seen.sum())
+    assert error < 0.02 and error < 0.5 * unwarped, (call, float(error), float(unwarped))
+
+
+@pytest.mark.gl
 def test_torchrun_snippet_runs_as_a_one_rank_job():
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     env = {"RANK": "0", "WORLD_SIZE": "1", "LOCAL_RANK": "0", "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port)}
-    code = python_blocks()[3] + "\nassert list(ds.indices())[:3] == [0, 1, 2]\ntorch.distributed.destroy_process_group()\n"
+    code = python_blocks()[4] + "\nassert list(ds.indices())[:3] == [0, 1, 2]\ntorch.distributed.destroy_process_group()\n"
     result = run(code, env)
     assert result.returncode == 0, result.stderr[-2000:]
 
@@ -71,7 +113,7 @@ def test_torchrun_snippet_runs_as_a_one_rank_job():
 @pytest.mark.gl
 def test_ray_snippet_runs_on_a_local_cluster():
     pytest.importorskip("ray")
-    code = python_blocks()[4] + "\nassert images.shape == (4, 6, 3, 192, 256)\nray.shutdown()\n"
+    code = python_blocks()[5] + "\nassert images.shape == (4, 6, 3, 192, 256)\nray.shutdown()\n"
     result = run(code)
     assert result.returncode == 0, result.stderr[-2000:]
 
