@@ -25,7 +25,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from .distortion import NO_LENS, distorted_points, undistorted_points
+from .distortion import LENS_MODELS, NO_LENS, distorted_points, undistorted_points
 from .scene import Camera, SceneSequence
 from .timing import timed
 
@@ -156,7 +156,7 @@ def _bilinear(images: torch.Tensor, pixels: np.ndarray, padding: str) -> torch.T
     return F.grid_sample(images, grid.to(images.dtype), mode="bilinear", padding_mode=padding, align_corners=True)
 
 
-def undistort(sample: Mapping[str, Any], lens_model: str) -> dict[str, torch.Tensor]:
+def undistort(sample: Mapping[str, Any], lens_model: str | None = None) -> dict[str, torch.Tensor]:
     """The undistorted (pinhole) views and masks of a sample rendered through a lens: what its
     ``homographies`` map between and ``K`` projects into.
 
@@ -166,21 +166,20 @@ def undistort(sample: Mapping[str, Any], lens_model: str) -> dict[str, torch.Ten
 
     Args:
         sample: a sample dict (or a batch: a leading ``B``) with ``images (V, 3, H, W)``, ``masks
-            (V, 1, H, W)`` (float or uint8), ``K (V, 3, 3)`` and ``lens (V, 5)``.
-        lens_model: the config's ``lens_model`` that made it (``"brown_conrady"`` or ``"division"``).
+            (V, 1, H, W)`` (float or uint8), ``K (V, 3, 3)``, ``lens (V, 5)`` and ``lens_model`` (the
+            model's name; a batch: a list of ``B``), as :class:`sidar_torch.SidarDataset`,
+            :class:`sidar_torch.SidarAugment` and :class:`sidar_torch.ExportedDataset` hand them out.
+        lens_model: the model of ``lens`` (``"brown_conrady"`` or ``"division"``); None (the default):
+            the sample's ``lens_model``. Needed only for a sample dict without ``lens_model``.
 
     Returns:
         A dict of the undistorted ``images`` and ``masks``, of the inputs' shapes and dtypes; masks
         stay in {0, 1} (``{0, 255}`` for uint8).
 
     Raises:
-        ValueError: a sample without ``lens`` (rendered with ``lens_model: none``), or ``lens_model``
-            not a lens model.
+        ValueError: a sample without ``lens`` (rendered with ``lens_model: none``); ``lens_model`` not a
+            lens model, or not the sample's (both named); neither ``lens_model`` nor the sample's.
     """
-    from .distortion import LENS_MODELS
-
-    if lens_model not in LENS_MODELS:
-        raise ValueError(f"lens_model: expected one of {sorted(LENS_MODELS)}, got {lens_model!r}")
     if "lens" not in sample:
         raise ValueError("sample: expected a sample rendered through a lens (a 'lens' key; config lens_model "
                          "not 'none'), got one without")
@@ -189,8 +188,9 @@ def undistort(sample: Mapping[str, Any], lens_model: str) -> dict[str, torch.Ten
     size = tuple(images.shape[-2:])
     K = sample["K"].reshape(-1, 3, 3).double().numpy()
     lenses = sample["lens"].reshape(-1, 5).double().numpy()
+    models = _view_lens_models(sample, lens_model, len(lenses))
     grid = _pixel_grid(size)
-    sources = np.stack([distorted_points(lens_model, lens, k, grid) for lens, k in zip(lenses, K)])
+    sources = np.stack([distorted_points(model, lens, k, grid) for model, lens, k in zip(models, lenses, K)])
     flat = images.reshape(-1, *images.shape[-3:])
     top = 255.0 if masks.dtype == torch.uint8 else 1.0
     seen = top - masks.reshape(-1, *masks.shape[-3:]).double()
@@ -200,3 +200,27 @@ def undistort(sample: Mapping[str, Any], lens_model: str) -> dict[str, torch.Ten
     new_masks = torch.where(visible >= top / 2, 0.0, top)
     return {"images": views.to(images.dtype).reshape(*lead, *views.shape[-3:]),
             "masks": new_masks.to(masks.dtype).reshape(*lead, *new_masks.shape[-3:])}
+
+
+def _view_lens_models(sample: Mapping[str, Any], lens_model: str | None, n_lenses: int) -> list[str]:
+    """The lens model of each of the ``n_lenses`` lenses of ``sample`` (views, batch-major): the
+    sample's ``lens_model`` (a batch's list: one per sample), checked against ``lens_model`` if given."""
+    if lens_model is not None and lens_model not in LENS_MODELS:
+        raise ValueError(f"lens_model: expected one of {sorted(LENS_MODELS)}, got {lens_model!r}")
+    recorded = sample.get("lens_model")
+    if recorded is None:
+        if lens_model is None:
+            raise ValueError("lens_model: the sample records no lens_model (a dict made without one); pass the "
+                             f"lens_model that made it, one of {sorted(LENS_MODELS)}")
+        return [lens_model] * n_lenses
+    per_sample = [recorded] if isinstance(recorded, str) else list(recorded)
+    for model in per_sample:
+        if model not in LENS_MODELS:
+            raise ValueError(f"sample['lens_model']: expected one of {sorted(LENS_MODELS)}, got {model!r}")
+        if lens_model is not None and model != lens_model:
+            raise ValueError(f"lens_model: {lens_model!r} contradicts the sample's lens_model {model!r}, the model "
+                             f"its views were rendered with; leave lens_model out to use the sample's")
+    if n_lenses % len(per_sample):
+        raise ValueError(f"sample['lens_model']: expected one model per sample, got {len(per_sample)} for "
+                         f"{n_lenses} views")
+    return [model for model in per_sample for _ in range(n_lenses // len(per_sample))]

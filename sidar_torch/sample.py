@@ -23,7 +23,7 @@ import torch
 
 from . import geometry
 from .dense import depth_flow
-from .distortion import NO_LENS
+from .distortion import LENS_MODELS, NO_LENS
 from .effects import apply_effects, blur_painting, draw_effects
 from .lens import distortion_maps, render_through_lens
 from .config import SidarConfig
@@ -115,6 +115,10 @@ KEYS: tuple[SampleKey, ...] = (
               "each view's lens in normalised camera coordinates K^-1 (u, v, 1): OpenCV's (k1, k2, p1, p2, k3) for "
               "lens_model brown_conrady (cv2.undistort(view, K, lens)), (lambda, 0, 0, 0, 0) for division "
               "(x_u = x_d / (1 + lambda |x_d|^2)); see sidar_torch.distortion", switch="lens_model"),
+    SampleKey("lens_model", "()", "str (Python)",
+              "the lens model lens holds the coefficients of: the config's lens_model, 'brown_conrady' or "
+              "'division' (sidar_torch.undistort reads it); a batch holds a list of B, as DataLoader collates "
+              "strings", switch="lens_model"),
     SampleKey("distortion_maps", "(V, 2, H, W)", "float32",
               "per view and distorted pixel, where it comes from in the undistorted view (u then v, Kornia "
               "pixels; each pixel itself without a lens)", switch="distortion_map_output"),
@@ -130,11 +134,12 @@ PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key
 """The 8-bit pixel keys of the table (those with an export entry, but the float outputs: ``images``,
 ``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
-LENS_KEYS = ("lens", "distortion_maps")
+LENS_KEYS = ("lens", "lens_model", "distortion_maps")
 """The keys the lens step makes (:mod:`sidar_torch.lens`, a CPU step after read-back), not the renderer:
-the optional keys besides ``render_choices.OUTPUTS``' rows. ``lens`` is turned on by ``lens_model`` (not
-``"none"``), ``distortion_maps`` by ``distortion_map_output``; neither has a file of its own (``lens`` is
-in ``cameras.json``, the maps are recomputed on reading)."""
+the optional keys besides ``render_choices.OUTPUTS``' rows. ``lens`` and ``lens_model`` are turned on by
+``lens_model`` (not ``"none"``), ``distortion_maps`` by ``distortion_map_output``; none has a file of its
+own (``lens`` is in ``cameras.json``, ``lens_model`` in the export's recorded config, the maps are
+recomputed on reading)."""
 
 GEOMETRY_DTYPES = {"float32": torch.float32, "float64": torch.float64}
 """``geometry_dtype`` (config field) -> dtype of ``homographies``, ``K``, ``R`` and ``t``."""
@@ -163,6 +168,8 @@ class SampleArrays:
             ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
             float32), or None (not rendered).
         lens: ``(V, 5)`` float64, each view's lens (None: no lens).
+        lens_model: the model of ``lens``, a row of :data:`sidar_torch.distortion.LENS_MODELS` (None:
+            no lens; given exactly when ``lens`` is).
         distortion_maps: ``(V, 2, H, W)`` float32 (None: not asked for).
 
     Raises:
@@ -184,6 +191,7 @@ class SampleArrays:
     depth: np.ndarray | None = None
     flow_to_reference: np.ndarray | None = None
     lens: np.ndarray | None = None
+    lens_model: str | None = None
     distortion_maps: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -205,6 +213,7 @@ class SampleArrays:
             if not isinstance(value, np.ndarray) or value.shape != shape or value.dtype != dtype:
                 got = f"{value.shape} {value.dtype}" if isinstance(value, np.ndarray) else type(value).__name__
                 raise ValueError(f"SampleArrays.{name}: expected shape {shape} {np.dtype(dtype)}, got {got}")
+        object.__setattr__(self, "lens_model", _checked_lens_model(self.lens_model, self.lens is not None))
         object.__setattr__(self, "homography_error", float(self.homography_error))
         object.__setattr__(self, "index", int(self.index))
 
@@ -236,6 +245,17 @@ class SampleArrays:
             elif value is not None:
                 tensors[name] = value
         return tensors
+
+
+def _checked_lens_model(model: Any, has_lens: bool) -> str | None:
+    """``SampleArrays.lens_model`` as a ``str`` (a NumPy string, as Ray's columns hold it, included), or
+    None without a lens; ``ValueError`` unless it names a lens model exactly when there is a ``lens``."""
+    if isinstance(model, (np.ndarray, np.str_)):  # a Ray column's 0-d string array, a NumPy string
+        model = str(model)
+    if (model is None) != (not has_lens) or (has_lens and model not in LENS_MODELS):
+        expected = f"one of {sorted(LENS_MODELS)} (there is a lens)" if has_lens else "None (there is no lens)"
+        raise ValueError(f"SampleArrays.lens_model: expected {expected}, got {model!r}")
+    return model
 
 
 _FIELDS = tuple(key.name for key in KEYS)
@@ -276,7 +296,7 @@ def _levels_as(levels: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
 
 
 def stack_arrays(samples: Sequence[SampleArrays], geometry_dtype: str = "float32",
-                 pixel_dtype: torch.dtype = torch.float32) -> dict[str, torch.Tensor]:
+                 pixel_dtype: torch.dtype = torch.float32) -> dict[str, Any]:
     """The batch of ``samples``, ``stack_samples([s.to_tensors(geometry_dtype, pixel_dtype) for s in
     samples])`` value for value and stride for stride, with the pixels stacked as 8-bit levels and
     converted to ``pixel_dtype`` once for the whole batch (uint8: not at all).
@@ -295,16 +315,18 @@ def stack_arrays(samples: Sequence[SampleArrays], geometry_dtype: str = "float32
             for name, value in stack_samples(tensors).items()}
 
 
-def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, torch.Tensor]:
+def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """Batch sample dicts of one config: every tensor key stacked (a leading ``B``),
-    ``homography_error`` as ``(B,)`` float64 and ``index`` as ``(B,)`` int64, the dtypes
-    ``DataLoader``'s default collation gives these Python numbers, so a batch is the same whoever
-    made it (``DataLoader``, ``SidarAugment``, the Ray batches)."""
+    ``homography_error`` as ``(B,)`` float64, ``index`` as ``(B,)`` int64 and ``lens_model`` as a list
+    of ``B`` strings, what ``DataLoader``'s default collation gives these Python values, so a batch is
+    the same whoever made it (``DataLoader``, ``SidarAugment``, the Ray batches)."""
     batch = {}
     for key in samples[0]:
         values = [s[key] for s in samples]
         if isinstance(values[0], torch.Tensor):
             batch[key] = torch.stack(values)
+        elif isinstance(values[0], str):
+            batch[key] = values
         else:
             batch[key] = torch.tensor(values, dtype=torch.int64 if isinstance(values[0], int) else torch.float64)
     return batch
@@ -394,7 +416,8 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             outputs["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
-                        index=index, lens=sequence.lenses, **outputs)
+                        index=index, lens=sequence.lenses,
+                        lens_model=None if sequence.lenses is None else sequence.lens_model, **outputs)
 
 
 def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,

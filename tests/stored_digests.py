@@ -36,9 +36,11 @@ EVERYTHING_ON = dict(opacity_output=True, shadow_mask_output=True, shadow_free_o
 
 
 def sample_record(sample: dict) -> dict[str, dict]:
-    """``{key: {"sha256": ...}}`` for the pixel keys and the index, ``{key: geometry_record}`` for the rest."""
+    """``{key: {"sha256": ...}}`` for the pixel keys and the index, ``{key: {"text": ...}}`` for a string
+    (``lens_model``), ``{key: geometry_record}`` for the rest."""
     digests = sample_digest(sample)
-    return {key: {"sha256": digests[key]} if key in PIXEL_KEYS or key == "index" else geometry_record(value)
+    return {key: {"sha256": digests[key]} if key in PIXEL_KEYS or key == "index"
+            else {"text": value} if isinstance(value, str) else geometry_record(value)
             for key, value in sample.items()}
 
 

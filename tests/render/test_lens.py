@@ -13,9 +13,9 @@ from PIL import Image, ImageFilter
 from conftest import assert_same_sample, small_config
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_config, undistort
 from sidar_torch.config.allowed import LENS_MODELS as LENS_CHOICES
-from sidar_torch.distortion import LENS_MODELS, distorted_points
+from sidar_torch.distortion import LENS_MODELS, distorted_points, scaled_lens
 from sidar_torch.geometry import plane_corners, project
-from sidar_torch.sample import render_arrays
+from sidar_torch.sample import render_arrays, stack_samples
 from sidar_torch.scene import sample_sequence
 
 ZERO_LENS = dict(lens_k1=(0, 0), lens_k2=(0, 0), lens_k3=(0, 0), lens_p1=(0, 0), lens_p2=(0, 0))
@@ -61,6 +61,7 @@ def test_a_lens_of_zeros_renders_the_pinhole_sample_byte_for_byte(model):
         lens = SidarDataset(None, config, seed=4).sample(index)
         plain = SidarDataset(None, config.replace(lens_model="none"), seed=4).sample(index)
         assert torch.equal(lens.pop("lens"), torch.zeros(3, 5, dtype=torch.float64))
+        assert lens.pop("lens_model") == model
         assert_same_sample(lens, plain)
 
 
@@ -154,10 +155,56 @@ def test_every_per_view_image_is_distorted_alike_and_undistort_returns_the_pinho
     seen = (plain["masks"][inner] == 0) & (back["masks"][inner] == 0)
     diff = (back["images"][inner] - plain["images"][inner]).abs().mul(255)
     assert psnr(np.zeros(1), diff.expand(-1, 3, -1, -1)[seen.expand(-1, 3, -1, -1)].numpy()) >= 30
+    assert lens["lens_model"] == "brown_conrady" and "lens_model" not in plain
+    for name in back:  # the sample's own lens_model, by default
+        assert torch.equal(undistort(lens)[name], back[name]), name
     with pytest.raises(ValueError, match="sample: expected a sample rendered through a lens"):
         undistort(plain, "brown_conrady")
     with pytest.raises(ValueError, match="lens_model: expected one of"):
         undistort(lens, "none")
+
+
+def synthetic_lens_sample(model, n_views=2, size=(24, 32), seed=0):
+    """A sample dict of random views through ``model`` lenses of -0.2 at the image's corner (barrel),
+    without rendering."""
+    rng = np.random.default_rng(seed)
+    K = np.array([[30.0, 0, 15.5], [0, 30, 11.5], [0, 0, 1]])
+    corner = {"brown_conrady": [-0.2, 0, 0, 0, 0], "division": [-0.2, 0, 0, 0, 0]}[model]
+    lens = scaled_lens(model, np.array(corner), K, size)
+    return {"images": torch.from_numpy(rng.random((n_views, 3, *size), np.float32)),
+            "masks": torch.zeros(n_views, 1, *size), "K": torch.from_numpy(np.stack([K] * n_views)).float(),
+            "lens": torch.from_numpy(np.stack([lens] * n_views)), "lens_model": model}
+
+
+def test_undistort_takes_the_samples_lens_model_and_refuses_a_contradicting_one_by_name():
+    """Issue 48: ``undistort(sample, "brown_conrady")`` of a division-lens sample returned wrong views
+    and no error. The same coefficients undistort differently by model, so the model matters."""
+    division = synthetic_lens_sample("division")
+    as_brown = undistort({**division, "lens_model": "brown_conrady"})
+    by_sample = undistort(division)
+    assert torch.equal(by_sample["images"], undistort(division, "division")["images"])
+    assert not torch.equal(by_sample["images"], as_brown["images"])
+    with pytest.raises(ValueError, match="lens_model: 'brown_conrady' contradicts the sample's lens_model 'division'"):
+        undistort(division, "brown_conrady")
+    without = {key: value for key, value in division.items() if key != "lens_model"}
+    assert torch.equal(undistort(without, "division")["images"], by_sample["images"])
+    with pytest.raises(ValueError, match="lens_model: the sample records no lens_model"):
+        undistort(without)
+    with pytest.raises(ValueError, match=r"sample\['lens_model'\]: expected one of \['brown_conrady', 'division'\]"):
+        undistort({**division, "lens_model": "fisheye"})
+
+
+def test_undistort_of_a_batch_takes_each_samples_lens_model():
+    """A DataLoader batch (``stack_samples``): ``lens_model`` a list of B strings, each its sample's."""
+    samples = [synthetic_lens_sample("division", seed=0), synthetic_lens_sample("brown_conrady", seed=1)]
+    batch = stack_samples(samples)
+    assert batch["lens_model"] == ["division", "brown_conrady"]
+    assert batch["lens_model"] == torch.utils.data.default_collate(samples)["lens_model"]
+    back = undistort(batch)
+    for b, sample in enumerate(samples):
+        assert torch.equal(back["images"][b], undistort(sample)["images"])
+    with pytest.raises(ValueError, match="lens_model: 'division' contradicts the sample's lens_model 'brown_conrady'"):
+        undistort(batch, "division")
 
 
 @pytest.mark.gl
@@ -168,6 +215,7 @@ def test_an_export_through_a_lens_reads_back_as_rendered(tmp_path):
         export_dataset(dataset, tmp_path / layout, count=2, shard_size=shard_size, progress=False)
         read = ExportedDataset(tmp_path / layout)
         for index in range(2):
+            assert read[index]["lens_model"] == "division"  # the model read back, which undistort takes
             assert_same_sample(read[index], dataset.sample(index))
 
 
@@ -221,6 +269,7 @@ def test_the_snippet_of_the_lens_page_runs():
     scope = {}
     exec(code, scope)
     assert scope["sample"]["lens"].shape == (3, 5) and scope["pinhole"]["images"].shape == (3, 3, 192, 256)
+    assert scope["sample"]["lens_model"] == "division"
 
 
 @pytest.mark.gl
@@ -231,6 +280,7 @@ def test_sidar_augment_and_homography_pairs_carry_the_lens():
     batch = augment(torch.rand(2, 3, 48, 64, generator=torch.Generator().manual_seed(0)))
     assert batch["lens"].shape == (2, 3, 5) and batch["lens"].dtype == torch.float64
     assert bool((batch["lens"][..., 0] != 0).all()) and bool((batch["lens"][..., 1:] == 0).all())
+    assert batch["lens_model"] == ["division", "division"]
     pairs = homography_pairs(batch, 16, generator=torch.Generator().manual_seed(0))
     a, b = pairs["views"].unbind(1)
     assert torch.equal(pairs["lens_a"], batch["lens"][torch.arange(2), a])
