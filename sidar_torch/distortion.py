@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["LENS_MODELS", "LensModel", "NO_LENS", "corner_radius", "distorted_points", "scaled_lens", "undistorted_points"]
+__all__ = ["LENS_MODELS", "LensModel", "NO_LENS", "corner_coefficients", "corner_radius", "distorted_points", "scaled_lens", "undistorted_points"]
 
 NO_LENS = "none"
 """``lens_model`` of a pinhole camera: nothing is distorted, nothing is drawn or paid."""
@@ -130,6 +130,12 @@ def scaled_lens(model: str, corner: np.ndarray, K: np.ndarray, image_size: tuple
     ``k2 r_c^4``, ``p1 r_c``, ``p2 r_c``, ``k3 r_c^6`` and ``lambda r_c^2``, ``r_c`` the
     :func:`corner_radius`), so that a lens distorts every field of view alike."""
     return LENS_MODELS[model].scale(np.asarray(corner, np.float64), corner_radius(K, image_size))
+
+
+def corner_coefficients(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """The inverse of :func:`scaled_lens`: the ``(5,)`` float64 coefficients at the image's corner (those
+    the config ranges hold) of the ``model``'s ``lens (5,)`` for a view with intrinsics ``K``."""
+    return LENS_MODELS[model].scale(np.asarray(lens, np.float64), 1 / corner_radius(K, image_size))
 
 
 def undistorted_points(model: str, lens: np.ndarray, K: np.ndarray, pixels: np.ndarray) -> np.ndarray:

@@ -151,14 +151,18 @@ def open_inside(path: Path, root: Path) -> Iterator[BinaryIO]:
 
 
 def read_inside(path: Path, root: Path, limit: int) -> bytes:
-    """The bytes of the regular file ``path`` inside ``root`` (see :func:`open_inside`), at most ``limit``.
+    """The bytes of the regular file ``path`` inside ``root`` (see :func:`open_inside`), at most ``limit``;
+    no more memory is asked for than the file holds (Python reserves what a read asks for).
 
     Raises:
         FileNotFoundError, ValueError: as :func:`open_inside`; ``ValueError`` too for a file larger
-            than ``limit`` bytes.
+            than ``limit`` bytes, or one that grew while it was read.
     """
     with open_inside(path, root) as f:
-        data = f.read(limit + 1)
+        size = os.fstat(f.fileno()).st_size
+        data = f.read(min(size, limit) + 1)
     if len(data) > limit:
         raise ValueError(f"{str(path)!r}: larger than {limit} bytes, the most this export's files can hold")
+    if len(data) > size:
+        raise ValueError(f"{str(path)!r}: grew while it was read (from {size} bytes); read it again once written")
     return data

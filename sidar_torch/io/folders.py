@@ -33,7 +33,7 @@ import numpy as np
 from ..sample import SampleArrays
 from .files import read_inside, remove_stale_temporary, replace_folder
 from .codecs import encode
-from .entries import sample_entries
+from .entries import cameras_entry, checked_homography, sample_entries
 from .layout import SEQUENCE_NAME, WriteUnit, sequence_name
 
 
@@ -108,10 +108,15 @@ class FolderLayout:
         """``(where / name, its bytes)``, read as :func:`.files.read_inside` ``out``."""
         return where / name, read_inside(where / name, out, limit)
 
-    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
-        """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, the identity on the diagonal."""
+    def read_cameras(self, read: Callable[..., Any], config: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The checked cameras of ``cameras.json`` (:func:`.entries.cameras_entry`)."""
+        return cameras_entry(read, config)
+
+    def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64 from the ``H_<i>_<j>.mat`` entries, each checked
+        (:func:`.entries.checked_homography`), the identity on the diagonal."""
         homographies = np.zeros((n_views, n_views, 3, 3))
         homographies[np.arange(n_views), np.arange(n_views)] = np.eye(3)
         for i, j in itertools.permutations(range(n_views), 2):
-            homographies[i, j] = read(homography_entry(i, j))
+            homographies[i, j] = read(homography_entry(i, j), (3, 3), checked_homography)
         return homographies

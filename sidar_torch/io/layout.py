@@ -90,10 +90,16 @@ class Layout(Protocol):
             ValueError: the entry is larger than ``limit`` bytes or not a regular file inside ``out``.
         """
 
+    def read_cameras(self, read: Callable[..., Any], config: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The cameras of a sequence recorded with ``config`` (``read`` as for :meth:`read_homographies`),
+        checked (:func:`.entries.read_cameras`): ``{name: float64 array}`` for each key of
+        :data:`.entries.CAMERA_KEYS` the config has."""
+
     def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
         """``(V, V, 3, 3)`` float64 homographies of a sequence from its decoded entries (``read``:
-        entry name and, optionally, the array's expected shape -> value, checked to be of that
-        shape before it is made: see :func:`.codecs.decode`), the identity on the diagonal."""
+        entry name and, optionally, the array's expected shape and a check (value -> value) ->
+        value, checked to be of that shape before it is made: see :func:`.codecs.decode`), the
+        identity on the diagonal, each checked (:func:`.entries.checked_homography`)."""
 
 
 def sequence_name(index: int) -> str:
@@ -104,3 +110,13 @@ def sequence_name(index: int) -> str:
 def is_export_name(name: str) -> bool:
     """True for a name an export writes at its top: a sequence folder, a shard, the manifest or the config."""
     return bool(SEQUENCE_NAME.match(name) or SHARD_NAME.match(name)) or name in (MANIFEST, CONFIG)
+
+
+SHOWN_NAMES = 5
+"""Most names an error message lists of a folder's or a sequence's contents (it gives their count too)."""
+
+
+def shown_names(names: list[str]) -> str:
+    """``"N: 'a', 'b', ..."``: the count of ``names`` and the first :data:`SHOWN_NAMES` of them, in order."""
+    more = ", ..." if len(names) > SHOWN_NAMES else ""
+    return f"{len(names)}: {', '.join(map(repr, names[:SHOWN_NAMES]))}{more}"

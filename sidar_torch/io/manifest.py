@@ -142,10 +142,10 @@ def check_manifest(manifest: Any, where: Path) -> None:
     check("config.n_views", config.get("n_views"), lambda v: _is_int(v, 1), "an integer >= 1")
     for switch in (*(key.switch for key in OPTIONAL_KEYS), "distortion_map_output"):
         check(f"config.{switch}", config.get(switch, False), lambda v: isinstance(v, bool), "true or false")
-    check("config.lens_model", config.get("lens_model", NO_LENS), lambda v: v in LENS_MODEL_NAMES,
-          f"one of {list(LENS_MODEL_NAMES)}")
-    check("config.geometry_dtype", config.get("geometry_dtype", "float32"), lambda v: v in GEOMETRY_DTYPES,
-          f"one of {list(GEOMETRY_DTYPES)}")
+    for name, names, default in (("lens_model", LENS_MODEL_NAMES, NO_LENS),
+                                 ("geometry_dtype", GEOMETRY_DTYPES, "float32")):
+        check(f"config.{name}", config.get(name, default), lambda v: isinstance(v, str) and v in names,
+              f"one of {list(names)}")
 
 
 def _is_int(value: Any, minimum: int) -> bool:

@@ -25,14 +25,14 @@ there: the image size (from ``gt.png``), the number of views (``0.png``, ``1.png
 first one missing), the homographies (``H_i_j.mat`` converted to Kornia pixels, det = 1;
 ``H[j, i]`` its inverse); RGBA pixels lose their alpha and the masks' antialiased grey edges become
 255 from 128 up. Unknown there: the cameras (``K``, ``R``, ``t`` NaN), ``homography_error`` (NaN)
-and the seed (``None``).
+and the seed (``None``). The texts hold 17 digits: ``ExportedDataset(folder, geometry_dtype="float64")``
+keeps them (float32 by default, as an export without a recorded ``geometry_dtype``).
 """
 
 from __future__ import annotations
 
 import io
 import itertools
-import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, ClassVar
@@ -42,7 +42,8 @@ from PIL import Image
 
 from ..sample import SampleArrays
 from .codecs import encode, png_size, unreadable
-from .entries import CAMERA_KEYS, CAMERAS, HOMOGRAPHIES, camera_shape, sample_entries
+from .entries import (CAMERA_KEYS, HOMOGRAPHIES, camera_shape, checked_homographies, checked_homography,
+                      sample_entries, unit_scaled)
 from .files import open_inside
 from .folders import FolderLayout, homography_entry
 from .layout import MANIFEST
@@ -82,14 +83,21 @@ def homography_text(H: np.ndarray) -> bytes:
 
 
 def read_homography_text(data: bytes, where: Path) -> np.ndarray:
-    """The ``(3, 3)`` float64 of an ``H_i_j.mat`` text; ``ValueError`` naming ``where`` otherwise."""
+    """The ``(3, 3)`` float64 homography of an ``H_i_j.mat`` text, all 17 digits of its numbers, checked
+    whatever its scale (:func:`.entries.checked_homography`) and scaled by a power of two to
+    ``0.5 <= max|H| < 1`` (exactly: the same homography, so that ``1e308 * H`` reads as ``H``).
+
+    Raises:
+        ValueError: naming ``where`` and what is wrong.
+    """
     try:
         H = np.loadtxt(io.BytesIO(data), dtype=np.float64, ndmin=2)
     except ValueError as error:
         raise ValueError(f"{str(where)!r}: expected 3 lines of 3 numbers (np.savetxt text), got: {error}") from None
-    if H.shape != (3, 3) or not np.isfinite(H).all() or abs(np.linalg.det(H)) < 1e-12:
-        raise ValueError(f"{str(where)!r}: expected a finite invertible 3 x 3 matrix, got shape {H.shape}")
-    return H
+    try:
+        return unit_scaled(checked_homography(H))
+    except ValueError as error:
+        raise ValueError(f"{str(where)!r}: {error}") from None
 
 
 @dataclass(frozen=True)
@@ -110,24 +118,33 @@ class PaperLayout(FolderLayout):
 
     def sequences(self, out: Path) -> list[tuple[int, Path]]:
         """``(index, folder)`` of every sequence: our 6-digit folders, or (none there) every
-        sub-folder holding ``gt.png`` in name order, numbered from 0 (the paper's folders)."""
+        sub-folder holding ``gt.png`` in name order, numbered from 0 (the paper's folders).
+
+        Raises:
+            ValueError: one of the paper's folders holds another number of views than the first
+                (the number the manifest records), naming both.
+        """
         ours = super().sequences(out)
         if ours or (out / MANIFEST).exists():
             return ours
-        return list(enumerate(paper_folders(out)))
+        folders = paper_folders(out)
+        views = [view_count(folder) for folder in folders]
+        for folder, count in zip(folders, views):
+            if count != views[0]:
+                raise ValueError(f"{str(folder)!r}: holds {count} views (0.png, 1.png, ...), {str(folders[0])!r} "
+                                 f"{views[0]}: a folder of the paper's sequences holds sequences of one number of views")
+        return list(enumerate(folders))
 
     def read(self, out: Path, where: Path, name: str, limit: int) -> tuple[Path, bytes]:
         """``(file, bytes)`` of entry ``name`` in the shared entries' encoding: our files as they
-        are; the paper's converted (RGBA views and label to RGB, masks to 0 / 255 grey, a missing
-        ``cameras.json`` made up of NaN cameras; see the module's docstring); ``H_i_j.mat`` texts
-        as the shared codec's MATLAB file of the same matrix (the paper's pixels).
+        are; the paper's converted (RGBA views and label to RGB, masks to 0 / 255 grey; see the
+        module's docstring); ``H_i_j.mat`` texts as the shared codec's MATLAB file of the same
+        homography (the paper's pixels; :func:`read_homography_text`).
 
         Raises:
             FileNotFoundError: no such entry; ValueError: as :meth:`FolderLayout.read`, and a PNG
             Pillow cannot read or of too many pixels (:func:`_ours`), naming the file.
         """
-        if name == CAMERAS and not (where / CAMERAS).exists():
-            return where / CAMERAS, _unknown_cameras(out, where)
         path, data = super().read(out, where, name, limit)
         if name.endswith(".png"):
             return path, _ours(path, name, data, limit)
@@ -135,11 +152,22 @@ class PaperLayout(FolderLayout):
             return path, encode({name: read_homography_text(data, path)})[name]
         return path, data
 
-    def read_homographies(self, read: Callable[[str], Any], n_views: int) -> np.ndarray:
-        """``(V, V, 3, 3)`` float64: ``homographies.npy`` where there is one (ours), else the
-        paper's ``H_i_j.mat`` texts converted to Kornia pixels, det = 1, ``H[j, i]`` the inverse."""
+    def read_cameras(self, read: Callable[..., Any], config: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The checked cameras of ``cameras.json`` where there is one (ours), else (the paper's
+        sequences record none) NaN for every number of :data:`.entries.CAMERA_KEYS` (the cameras of
+        each view, ``homography_error``; no ``lens``: pinhole cameras)."""
         try:
-            return read(HOMOGRAPHIES, (n_views, n_views, 3, 3))
+            return super().read_cameras(read, config)
+        except FileNotFoundError:
+            return {key.name: np.full(camera_shape(key, config["n_views"]), np.nan)
+                    for key in CAMERA_KEYS if key.switch is None}
+
+    def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
+        """``(V, V, 3, 3)`` float64: ``homographies.npy`` where there is one (ours; each checked,
+        :func:`.entries.checked_homographies`), else the paper's ``H_i_j.mat`` texts
+        (:func:`read_homography_text`) converted to Kornia pixels, det = 1, ``H[j, i]`` the inverse."""
+        try:
+            return read(HOMOGRAPHIES, (n_views, n_views, 3, 3), checked_homographies)
         except FileNotFoundError:
             pass
         size = read(LABEL).shape[:2]
@@ -181,17 +209,12 @@ def _ours(path: Path, name: str, data: bytes, limit: int) -> bytes:
     return encode({name: pixels})[name]
 
 
-def _unknown_cameras(out: Path, where: Path) -> bytes:
-    """A ``cameras.json`` for a sequence of the paper's (which has none): NaN for every number of
-    :data:`.entries.CAMERA_KEYS` (the cameras of each view, ``homography_error``; no ``lens``: pinhole cameras)."""
-    n_views = 0
-    while (where / f"{n_views}.png").exists():
-        n_views += 1
-    with open_inside(where / LABEL, out) as f:
-        size = png_size(f.read(24))  # the header alone: the limit is cameras.json's
-    cameras = {"index": None, "image_size": list(size or (0, 0)),
-               **{key.name: np.full(camera_shape(key, n_views), np.nan).tolist() for key in CAMERA_KEYS if key.switch is None}}
-    return json.dumps(cameras).encode()
+def view_count(folder: Path) -> int:
+    """How many views a sequence folder holds: ``0.png``, ``1.png``, ... up to the first one missing."""
+    count = 0
+    while (folder / f"{count}.png").is_file():
+        count += 1
+    return count
 
 
 def paper_folders(folder: Path) -> list[Path]:
@@ -220,9 +243,6 @@ def paper_manifest(folder: Path) -> dict[str, Any]:
         size = png_size(f.read(24))
     if size is None:
         raise ValueError(f"{str(first / LABEL)!r}: not a PNG")
-    n_views = 0
-    while (first / f"{n_views}.png").is_file():
-        n_views += 1
     return {"layout": PaperLayout.name, "shard_size": None, "seed": None,
             "source": {"kind": "the SIDAR paper's sequences", "folder": str(folder)},
-            "config": {"image_size": list(size), "n_views": n_views}}
+            "config": {"image_size": list(size), "n_views": view_count(first)}}

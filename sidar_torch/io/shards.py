@@ -21,11 +21,12 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ..sample import SampleArrays
+from ..config import MAX_VIEWS
+from ..sample import KEYS, SampleArrays
 from .files import open_inside, temporary_path
 from .codecs import encode
-from .entries import HOMOGRAPHIES, sample_entries
-from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, sequence_name
+from .entries import HOMOGRAPHIES, cameras_entry, checked_homographies, sample_entries
+from .layout import SEQUENCE_NAME, SHARD_NAME, WriteUnit, sequence_name, shown_names
 
 END_MARKER = 2 * tarfile.BLOCKSIZE
 """Bytes of zeros that end a whole tar (the end-of-archive marker ``tarfile`` writes)."""
@@ -40,6 +41,31 @@ def shard_path(out: Path, shard: int) -> Path:
     return out / f"shard-{shard:05d}.tar"
 
 
+_VIEW_ENTRIES = sum(key.entry is not None and "{v}" in key.entry for key in KEYS)
+MAX_SEQUENCE_ENTRIES = MAX_VIEWS * _VIEW_ENTRIES + sum(key.entry is not None for key in KEYS) - _VIEW_ENTRIES + 2
+"""Most entries a sequence of a shard can hold: its per-view files for :data:`~sidar_torch.config.MAX_VIEWS`
+views with every output, its whole-image ones, ``cameras.json`` and ``homographies.npy``."""
+
+
+class _BoundedReads:
+    """The regular file ``f`` of ``size`` bytes, whose ``read(n)`` asks for no more than the file holds
+    after the current offset. ``tarfile`` reads a GNU long name or a pax header by the size its header
+    claims, and Python reserves that many bytes before reading (a claim of 1e11: ``MemoryError``)."""
+
+    def __init__(self, f: Any, size: int):
+        self._f, self._size = f, size
+
+    def read(self, n: int | None = -1) -> bytes:
+        left = max(self._size - self._f.tell(), 0)
+        return self._f.read(left if n is None or n < 0 else min(n, left))
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        return self._f.seek(offset, whence)
+
+    def tell(self) -> int:
+        return self._f.tell()
+
+
 class DamagedShard(ValueError):
     """A shard that is not a whole tar as the export writes it (cut short, say, by a copy that
     stopped). The message names the file; ``complete`` holds the sequences before the damage
@@ -50,8 +76,13 @@ class DamagedShard(ValueError):
         self.complete = complete
 
 
-def shard_contents(path: Path) -> dict[int, list[tarfile.TarInfo]]:
-    """``{index: [member, ...]}`` of the shard at ``path`` (empty if there is none).
+def shard_contents(path: Path, shard_size: int) -> dict[int, list[tarfile.TarInfo]]:
+    """``{index: [member, ...]}`` of the shard at ``path`` (empty if there is none), a shard of
+    ``shard_size`` sequences: shard ``k`` holds indices in ``[k N, (k + 1) N)``.
+
+    Every read asks for at most what the file holds (:class:`_BoundedReads`), and an entry of a
+    sequence that is not the shard's, or beyond the :data:`MAX_SEQUENCE_ENTRIES` a sequence can
+    hold, ends the reading: memory and time are bounded by the file's size and by ``shard_size``.
 
     Raises:
         DamagedShard: the shard is truncated or not a tar of sequence entries.
@@ -59,9 +90,11 @@ def shard_contents(path: Path) -> dict[int, list[tarfile.TarInfo]]:
     """
     if not os.path.lexists(path):
         return {}
+    first = int(SHARD_NAME.match(path.name).group(1)) * shard_size
     contents: dict[int, list[tarfile.TarInfo]] = {}
-    with open_inside(path, path.parent) as f:
-        size = os.fstat(f.fileno()).st_size
+    with open_inside(path, path.parent) as raw:
+        size = os.fstat(raw.fileno()).st_size
+        f = _BoundedReads(raw, size)
         try:
             with tarfile.open(fileobj=f, mode="r:") as tar:
                 for member in tar:
@@ -72,7 +105,14 @@ def shard_contents(path: Path) -> dict[int, list[tarfile.TarInfo]]:
                     if not 0 <= member.size <= size - member.offset_data:  # tarfile reads base-256 sizes of any sign
                         raise DamagedShard(path, f"entry {member.name!r} declares {member.size} bytes from byte "
                                                  f"{member.offset_data}, the file has {size}", _without_last(contents))
-                    contents.setdefault(int(key), []).append(member)
+                    if not first <= int(key) < first + shard_size:
+                        raise DamagedShard(path, f"entry {member.name!r} is of sequence {int(key)}, not one of the "
+                                                 f"shard's [{first}, {first + shard_size})", _without_last(contents))
+                    members = contents.setdefault(int(key), [])
+                    if len(members) == MAX_SEQUENCE_ENTRIES:
+                        raise DamagedShard(path, f"sequence {key} has more than {MAX_SEQUENCE_ENTRIES} entries, the "
+                                                 f"most one can hold (entry {member.name!r})", _without_last(contents))
+                    members.append(member)
                 end = tar.offset
         except (tarfile.TarError, OSError) as error:  # OSError: a seek past what the file system allows
             raise DamagedShard(path, f"{type(error).__name__}: {error}", _without_last(contents)) from None
@@ -88,11 +128,11 @@ def _without_last(contents: dict[int, list[tarfile.TarInfo]]) -> dict[int, list[
     return dict(sorted(contents.items())[:-1])
 
 
-def held_sequences(path: Path) -> dict[int, list[tarfile.TarInfo]]:
+def held_sequences(path: Path, shard_size: int) -> dict[int, list[tarfile.TarInfo]]:
     """What a rerun of the export keeps of the shard at ``path``: all of it, or of a damaged shard
     the sequences before the damage (the rerun rewrites it: :meth:`ShardLayout.write`)."""
     try:
-        return shard_contents(path)
+        return shard_contents(path, shard_size)
     except DamagedShard as damaged:
         return damaged.complete
 
@@ -128,7 +168,7 @@ class ShardLayout:
         held, damaged = set(), set()
         for shard in range(wanted.start // self.shard_size, (wanted.stop - 1) // self.shard_size + 1):
             try:
-                contents = shard_contents(shard_path(out, shard))
+                contents = shard_contents(shard_path(out, shard), self.shard_size)
             except DamagedShard as error:
                 contents = error.complete
                 damaged.add(shard)
@@ -149,7 +189,7 @@ class ShardLayout:
         in index order, into ``.tmp-sidar-shard-<k>.tar``, then moved into place; ``written()`` is
         called after each sequence rendered."""
         path = shard_path(out, unit.number)
-        old = held_sequences(path)
+        old = held_sequences(path, self.shard_size)
         tmp = temporary_path(path)
         try:
             with tarfile.open(tmp, "w") as tar, (open_inside(path, out) if old else nullcontext()) as old_file:
@@ -175,7 +215,7 @@ class ShardLayout:
         """
         items = []
         for shard in sorted(p for p in out.iterdir() if SHARD_NAME.match(p.name)):
-            for index, members in sorted(shard_contents(shard).items()):
+            for index, members in sorted(shard_contents(shard, self.shard_size).items()):
                 items.append((index, {m.name.partition(".")[2]: (shard, m.offset_data, m.size) for m in members}))
         return items
 
@@ -188,7 +228,9 @@ class ShardLayout:
             ValueError: the entry is larger than ``limit`` bytes, or its shard is no longer a regular file.
         """
         if name not in where:
-            raise FileNotFoundError(f"shard entry {name!r} missing (entries: {sorted(where)})")
+            shard = next(iter(where.values()))[0]
+            raise FileNotFoundError(f"{str(shard)!r}: the sequence has no entry {name!r} (its entries, "
+                                    f"{shown_names(sorted(where))})")
         shard, offset, size = where[name]
         if size > limit:
             raise ValueError(f"{str(shard)!r}: entry {name!r} holds {size} bytes, more than the {limit} "
@@ -197,6 +239,11 @@ class ShardLayout:
             f.seek(offset)
             return shard, f.read(size)
 
+    def read_cameras(self, read: Callable[..., Any], config: dict[str, Any]) -> dict[str, np.ndarray]:
+        """The checked cameras of the ``cameras.json`` entry (:func:`.entries.cameras_entry`)."""
+        return cameras_entry(read, config)
+
     def read_homographies(self, read: Callable[..., Any], n_views: int) -> np.ndarray:
-        """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry (``read``: entry name and shape -> value)."""
-        return read(HOMOGRAPHIES, (n_views, n_views, 3, 3))
+        """``(V, V, 3, 3)`` float64 from the ``homographies.npy`` entry (``read``: entry name, shape and
+        check -> value), each checked (:func:`.entries.checked_homographies`)."""
+        return read(HOMOGRAPHIES, (n_views, n_views, 3, 3), checked_homographies)

@@ -25,8 +25,9 @@ CONFIG = {"image_size": [6, 8], "n_views": 2, "opacity_output": True}
 
 
 def sample(index, n_views=2, size=(6, 8)):
-    """Random :class:`SampleArrays` of ``n_views`` views of ``size`` pixels, opacities included
-    (homographies: the identity on the diagonal, as a rendered sample's)."""
+    """Random :class:`SampleArrays` of ``n_views`` views of ``size`` pixels, opacities included, of
+    numbers the reader accepts (homographies: the identity on the diagonal, as a rendered sample's;
+    pinhole intrinsics, rotations)."""
     rng = np.random.default_rng(index)
     pixels = partial(rng.integers, 0, 256, dtype=np.uint8)
     homographies = rng.normal(size=(n_views, n_views, 3, 3))
@@ -34,8 +35,21 @@ def sample(index, n_views=2, size=(6, 8)):
     return SampleArrays(images=pixels((n_views, *size, 3)), masks=pixels((n_views, *size)),
                         opacities=pixels((n_views, *size)), label=pixels((*size, 3)),
                         homographies=homographies, homography_error=rng.random(),
-                        K=rng.normal(size=(n_views, 3, 3)), R=rng.normal(size=(n_views, 3, 3)),
+                        K=intrinsics(rng, n_views), R=rotations(rng, n_views),
                         t=rng.normal(size=(n_views, 3)), index=index)
+
+
+def intrinsics(rng, count):
+    """``(count, 3, 3)`` random pinhole intrinsics ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, ``fx, fy > 0``."""
+    K = np.triu(rng.uniform(1, 9, (count, 3, 3)))
+    K[:, 2, 2] = 1
+    return K
+
+
+def rotations(rng, count):
+    """``(count, 3, 3)`` random rotations (det 1)."""
+    Q = np.linalg.qr(rng.normal(size=(count, 3, 3)))[0]
+    return Q * np.sign(np.linalg.det(Q))[:, None, None]
 
 
 def tree_bytes(out):

@@ -268,3 +268,158 @@ def test_a_tar_member_declaring_1e15_or_negative_bytes_is_a_damaged_shard(export
     shard.write_bytes(data[:entries_end] + bytes(header) + bytes(512) + bytes(1024))
     message = read_with_bounded_memory(out, item=False)
     assert "shard-00000.tar': damaged shard" in message and "000000.extra.png" in message, message
+
+
+# --------------------------------------------------------------------------- issue 48: numbers, sizes, layouts
+
+
+def numbers_edits():
+    nan, inf = float("nan"), float("inf")
+    K = [[30.0, 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 1.0]]
+    return {
+        "K-zeros": ({"K": [[[0.0] * 3] * 3, K]}, r"field 'K': view 0: expected finite pinhole intrinsics"),
+        "K-nan": ({"K": [K, [[nan] * 3] * 3]}, r"field 'K': view 1: expected finite pinhole intrinsics"),
+        "K-inf": ({"K": [K, [[inf, 0.0, 15.5], [0.0, 30.0, 11.5], [0.0, 0.0, 1.0]]]}, "field 'K': view 1"),
+        "R-not-a-rotation": ({"R": [[[2.0, 0, 0], [0, 1, 0], [0, 0, 1]]] * 2}, r"field 'R': view 0: expected a rotation"),
+        "t-nan": ({"t": [[0.0, 0.0, 1.0], [nan, 0.0, 1.0]]}, r"field 't': view 1: expected finite numbers"),
+        "error-nan": ({"homography_error": nan}, "'homography_error': expected a finite number >= 0"),
+    }
+
+
+@pytest.mark.parametrize("case", list(numbers_edits()))
+@pytest.mark.parametrize("layout", ["folders", "shards"])
+def test_cameras_json_of_numbers_no_camera_has_is_a_value_error_naming_the_field(exports, tmp_path, layout, case):
+    """Issue 48: K of zeros, NaN or inf (and R, t, homography_error) were read as they were."""
+    out = copy_of(exports, layout, tmp_path)
+    edit, named = numbers_edits()[case]
+    replace_entry(out, layout, "cameras.json", lambda data: json.dumps({**json.loads(data), **edit}).encode())
+    message = read_with_bounded_memory(out)
+    assert ("000000/cameras.json'" in message or "000000.cameras.json" in message) and re.search(named, message), message
+
+
+@pytest.mark.parametrize("H, layout", [(np.full((3, 3), np.nan), "folders"), (np.diag([1.0, 1.0, 0.0]), "folders"),
+                                       (np.full((3, 3), np.nan), "shards"), (np.full((3, 3), 1e300), "shards")])
+def test_a_homography_file_of_nan_or_a_singular_matrix_is_a_value_error_naming_it(exports, tmp_path, H, layout):
+    """Issue 48: ``H_i_j.mat`` of NaN was read as it was (evaluate then printed MACE nan)."""
+    out = copy_of(exports, layout, tmp_path)
+    if layout == "folders":
+        replace_entry(out, layout, "H_0_1.mat", lambda data: mat_of(H=H))
+        expected = "000000/H_0_1.mat': expected an invertible homography"
+    else:
+        def tampered(data):
+            homographies = np.load(io.BytesIO(data))
+            homographies[0, 1] = H
+            return np_save(homographies)
+        replace_entry(out, layout, "homographies.npy", tampered)
+        expected = r"000000.homographies.npy: H\[0, 1\]: expected an invertible homography"
+    assert re.search(expected, read_with_bounded_memory(out))
+
+
+@pytest.fixture(scope="module")
+def lens_export(tmp_path_factory):
+    """One TINY sequence through division lenses, exported in the folder layout."""
+    out = tmp_path_factory.mktemp("lens") / "folders"
+    export_dataset(tiny_dataset(lens_model="division"), out, count=1, progress=False)
+    return out
+
+
+@pytest.mark.parametrize("lens, named", [
+    ([1e300, 0, 0, 0, 0], r"a coefficient at the image's corner is .*, outside the bounds \[-0.5, 0.5\] of config "
+                          r"field 'lens_lambda'"),
+    ([float("nan"), 0, 0, 0, 0], "expected finite coefficients"),
+    ([-0.1, 0.5, 0, 0, 0], "coefficient 1 is 0.5, expected 0: lens_model 'division' has no such coefficient"),
+])
+def test_a_lens_no_config_allows_is_a_value_error_naming_the_field(lens_export, tmp_path, lens, named):
+    """Issue 48: lens coefficients of 1e300 or NaN were read as they were."""
+    out = tmp_path / "folders"
+    shutil.copytree(lens_export, out)
+    path = out / "000000" / "cameras.json"
+    cameras = json.loads(path.read_text())
+    cameras["lens"][1] = lens
+    path.write_text(json.dumps(cameras))
+    message = read_with_bounded_memory(out)
+    assert "000000/cameras.json'" in message and "field 'lens': view 1: " in message and re.search(named, message), message
+
+
+@pytest.mark.parametrize("kind, size", [(tarfile.GNUTYPE_LONGNAME, 10**11), (tarfile.XHDTYPE, 4 * 2**30)])
+def test_a_long_name_or_pax_header_claiming_gigabytes_is_a_damaged_shard_read_in_bounded_memory(
+        exports, tmp_path, kind, size):
+    """Issue 48: a GNU long name claiming 1e11 bytes was ``MemoryError`` naming no file; a pax header
+    claiming 4 GiB allocated 4 GiB."""
+    out = copy_of(exports, "shards", tmp_path)
+    shard = out / "shard-00000.tar"
+    data = shard.read_bytes()
+    entries_end = -(-len(data.rstrip(b"\0")) // 512) * 512
+    info = tarfile.TarInfo("././@LongLink")
+    info.type, info.size = kind, size
+    shard.write_bytes(data[:entries_end] + info.tobuf(tarfile.GNU_FORMAT) + b"x" * 512 + bytes(1024))
+    message = read_with_bounded_memory(out, item=False)
+    assert "shard-00000.tar': damaged shard" in message, message
+
+
+def test_a_manifest_claiming_a_large_image_is_read_in_the_files_memory(exports, tmp_path):
+    """Issue 48: every read reserved the most bytes the manifest allows (385 MiB a file for 5792 x 5792,
+    192 MiB for 4000 x 4000)."""
+    out = copy_of(exports, "folders", tmp_path)
+    manifest = json.loads((out / "export.json").read_text())
+    manifest["config"]["image_size"] = [4000, 4000]
+    (out / "export.json").write_text(json.dumps(manifest))
+    replace_entry(out, "folders", "cameras.json",
+                  lambda data: json.dumps({**json.loads(data), "image_size": [4000, 4000]}).encode())
+    message = read_with_bounded_memory(out)
+    assert "000000/0.png': not a PNG of 4000 x 4000 pixels" in message, message
+
+
+@pytest.mark.parametrize("layout, recorded", [("folders", ("shards", 1)), ("shards", ("folders", None))])
+def test_a_manifest_naming_another_layout_than_the_files_is_a_value_error(exports, tmp_path, layout, recorded):
+    """Issue 48: ``"layout": "shards"`` on a folder export read as an empty set, with no error."""
+    out = copy_of(exports, layout, tmp_path)
+    manifest = json.loads((out / "export.json").read_text())
+    manifest["layout"], manifest["shard_size"] = recorded
+    (out / "export.json").write_text(json.dumps(manifest))
+    message = read_with_bounded_memory(out, item=False)
+    assert re.search(rf"export.json': records layout '{recorded[0]}', but .* holds no sequence of that layout "
+                     r"\(found 3: '(000000|config.yaml)', ", message), message
+
+
+@pytest.mark.parametrize("field", ["geometry_dtype", "lens_model"])
+def test_a_config_name_of_another_type_is_a_value_error_naming_the_field(exports, tmp_path, field):
+    """Issue 48: ``"geometry_dtype": []`` gave ``TypeError`` (a list is no key of a dict)."""
+    out = copy_of(exports, "folders", tmp_path)
+    manifest = json.loads((out / "export.json").read_text())
+    manifest["config"][field] = []
+    (out / "export.json").write_text(json.dumps(manifest))
+    assert f"field 'config.{field}': expected one of" in read_with_bounded_memory(out, item=False)
+
+
+def shard_with(out, keep, extra):
+    """Rewrite shard 0 of ``out`` with its entries whose name ``keep`` accepts, then empty entries named ``extra``."""
+    shard = out / "shard-00000.tar"
+    with tarfile.open(shard) as tar:
+        kept = [(m, tar.extractfile(m).read()) for m in tar if keep(m.name)]
+    with tarfile.open(shard, "w") as tar:
+        for member, data in kept:
+            tar.addfile(member, io.BytesIO(data))
+        for name in extra:
+            tar.addfile(tarfile.TarInfo(name), io.BytesIO(b""))
+
+
+def test_a_shard_of_many_empty_entries_stops_at_the_most_a_sequence_holds(exports, tmp_path):
+    """Issue 48: 200k empty entries of a sequence took 94 s to read, then an error listing every name."""
+    from sidar_torch.io.shards import MAX_SEQUENCE_ENTRIES
+
+    out = copy_of(exports, "shards", tmp_path)
+    shard_with(out, lambda name: True, [f"000000.x{i}.png" for i in range(3 * MAX_SEQUENCE_ENTRIES)])
+    message = read_with_bounded_memory(out, item=False)
+    assert f"sequence 000000 has more than {MAX_SEQUENCE_ENTRIES} entries" in message and len(message) < 400, message
+    out = copy_of(exports, "shards", tmp_path / "foreign")
+    shard_with(out, lambda name: True, ["000007.gt.png"])  # shard 0 of 1 sequence holds sequence 0 only
+    assert "entry '000007.gt.png' is of sequence 7, not one of the shard's [0, 1)" in read_with_bounded_memory(out, False)
+
+
+def test_a_missing_shard_entry_names_the_shard_and_a_few_of_the_entries(exports, tmp_path):
+    out = copy_of(exports, "shards", tmp_path)
+    shard_with(out, lambda name: name != "000000.cameras.json", [f"000000.x{i}.png" for i in range(1000)])
+    message = read_with_bounded_memory(out)
+    assert re.search(r"shard-00000.tar': the sequence has no entry 'cameras.json' \(its entries, 10\d\d: '0-m.png', "
+                     r"'0.png', .*, \.\.\.\)", message) and len(message) < 400, message

@@ -12,6 +12,7 @@ import zlib
 
 import numpy as np
 import pytest
+import torch
 from PIL import Image
 
 from sidar_torch import ExportedDataset
@@ -106,3 +107,66 @@ def test_a_fifo_swapped_in_for_gt_png_is_refused_without_blocking(tmp_path, monk
         done.set()
         writer.join()
     assert not blocked
+
+
+def corner_homography():
+    """A valid homography in the paper's pixels with some perspective (det 1)."""
+    H = np.array([[1.1, 0.05, 2.0], [0.02, 0.95, -1.0], [0.001, 0.002, 1.0]])
+    return H / np.cbrt(np.linalg.det(H))
+
+
+@pytest.mark.parametrize("scale", [1e-5, 1e300])
+def test_a_homography_text_reads_the_same_at_any_scale(tmp_path, scale):
+    """Issue 48: the check was ``|det H| >= 1e-12``, so a valid H scaled by 1e-5 was refused and
+    ``1e308 * I`` passed it, to fail later with LinAlgError."""
+    for name, H in (("one", corner_homography()), ("scaled", corner_homography() * scale)):
+        (tmp_path / name).mkdir()
+        paper_sequence(tmp_path / name / "seq01", np.random.default_rng(0), H)
+    H = ExportedDataset(tmp_path / "one", geometry_dtype="float64")[0]["homographies"]
+    scaled = ExportedDataset(tmp_path / "scaled", geometry_dtype="float64")[0]["homographies"]
+    np.testing.assert_allclose(scaled.numpy(), H.numpy(), rtol=1e-13, atol=1e-13)
+
+
+def test_1e308_times_the_identity_reads_as_the_identity(tmp_path):
+    paper_sequence(tmp_path / "seq01", np.random.default_rng(0), 1e308 * np.eye(3))
+    H = ExportedDataset(tmp_path, geometry_dtype="float64")[0]["homographies"].numpy()
+    np.testing.assert_allclose(H, np.broadcast_to(np.eye(3), H.shape), atol=1e-15)
+
+
+@pytest.mark.parametrize("H, reason", [
+    (np.diag([1.0, 1.0, 0.0]), "condition number inf"),
+    (np.diag([1.0, 1.0, 1e-13]), "condition number 1e\\+13"),
+    (np.where(np.eye(3) > 0, np.nan, 0.0), "nan"),
+    (np.zeros((3, 3)), r"got \[\[0.0, 0.0, 0.0\]"),
+])
+def test_a_singular_or_not_finite_homography_text_is_refused_naming_the_file_and_why(tmp_path, H, reason):
+    paper_sequence(tmp_path / "seq01", np.random.default_rng(0), np.eye(3))
+    np.savetxt(tmp_path / "seq01" / "H_0_1.mat", H)
+    with pytest.raises(ValueError, match=rf"seq01/H_0_1.mat': expected an invertible homography .*{reason}"):
+        ExportedDataset(tmp_path)[0]
+
+
+@pytest.mark.parametrize("name", ["H_0_1.mat", "1-m.png", "1.png"])
+def test_a_missing_file_of_a_papers_sequence_is_a_value_error_naming_it(tmp_path, name):
+    """Issue 48: a missing ``H_0_1.mat`` or mask was ``FileNotFoundError``. (A missing view makes the
+    sequence one of fewer views than the first, which is named when the folder is opened.)"""
+    paper_sequence(tmp_path / "seq01", np.random.default_rng(0), np.eye(3))
+    paper_sequence(tmp_path / "seq02", np.random.default_rng(1), np.eye(3))
+    (tmp_path / "seq02" / name).unlink()
+    with pytest.raises(ValueError, match=rf"seq02/{re.escape(name)}' does not exist|seq02': holds 1 views"):
+        ExportedDataset(tmp_path)[1]
+
+
+def test_the_papers_homographies_read_in_float64_when_asked(tmp_path):
+    """Issue 48: the texts hold 17 digits, but a paper folder was read in float32 only (11.8 px off
+    near the horizon of the paper's sequence 5)."""
+    paper_sequence(tmp_path / "seq01", np.random.default_rng(0), corner_homography())
+    exact = paper.kornia_from_paper(corner_homography(), (6, 8))
+    wide = ExportedDataset(tmp_path, geometry_dtype="float64")
+    assert wide.geometry_dtype == "float64" and ExportedDataset(tmp_path).geometry_dtype == "float32"
+    H = wide[0]["homographies"]
+    assert H.dtype == torch.float64 and wide[0]["K"].dtype == torch.float64
+    np.testing.assert_allclose(H[0, 1].numpy(), exact, rtol=1e-14, atol=1e-15)
+    assert ExportedDataset(tmp_path)[0]["homographies"].dtype == torch.float32
+    with pytest.raises(ValueError, match=r"geometry_dtype: expected one of \['float32', 'float64'\] or None"):
+        ExportedDataset(tmp_path, geometry_dtype=[])
