@@ -268,8 +268,11 @@ def _draw_words(batch_size: int, generator: Generator | None) -> list[list[int]]
                     f"got {type(generator).__name__}")
 
 
-def _to_device(values: torch.Tensor, key: str, device: torch.device) -> torch.Tensor:
-    """``values`` on ``device``; ``homography_error`` as float32 on a device that holds no float64."""
+def _to_device(values: Any, key: str, device: torch.device) -> Any:
+    """``values`` on ``device`` when a tensor (anything else, e.g. the ``lens_model`` names, as it is);
+    ``homography_error`` as float32 on a device that holds no float64."""
+    if not isinstance(values, torch.Tensor):
+        return values
     if key == "homography_error" and device.type in FLOAT64_FREE_DEVICES:
         values = values.float()
     return values.to(device)
