@@ -24,7 +24,8 @@ from .config import SidarConfig, as_int, available_presets, load_config
 from .config.loader import parse_yaml
 from .baselines import ESTIMATORS, resolve_estimator
 from .dataset import SidarDataset
-from .evaluation import DEFAULT_TIMEOUT, checked_timeout, evaluate, format_table
+from .deep_homography.protocol import PATCH, RHO
+from .evaluation import DEFAULT_TIMEOUT, PROTOCOLS, checked_timeout, evaluate, format_table, testset_names
 from .io import LAYOUTS, ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
 from .orphans import process_age
@@ -284,8 +285,8 @@ def _export_testset(args: argparse.Namespace, clock: WallClock) -> None:
 def _evaluate(args: argparse.Namespace, clock: WallClock) -> None:
     if args.limit is not None and args.limit < 1:
         raise UsageError(f"--limit {args.limit}: expected at least 1")
-    if args.testset not in available_testsets() and not Path(args.testset).is_dir():
-        raise UsageError(f"--testset {args.testset!r}: expected one of {', '.join(available_testsets())} or a folder")
+    if args.testset not in testset_names() and not Path(args.testset).is_dir():
+        raise UsageError(f"--testset {args.testset!r}: expected one of {', '.join(testset_names())} or a folder")
     if args.cache is not None and args.testset not in available_testsets():
         raise UsageError(f"--cache {args.cache!r}: only a named test set is rendered; {args.testset!r} is read as it is")
     _importable_here()
@@ -300,7 +301,8 @@ def _evaluate(args: argparse.Namespace, clock: WallClock) -> None:
     try:
         with clock.part("evaluate"):
             result = evaluate(args.estimator, testset=args.testset, limit=args.limit, cache=args.cache,
-                              progress=not args.no_progress, timeout=args.timeout)
+                              progress=not args.no_progress, timeout=args.timeout, protocol=args.protocol,
+                              seed=args.seed, patch=args.patch, rho=args.rho)
     except (ValueError, OSError, ImportError) as error:  # not a test set, a damaged file (named), an estimator
         raise UsageError(str(error)) from error  # answering no matrix, a baseline without OpenCV or its weights
     if result["digests"] is not None:
@@ -408,7 +410,7 @@ def _parser() -> argparse.ArgumentParser:
         description="Score an estimator on a shipped test set (rendered into --cache, or a temporary folder) or on "
                     "a folder (an export of ours, or the SIDAR paper's own sequences); print the tables.")
     evaluation.add_argument("--testset", default="homography-v1", metavar="NAME_OR_FOLDER",
-                            help=f"{', '.join(available_testsets())} or a folder (default homography-v1)")
+                            help=f"{', '.join(testset_names())} or a folder (default homography-v1)")
     evaluation.add_argument("--estimator", required=True, metavar="NAME_OR_MODULE:FUNC",
                             help=f"a baseline ({', '.join(ESTIMATORS)}) or MODULE:FUNCTION, a function of two "
                                  "(H, W, 3) uint8 views returning a 3x3 homography (source to target pixels) or None "
@@ -419,6 +421,15 @@ def _parser() -> argparse.ArgumentParser:
                             help=f"stop a call of the estimator after SECONDS and score its pair as a failure "
                                  f"(default {DEFAULT_TIMEOUT:g}); one that raises is scored so too, its traceback "
                                  f"printed, and the run goes on")
+    evaluation.add_argument("--protocol", default="views", choices=PROTOCOLS,
+                            help="views: view 0 to each other view, whole (default); patches: the patch-pair protocol, "
+                                 "a box of view i and the same box of view j brought back and moved by a seeded "
+                                 "random corner perturbation, for every ordered view pair (docs/benchmarks.md)")
+    evaluation.add_argument("--patch", type=int, default=PATCH, metavar="PX",
+                            help=f"the patch protocol's box side (default {PATCH})")
+    evaluation.add_argument("--rho", type=float, default=RHO, metavar="PX",
+                            help=f"the patch protocol's largest corner perturbation per coordinate (default {RHO})")
+    evaluation.add_argument("--seed", type=int, default=0, help="the patch protocol's seed (default 0)")
     evaluation.add_argument("--cache", default=None, metavar="DIR",
                             help="render a named test set into DIR and keep it (default: a temporary folder)")
     evaluation.add_argument("--json", default=None, metavar="OUT", help="also write the result as JSON to OUT")

@@ -40,6 +40,14 @@ A named set is rendered once into a cache folder (``cache``; without one, a temp
 afterwards) and checked against its recorded digests; a folder is read as it is: an export of a
 test set (one export per category), one export, or a folder of the SIDAR paper's own sequences.
 ``limit`` takes pairs (views) one from each category in turn, so that every category is scored.
+
+With ``protocol="patches"`` the pairs of a homography set are those of the patch-pair protocol
+(:mod:`sidar_torch.deep_homography.protocol`: a ``patch x patch`` box of view ``i``, the same box of
+view ``j`` brought back by ``H_ij`` and moved by a seeded random perturbation of its corners of at most
+``rho`` pixels, for every ordered view pair whose two patches show enough painting). The estimator
+sees the two patches; the truth is the perturbation; corner errors are at the patch's outer corners.
+``warps-v1`` (:class:`sidar_torch.deep_homography.warps.WarpTestSet`), classic 2-D warps of paintings
+no shipped network trained on, is generated in memory and checked against its recorded digest.
 """
 
 from __future__ import annotations
@@ -63,6 +71,8 @@ import numpy as np
 import torch
 
 from .baselines import Estimator, resolve_estimator
+from .deep_homography.protocol import MIN_VISIBLE, PATCH, RHO, cut_pair, draw_pairs
+from .deep_homography.warps import WARPS_V1_SHA256, WarpTestSet
 from .config import as_float
 from .config.numbers import shown
 from .geometry import corner_pixels
@@ -71,8 +81,8 @@ from .io.layout import MANIFEST
 from .testsets import TestSet, available_testsets, export_testset, load_testset
 
 __all__ = ["DEFAULT_TIMEOUT", "HORIZON_W", "SHADOW_THRESHOLD", "SINGULAR_DET", "SUCCESS_PX", "TOTAL", "Call",
-           "EstimatorTimeout", "GuardedEstimator", "checked_timeout", "corner_error", "evaluate", "format_table",
-           "score_pair"]
+           "EstimatorTimeout", "GuardedEstimator", "PROTOCOLS", "checked_timeout", "corner_error", "evaluate",
+           "format_table", "score_pair", "testset_names"]
 
 SUCCESS_PX = (1, 3, 10)
 """Corner errors (pixels) a pair must stay within to count as a success at that threshold."""
@@ -93,6 +103,13 @@ SHADOW_THRESHOLD = 0.1
 
 TOTAL = "**total**"
 """The label of :func:`format_table`'s row over all categories (a set's categories include one named ``all``)."""
+
+PROTOCOLS = ("views", "patches")
+"""How a homography set's pairs are made: ``views``, view 0 to each other view, whole; ``patches``, the
+patch-pair protocol (:mod:`sidar_torch.deep_homography.protocol`) on every ordered view pair."""
+
+GENERATED = {"warps-v1": WarpTestSet}
+"""Test sets generated in memory instead of rendered: name -> the class whose instance holds them."""
 
 BINS = {
     "tilt_deg": (0.0, 20.0, 40.0, 60.0, 180.0),
@@ -295,6 +312,11 @@ def _checked(H: Any, name: str, image_size: tuple[int, int]) -> np.ndarray | Non
     return H
 
 
+def testset_names() -> list[str]:
+    """Every test set :func:`evaluate` knows by name: the rendered ones, then the generated ones."""
+    return [*available_testsets(), *GENERATED]
+
+
 def _name(function: Callable) -> str:
     return f"{getattr(function, '__module__', '?')}:{getattr(function, '__qualname__', type(function).__name__)}"
 
@@ -307,7 +329,8 @@ class _Category:
 
 def evaluate(estimator: str | Estimator, testset: str | Path = "homography-v1", limit: int | None = None,
              cache: str | Path | None = None, progress: bool = False,
-             timeout: float | None = DEFAULT_TIMEOUT) -> dict[str, Any]:
+             timeout: float | None = DEFAULT_TIMEOUT, protocol: str = "views", seed: int = 0, patch: int = PATCH,
+             rho: float = RHO) -> dict[str, Any]:
     """Score ``estimator`` on ``testset`` (see the module docstring for the metrics).
 
     Args:
@@ -323,11 +346,15 @@ def evaluate(estimator: str | Estimator, testset: str | Path = "homography-v1", 
         timeout: seconds one call of the estimator may take; past it the call is stopped and scored
             as a failure (:class:`GuardedEstimator` says how, and its limits); ``None``: no limit, the
             estimator called in this thread.
+        protocol: one of :data:`PROTOCOLS` (homography sets).
+        seed, patch, rho: the patch protocol's seed, box side (pixels) and largest corner perturbation
+            per coordinate (pixels); ignored by ``views``.
 
     Returns:
         ``{"set", "task", "estimator", "timeout", "pairs", "mace", "median_error", "success": {"1",
         "3", "10"}, "failures", "errors", "timeouts", "median_seconds", "by_category": {name: {...}},
-        "by_difficulty": {measure: {bin: {...}}}, "cache", "digests", "machine"}`` for homography sets
+        "by_difficulty": {measure: {bin: {...}}}, "protocol": {...}, "cache", "digests", "machine"}`` for
+        homography sets
         (errors in pixels, success as fractions, times in seconds; ``failures`` includes ``errors``,
         the calls that raised, and ``timeouts``); for shadow-removal sets ``"images"`` and ``"rmse":
         {"shadow", "non_shadow", "all"}`` instead of the pair metrics.
@@ -342,13 +369,23 @@ def evaluate(estimator: str | Estimator, testset: str | Path = "homography-v1", 
     """
     if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
         raise ValueError(f"limit: expected an integer >= 1 or None, got {limit!r}")
+    if protocol not in PROTOCOLS:
+        raise ValueError(f"protocol: expected one of {PROTOCOLS}, got {protocol!r}")
     name, function = resolve_estimator(estimator) if isinstance(estimator, str) else (_name(estimator), estimator)
     guarded = GuardedEstimator(function, name, timeout)
     with ExitStack() as stack:
         set_name, task, categories, cache_note, digests = _open(testset, limit, cache, progress, stack)
-        units = islice(_in_turn(_units(c, TASKS[task].first_view) for c in categories), limit)
-        result = {"set": set_name, "task": task, "estimator": name, "timeout": guarded.timeout,
-                  **TASKS[task].score(guarded, units)}
+        if protocol == "patches":
+            if task != "homography":
+                raise ValueError(f"protocol 'patches': expected a homography set, {set_name!r} is a {task} set")
+            settings = {"seed": seed, "patch": patch, "rho": rho, "min_visible": MIN_VISIBLE}
+            units = islice(_in_turn(_patch_units(c, settings) for c in categories), limit)
+            scores = {**_score_patches(guarded, units), "protocol": {"name": protocol, **settings}}
+        else:
+            units = islice(_in_turn(_units(c, TASKS[task].first_view) for c in categories), limit)
+            scores = {**TASKS[task].score(guarded, units), **({"protocol": {"name": protocol}}
+                                                              if task == "homography" else {})}
+        result = {"set": set_name, "task": task, "estimator": name, "timeout": guarded.timeout, **scores}
     return {**result, "cache": cache_note, "digests": digests,
             "machine": f"{platform.machine()}, {platform.system()} {platform.release()}, Python {platform.python_version()}"}
 
@@ -361,6 +398,10 @@ def _open(testset: str | Path, limit: int | None, cache: str | Path | None, prog
         ValueError: ``testset`` is neither a set's name nor a folder, the folder is no export (the
             reader's message) or holds nothing to score.
     """
+    if isinstance(testset, str) and testset in GENERATED:
+        generated = GENERATED[testset]()
+        return testset, "homography", [_Category(testset, generated)], "generated in memory", \
+            None if limit is not None else _generated_digest(generated)
     if isinstance(testset, str) and testset in available_testsets():
         definition = load_testset(testset)
         sequences = None if limit is None else _sequences_needed(definition, limit)
@@ -374,7 +415,7 @@ def _open(testset: str | Path, limit: int | None, cache: str | Path | None, prog
         return testset, definition.task, categories, note, digests
     folder = Path(testset)
     if not folder.is_dir():
-        raise ValueError(f"testset: expected one of {available_testsets()} or a folder, got {str(testset)!r}")
+        raise ValueError(f"testset: expected one of {testset_names()} or a folder, got {str(testset)!r}")
     exports = sorted(p for p in folder.iterdir() if (p / MANIFEST).is_file())
     categories = ([_Category(p.name, ExportedDataset(p)) for p in exports] if exports and not (folder / MANIFEST).exists()
                   else [_Category(folder.name, ExportedDataset(folder))])
@@ -384,6 +425,14 @@ def _open(testset: str | Path, limit: int | None, cache: str | Path | None, prog
         raise ValueError(f"testset {str(folder)!r}: nothing to score, no sequence of {first + 1} views or more "
                          f"(exports read: {', '.join(str(c.dataset.path) for c in categories)})")
     return str(folder), task, categories, f"{folder} (read as it is)", None
+
+
+def _generated_digest(generated: WarpTestSet) -> dict[str, Any]:
+    """The digest check of a generated set (every sequence generated once more: seconds)."""
+    digest = generated.digest()
+    return {"matches": digest == WARPS_V1_SHA256, "checked": len(generated), "differing": [],
+            "summary": f"its views {'match' if digest == WARPS_V1_SHA256 else 'differ from'} the recorded SHA-256 "
+                       f"({digest[:12]}...)"}
 
 
 _END = object()
@@ -445,9 +494,31 @@ def _score_homographies(estimator: GuardedEstimator, units: Iterator[Unit]) -> d
     return _homography_summary(rows)
 
 
+def _patch_units(category: _Category, settings: dict[str, Any]) -> Iterator[tuple[str, int, dict[str, Any], Any]]:
+    """``(category name, k, sample, pair)`` for every patch pair (:func:`draw_pairs`) of each sequence ``k``."""
+    for k in range(len(category.dataset)):
+        sample = category.dataset[k]
+        for pair in draw_pairs(sample, k, **settings):
+            yield category.name, k, sample, pair
+
+
+def _score_patches(estimator: GuardedEstimator, units: Iterator[tuple[str, int, dict[str, Any], Any]]) -> dict[str, Any]:
+    """The patch protocol's rows: corner errors at the patch's outer corners, difficulty of the view pair."""
+    rows = []
+    for category, k, sample, pair in units:
+        cut = cut_pair(sample["images"], sample["homographies"][pair.source, pair.target].double().numpy(), pair)
+        scored = score_pair(estimator, _uint8(cut["source"]), _uint8(cut["target"]), cut["H"],
+                            f"{category} sequence {k}, views {pair.source} -> {pair.target}, box at {pair.origin}")
+        rows.append({"category": category, **scored,
+                     **_difficulty(sample, pair.source, pair.target, tuple(sample["images"].shape[-2:]))})
+    if not rows:
+        raise ValueError("protocol 'patches': no view pair shows enough painting for a patch pair")
+    return _homography_summary(rows)
+
+
 def _difficulty(sample: dict[str, Any], i: int, j: int, size: tuple[int, int]) -> dict[str, float]:
     """The pair's difficulty measures (see the module docstring); NaN where the data cannot say."""
-    R = sample["R"].double().numpy()
+    R = sample["R"].double().numpy() if "R" in sample else np.full((len(sample["images"]), 3, 3), np.nan)
     axes = R[[i, j], 2]  # each camera's optical axis in world coordinates (row 2 of world-to-camera R)
     tilt = math.degrees(math.acos(float(np.clip(axes[0] @ axes[1], -1, 1)))) if np.isfinite(axes).all() else math.nan
     H = sample["homographies"].double().numpy()
@@ -575,7 +646,10 @@ def format_table(result: dict[str, Any]) -> str:
             rmse = metrics["rmse"]
             lines.append(f"| {name} | {rmse['shadow']:.2f} | {rmse['non_shadow']:.2f} | {rmse['all']:.2f} |")
         return "\n".join(lines)
-    lines = [f"{result['set']}: {result['pairs']} pairs, estimator {result['estimator']}, "
+    protocol = result.get("protocol", {"name": "views"})
+    pairs = ("pairs" if protocol["name"] == "views" else
+             f"patch pairs ({protocol['patch']} px, corners moved up to {protocol['rho']:g} px, seed {protocol['seed']})")
+    lines = [f"{result['set']}: {result['pairs']} {pairs}, estimator {result['estimator']}, "
              f"median {result['median_seconds'] * 1e3:.1f} ms per pair, {calls} (corner errors in pixels; a failure "
              f"scores as the identity)", "",
              "| category | pairs | MACE | median | <= 1 px | <= 3 px | <= 10 px | failures |",

@@ -21,7 +21,7 @@ def test_evaluate_prints_the_tables_and_writes_json(tmp_path, capsys):
     main(["evaluate", "--testset", str(folder), "--estimator", "test_cli_benchmarks:estimate",
           "--json", str(tmp_path / "out.json")])
     out = capsys.readouterr().out
-    assert "| **all** | 4 | 0.00 | 0.00 | 100 % | 100 % | 100 % | 0 |" in out and "| tilt_deg | [0, 20) |" in out
+    assert "| **total** | 4 | 0.00 | 0.00 | 100 % | 100 % | 100 % | 0 |" in out and "| tilt_deg | [0, 20) |" in out
     result = json.loads((tmp_path / "out.json").read_text())
     assert result["estimator"] == "test_cli_benchmarks:estimate" and result["pairs"] == 4 and result["mace"] < 1e-9
     assert set(result["success"]) == {"1", "3", "10"} and set(result["by_category"]) == {"set"}
@@ -59,7 +59,7 @@ def test_evaluate_sift_on_the_first_20_pairs_of_homography_v1(tmp_path, capsys):
     main(["evaluate", "--testset", "homography-v1", "--estimator", "sift", "--limit", "20", "--no-progress",
           "--cache", str(tmp_path / "cache"), "--json", str(tmp_path / "sift.json")])
     out = capsys.readouterr().out
-    assert "homography-v1: 20 pairs, estimator sift" in out and "| **all** | 20 |" in out
+    assert "homography-v1: 20 pairs, estimator sift" in out and "| **total** | 20 |" in out
     result = json.loads((tmp_path / "sift.json").read_text())
     assert result["pairs"] == 20 and list(result["by_category"]) == ["clean", "lights", "shadows", "occlusions", "all"]
     assert result["success"]["10"] > 0.5  # SIFT finds most of these (the recorded run: 20 of 20 within 3 px)

@@ -54,13 +54,16 @@ def standardised_grey(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
 
 
 class CornerNet(nn.Module):
-    """Source and target patches ``(N, 3, P, P)`` (P = 128 by default, any size the encoder divides
-    by 4 after resizing) -> ``(ITERATIONS, N, 4, 2)`` float32: the corners' offsets in patch pixels after each
-    round (the last is the estimate; the others feed the training loss)."""
+    """Source and target patches ``(N, 3, P, P)`` -> ``(ITERATIONS, N, 4, 2)`` float32: the corners'
+    offsets in patch pixels after each round (the last is the estimate; the others feed the training
+    loss). ``patch`` is ``P``; patches are resized to ``min(P, INPUT)`` pixels, a multiple of 4."""
 
     def __init__(self, patch: int = 128, features: int = 64, radius: int = RADIUS, iterations: int = ITERATIONS):
         super().__init__()
         self.patch, self.radius, self.iterations = patch, radius, iterations
+        self.input = min(patch, INPUT)
+        if self.input % 4:
+            raise ValueError(f"patch: expected at least {INPUT} or a multiple of 4, got {patch}")
         self.encoder = nn.Sequential(*_block(1, 32), *_block(32, 32, 2), *_block(32, 48), *_block(48, features, 2),
                                      nn.Conv2d(features, features, 3, 1, 1))
         channels = (2 * radius + 1) ** 2
@@ -71,8 +74,8 @@ class CornerNet(nn.Module):
         nn.init.zeros_(self.update[-1].bias)
 
     def forward(self, source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        a = self.encoder(standardised_grey(source))
-        b = self.encoder(standardised_grey(target))
+        a = self.encoder(standardised_grey(source, self.input))
+        b = self.encoder(standardised_grey(target, self.input))
         n, _, h, w = a.shape
         cell = self.patch / w  # patch pixels per feature cell
         # Feature-cell centres in patch pixels: cell (x, y) covers pixels [x cell, (x + 1) cell).

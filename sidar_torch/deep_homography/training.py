@@ -23,6 +23,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from ..config import as_int
 from .network import CornerNet
 from .protocol import PATCH, RHO, PatchPair, cut_pair, draw_pair
 from .warps import jitter
@@ -35,7 +36,9 @@ Batch = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
 
 
 class PairSource(Protocol):
-    """Anything that cuts a batch of pairs from a NumPy generator."""
+    """Anything that cuts a batch of pairs of ``patch x patch`` pixels from a NumPy generator."""
+
+    patch: int
 
     def batch(self, rng: np.random.Generator, size: int) -> Batch: ...
 
@@ -66,8 +69,8 @@ class SidarPairs:
             k, i = int(rng.integers(S)), int(rng.integers(V))
             j = (i + 1 + int(rng.integers(V - 1))) % V
             views = [i, j]
-            sample = {"images": _levels(self.images[k, views]), "masks": self.masks[k, views].float(),
-                      "homographies": self.homographies[k][views][:, views]}
+            sample = dict(images=_levels(self.images[k, views]), masks=self.masks[k, views].float(),
+                          homographies=self.homographies[k][views][:, views])
             pair = draw_pair(sample, k, 0, 1, rng, self.patch, self.rho, self.min_visible, attempts=4)
             if pair is not None:
                 cut = cut_pair(sample["images"], sample["homographies"][0, 1].numpy(), pair)
@@ -109,10 +112,14 @@ def corner_loss(estimates: torch.Tensor, offsets: torch.Tensor, decay: float = 0
 
 
 class TrainSettings:
-    """The budget and optimiser of a run, the same for both arms."""
+    """The budget and optimiser of a run, the same for both arms: ``steps`` (at least 3, what the one-cycle
+    schedule needs for a rise and a fall), pairs per step ``batch``, AdamW's peak ``lr`` and ``weight_decay``,
+    the ``seed`` of the weights and of every batch, and how often a checkpoint is written and progress reported."""
 
-    def __init__(self, steps: int = 3000, batch: int = 32, lr: float = 1e-3, weight_decay: float = 1e-4,
+    def __init__(self, steps: int = 1500, batch: int = 32, lr: float = 1e-3, weight_decay: float = 1e-4,
                  seed: int = 0, checkpoint_every: int = 100):
+        steps, batch = as_int("steps", steps, 3), as_int("batch", batch, 1)
+        checkpoint_every, seed = as_int("checkpoint_every", checkpoint_every, 1), as_int("seed", seed, 0)
         self.steps, self.batch, self.lr, self.weight_decay = steps, batch, lr, weight_decay
         self.seed, self.checkpoint_every = seed, checkpoint_every
 
@@ -123,7 +130,7 @@ class TrainSettings:
 
 def train(pairs: PairSource, settings: TrainSettings, checkpoint: Path | None = None,
           report: Callable[[int, float, float], None] | None = None) -> nn.Module:
-    """Train a fresh :class:`CornerNet` on ``pairs`` (resuming from ``checkpoint`` when it exists).
+    """Train a fresh :class:`CornerNet` for ``pairs.patch`` on ``pairs`` (resuming from ``checkpoint`` when it exists).
 
     Step ``s`` trains on ``pairs.batch(numpy.random.default_rng([settings.seed, s]), settings.batch)``.
 
@@ -137,9 +144,10 @@ def train(pairs: PairSource, settings: TrainSettings, checkpoint: Path | None = 
         The trained network, in eval mode.
     """
     torch.manual_seed(settings.seed)
-    network = CornerNet()
+    network = CornerNet(pairs.patch)
     optimizer = torch.optim.AdamW(network.parameters(), lr=settings.lr, weight_decay=settings.weight_decay)
-    schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, settings.lr, total_steps=settings.steps, pct_start=0.05)
+    schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, settings.lr, total_steps=settings.steps,
+                                                   pct_start=max(0.05, 2 / settings.steps))  # a warm-up of >= 2 steps
     step, seconds = 0, 0.0
     if checkpoint is not None and checkpoint.is_file():
         state = torch.load(checkpoint, map_location="cpu", weights_only=True)
