@@ -31,8 +31,8 @@ import torch
 from scipy import ndimage
 
 from benchmarks.common import parse_set
-from benchmarks.realism import (anchor_sequences, luminance, painting_region, read_rgb, srgb_to_linear, to_uint8,
-                                warp_label)
+from benchmarks.images import (anchor_sequences, luminance, painting_region, read_rgb, srgb_to_linear, to_uint8,
+                               warp_label)
 from sidar_torch.effects import linear_to_srgb
 
 SIGMAS = np.round(np.arange(0.0, 2.51, 0.1), 2)
@@ -84,7 +84,7 @@ def blur_residuals(view: np.ndarray, mask: np.ndarray, label: np.ndarray, H: np.
         mask: ``(H, W)`` bool, True where the painting is not visible.
         label: ``(H, W, 3)`` uint8 sRGB, the painting in view 0's frame (or the source painting when
             it fills view 0's frame).
-        H: ``(3, 3)`` homography label -> view (Kornia convention, see ``realism.inverse_map``).
+        H: ``(3, 3)`` homography label -> view (Kornia convention, see ``images.inverse_map``).
     """
     sigmas = SIGMAS if sigmas is None else sigmas
     if view.shape != label.shape or mask.shape != view.shape[:2] or view.ndim != 3:

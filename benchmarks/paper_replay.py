@@ -187,7 +187,8 @@ def view_rows(views: np.ndarray, masks: np.ndarray, H0: np.ndarray, hidden: np.n
     painting pixels (also hiding ``hidden (V, H, W)`` bool where given), mask components and coverage
     within the painting region (``benchmarks.realism``'s definitions); each ``(V,)``."""
     from benchmarks.exposure import view_exposure
-    from benchmarks.realism import occluder_components, occluder_coverage, painting_region
+    from benchmarks.images import painting_region
+    from benchmarks.realism import occluder_components, occluder_coverage
 
     exposure = view_exposure(views, masks if hidden is None else masks | hidden)
     regions = [painting_region(H, views.shape[1:3]) for H in H0]
@@ -197,7 +198,7 @@ def view_rows(views: np.ndarray, masks: np.ndarray, H0: np.ndarray, hidden: np.n
 
 
 def _arrays(sample: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    from benchmarks.realism import to_uint8
+    from benchmarks.images import to_uint8
 
     return (to_uint8(sample["images"]), sample["masks"][:, 0].numpy() > 0.5,
             sample["homographies"].double().numpy()[0])
@@ -226,7 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from benchmarks.realism import anchor_homographies, anchor_sequences, read_rgb
+    from benchmarks.images import anchor_sequences, read_rgb
+    from benchmarks.realism import anchor_homographies
     from sidar_torch import SidarDataset, load_config
     from sidar_torch.sample import render_sample
     from sidar_torch.scene import sample_sequence
