@@ -122,8 +122,9 @@ def ray_dataset(dataset: SidarDataset, count: int, start: int = 0, actors: int =
 
     One row per index, with the :class:`~sidar_torch.sample.SampleArrays` fields as columns
     (``V`` views of ``H x W``): ``images`` ``(V, H, W, 3)`` uint8, ``masks`` ``(V, H, W)`` uint8 (255 where
-    the painting is not visible), ``opacities`` and ``shadow_masks`` ``(V, H, W)`` uint8 and
-    ``shadow_free`` ``(V, H, W, 3)`` uint8 (each only with its ``*_output`` switch), ``label`` ``(H, W, 3)`` uint8, ``homographies`` ``(V, V, 3, 3)`` float64, ``homography_error``
+    the painting is not visible), each optional output switched on (``render_choices.OUTPUTS``: ``(V, H, W)``
+    or ``(V, H, W, C)`` of its row's dtype, as :class:`~sidar_torch.sample.SampleArrays` holds it), ``label``
+    ``(H, W, 3)`` uint8, ``homographies`` ``(V, V, 3, 3)`` float64, ``homography_error``
     float64 (pixels), ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float64 (OpenCV camera frame),
     ``index`` int64. 8-bit pixels cross the cluster at a quarter of the size of float32 views. Row
     ``i`` is byte for byte ``dataset.sample_arrays(i)`` (``SampleArrays(**row)`` rebuilds it);

@@ -7,7 +7,7 @@ names live here, under both: this module imports nothing, loads no GL, and ``con
 them for users.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 __all__ = ["ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "AUTO_MAP_SIZE", "MAX_AUTO_MAP_SIZE", "MAX_SHADOWED_LIGHTS", "MIN_AUTO_MAP_SIZE",
            "OUTPUTS", "OptionalOutput", "SHADOW_FILTERS", "SHADOW_FRUSTA", "TEXTURE_FILTERS", "drawn_outputs",
@@ -77,9 +77,17 @@ class OptionalOutput:
             to it as to the views, with the same draws (an image of the view); false: it is left as drawn.
         dtype: ``"uint8"`` (8-bit levels, a float tensor of ``level / 255`` in the sample, a PNG file) or
             ``"float32"`` (values with units, the same float32 tensor, a ``.npy`` file).
+        producer: how it is made: for a drawn output, the renderer's pass that draws it (a key of
+            ``render.renderer.OUTPUT_PASSES``); for a computed one, the CPU step after read-back that computes
+            it from ``computed_from`` (a key of ``sample.COMPUTATIONS``, timed under this name).
         computed_from: None for an output the renderer draws; else the drawn output it is computed from
             on the CPU after rendering (``sample.render_arrays``), which is then drawn whether or not it
             is asked for itself.
+        lens_resample: a lens may resample it (``lens.render_through_lens`` moves its pixels as the
+            view's); false: values of a pinhole camera that resampling would make wrong, refused with a
+            lens (``config.validation``).
+        min_image_side: the fewest pixels each side of the image must have for it (its producer reads
+            that many pixel centres around each point).
     """
 
     name: str
@@ -91,30 +99,37 @@ class OptionalOutput:
     target_pixel_bytes: int = 0
     view_effects: bool = False
     dtype: str = "uint8"
+    producer: str = field(kw_only=True)
     computed_from: str | None = None
+    lens_resample: bool = True
+    min_image_side: int = 1
 
 
 OUTPUTS = {row.name: row for row in (
     OptionalOutput("opacities", "opacity_output", 1, "{v}-o.png",
-                   "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)"),
+                   "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)", producer="opacity"),
     OptionalOutput("shadow_masks", "shadow_mask_output", 1, "{v}-s.png",
                    "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
-                   "(0 off the painting and where it is hidden)", view_pixel_bytes=5),
+                   "(0 off the painting and where it is hidden)", view_pixel_bytes=5, producer="shadow_fraction"),
     OptionalOutput("shadow_free", "shadow_free_output", 3, "{v}-f.png",
                    "<i>-f.png: the view with no light blocked (the target of shadow removal)",
-                   view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True),
+                   view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True, producer="unblocked_colour"),
     OptionalOutput("depth", "depth_output", 1, "{v}-d.npy",
                    "<i>-d.npy: float32 (H, W), the distance along the camera's z axis to the painting or an occluder, "
-                   "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32"),
+                   "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32",
+                   producer="camera_depth", lens_resample=False),
     OptionalOutput("flow_to_reference", "flow_output", 2, "{v}-flow.npy",
                    "<i>-flow.npy: float32 (H, W, 2), where each pixel of view i lands in view 0 minus the pixel, "
                    "(du, dv) in pixels; NaN where that is not a seen correspondence (sidar_torch.flow)",
-                   view_pixel_bytes=24, target_pixel_bytes=8, dtype="float32", computed_from="depth"),
+                   view_pixel_bytes=24, target_pixel_bytes=8, dtype="float32", producer="flow", computed_from="depth",
+                   lens_resample=False, min_image_side=2),
 )}
 """The optional outputs, by name (``flow_to_reference``'s memory counts the depth it is computed from). Adding one: a row here, its switch in ``config/fields.py``, its key in
-``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and the pass or render target that
-draws it in ``render/`` (``docs/architecture.md``). Memory, the manifest, export, the reader, Ray and the
-render settings follow the row. Opacities' memory is in the measured per-view figure (``config.memory``)."""
+``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and its producer: the pass or render
+target that draws it (a row of ``render.renderer.OUTPUT_PASSES``) or the computation from another output
+(a row of ``sample.COMPUTATIONS``) (``docs/architecture.md``). Memory, the manifest, export, the reader, Ray,
+the render settings, the renderer's and the sample's steps and the config's checks follow the row; no code
+outside these tables branches on an output's name. Opacities' memory is in the measured per-view figure (``config.memory``)."""
 
 
 def drawn_outputs(asked: frozenset[str] | set[str]) -> frozenset[str]:

@@ -16,7 +16,7 @@ Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 import torch
@@ -32,7 +32,7 @@ from .scene import SceneSequence
 from .timing import timed
 from .warm_up import sample_renderer
 
-__all__ = ["FLOAT_OUTPUTS", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "float_tensor", "render_arrays", "render_sample",
+__all__ = ["COMPUTATIONS", "FLOAT_OUTPUTS", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "float_tensor", "render_arrays", "render_sample",
            "sequence_homographies", "stack_arrays", "stack_samples"]
 
 
@@ -383,7 +383,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
         index: stored as the sample's ``index``.
         timings: if given, seconds spent are added to its keys: the renderer's steps (see
             :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on), ``"homographies"`` and ``"flow"`` (``flow_output``).
+            any is on), ``"homographies"`` and each computed output's producer (``"flow"``: ``flow_output``).
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
         homographies: ``sequence_homographies(sequence)``, when computed already (with other
@@ -423,11 +423,14 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
 def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
                            t: np.ndarray, timings: dict[str, float] | None) -> dict[str, np.ndarray]:
     """``outputs`` (the renderer's, by name) with the computed outputs the config asks for added
-    (``OptionalOutput.computed_from``; timed as ``"flow"``) and the drawn ones only they needed left out."""
+    (``OptionalOutput.computed_from``, each by its row of :data:`COMPUTATIONS`, timed under its producer's
+    name) and the drawn ones only they needed left out."""
     asked = {name for name, row in OUTPUTS.items() if getattr(config, row.switch)}
-    if "flow_to_reference" in asked:
-        with timed(timings, "flow"):
-            outputs["flow_to_reference"] = _reference_flows(outputs["depth"], K, R, t)
+    for name in sorted(asked):
+        row = OUTPUTS[name]
+        if row.computed_from is not None:
+            with timed(timings, row.producer):
+                outputs[name] = COMPUTATIONS[row.producer](outputs[row.computed_from], K, R, t)
     return {name: array for name, array in outputs.items() if name in asked}
 
 
@@ -440,6 +443,14 @@ def _reference_flows(depth: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndar
         flow, valid = depth_flow(*tensors, i, 0)
         flows.append(torch.where(valid, flow, torch.full_like(flow, float("nan")))[0])
     return torch.stack(flows).permute(0, 2, 3, 1).float().numpy()
+
+
+COMPUTATIONS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
+    "flow": _reference_flows,
+}
+"""The CPU steps that compute an output from a drawn one after read-back, by ``OptionalOutput.producer``
+(``render_choices.OUTPUTS`` rows with ``computed_from``): each takes that output's ``(V, H, W[, C])`` array
+and the cameras ``K``, ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` (float64) and returns the computed output's."""
 
 
 def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,

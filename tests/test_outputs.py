@@ -1,5 +1,7 @@
 """The optional outputs' table (``render_choices.OUTPUTS``) and the layers that follow it name the same outputs."""
 
+import pytest
+
 from sidar_torch import load_config
 from sidar_torch.config import SidarConfig
 from sidar_torch.config.memory import estimated_sample_bytes
@@ -30,3 +32,26 @@ def test_a_switch_turns_its_output_on_in_the_render_settings_and_counts_in_the_m
         more = estimated_sample_bytes(config) - estimated_sample_bytes(plain)
         assert more == config.image_size[0] * config.image_size[1] * (config.n_views * row.view_pixel_bytes
                                                                       + row.target_pixel_bytes), name
+
+
+def test_every_output_names_a_producer_of_the_renderer_or_a_computation_of_the_sample():
+    from sidar_torch.render.renderer import OUTPUT_PASSES
+    from sidar_torch.sample import COMPUTATIONS
+
+    for name, row in OUTPUTS.items():
+        table = COMPUTATIONS if row.computed_from is not None else OUTPUT_PASSES
+        assert row.producer in table, name
+        if row.computed_from is not None:
+            assert OUTPUTS[row.computed_from].computed_from is None, name  # computed from a drawn output
+    producers = {row.producer for row in OUTPUTS.values()}
+    assert set(OUTPUT_PASSES) | set(COMPUTATIONS) == producers  # no producer without its output
+
+
+def test_a_lens_refuses_exactly_the_outputs_it_may_not_resample():
+    plain = load_config("misaligned", lens_model="division")
+    for row in OUTPUTS.values():
+        if row.lens_resample:
+            assert getattr(plain.replace(**{row.switch: True}), row.switch)
+        else:
+            with pytest.raises(ValueError, match=f"config field '{row.switch}': expected false with lens_model"):
+                plain.replace(**{row.switch: True})

@@ -16,7 +16,7 @@ import math
 from typing import Any, Mapping
 
 from ..distortion import LENS_MODELS, NO_LENS, radial_folds
-from ..render_choices import AUTO_MAP_SIZE, shadow_map_side
+from ..render_choices import AUTO_MAP_SIZE, OUTPUTS, shadow_map_side
 from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
@@ -171,30 +171,34 @@ def validate(config: Any) -> None:
     need(shadowed_emitters(c) <= MAX_SHADOWED_LIGHTS, "area_light_samples",
          f"n_lights[1] * area_light_samples <= {MAX_SHADOWED_LIGHTS} (shadow maps the renderer can bind; "
          f"config field 'n_lights' is {c.n_lights})")
-    _check_flow(c)
+    _check_image_sides(c)
     _check_lens(c)
     _check_memory(c)
 
 
-def _check_flow(config: Any) -> None:
-    """Flow needs views of at least 2 x 2 pixels: whether view j sees a point is read from the four
-    pixel centres around it (``sidar_torch.dense``), which a side of one pixel does not have."""
-    if config.flow_output and min(config.image_size) < 2:
-        raise ValueError(f"config fields 'flow_output' and 'image_size': expected an image_size of at least 2 x 2 "
-                         f"pixels (H, W) with flow_output true (flow reads the four pixel centres around each "
-                         f"point), got {config.image_size}; set flow_output false or enlarge image_size")
+def _check_image_sides(config: Any) -> None:
+    """Each optional output switched on needs an image of at least its row's ``min_image_side`` pixels a
+    side (``render_choices.OUTPUTS``)."""
+    for row in OUTPUTS.values():
+        if getattr(config, row.switch) and min(config.image_size) < row.min_image_side:
+            side = row.min_image_side
+            raise ValueError(f"config fields {row.switch!r} and 'image_size': expected an image_size of at least "
+                             f"{side} x {side} pixels (H, W) with {row.switch} true ({row.name} reads the pixel "
+                             f"centres around each point), got {config.image_size}; set {row.switch} false or "
+                             f"enlarge image_size")
 
 
 def _check_lens(config: Any) -> None:
-    """With a lens, no depth or flow output (pinhole cameras only), and no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
+    """With a lens, no output a lens may not resample (``OptionalOutput.lens_resample``: depth and flow, of
+    pinhole cameras only), and no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
     each radial coefficient's ends are tried together (the radius is linear in them, so the worst lens
     of the box is one of its corners)."""
     if config.lens_model == NO_LENS:
         return
-    for switch in ("depth_output", "flow_output"):  # a pinhole's depth and flow; a lens would resample them wrongly
-        if getattr(config, switch):
-            raise ValueError(f"config field {switch!r}: expected false with lens_model {config.lens_model!r} (depth and "
-                             f"flow are rendered for pinhole cameras only, lens_model none), got true")
+    for row in OUTPUTS.values():  # a pinhole's values; a lens would resample them wrongly
+        if not row.lens_resample and getattr(config, row.switch):
+            raise ValueError(f"config field {row.switch!r}: expected false with lens_model {config.lens_model!r} "
+                             f"({row.name} is rendered for pinhole cameras only, lens_model none), got true")
     fields = LENS_MODELS[config.lens_model].fields
     ends = [getattr(config, f) if f is not None and f not in ("lens_p1", "lens_p2") else (0.0, 0.0) for f in fields]
     for corner in itertools.product(*ends):

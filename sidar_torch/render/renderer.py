@@ -55,12 +55,13 @@ import os
 import weakref
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Hashable
+from typing import Callable, Hashable
 
 import numpy as np
 from OpenGL import GL
 
 from ..geometry import is_reference_camera
+from ..render_choices import OUTPUTS
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
 from .context import GL_PLATFORM, import_platform, open_context
@@ -77,7 +78,7 @@ from .shadow_maps import ShadowMaps
 from .unlit import render_label, render_opacity
 from .visibility import painting_mask
 
-__all__ = ["RenderedSequence", "SceneRenderer", "import_platform", "shared_renderer"]
+__all__ = ["OUTPUT_PASSES", "DrawnView", "RenderedSequence", "SceneRenderer", "import_platform", "shared_renderer"]
 
 
 @dataclass(frozen=True)
@@ -144,7 +145,7 @@ class SceneRenderer:
         """``(GL_MAX_RENDERBUFFER_SIZE, GL_MAX_TEXTURE_SIZE)`` of this renderer's context."""
         settings.check_gl_limits(*self.gl_limits)  # before allocating: a clear error, not a GLError
         self._passes = Passes(w, h, settings.shadow_map_size, settings.shadow_taps, settings.antialias,
-                              outputs=2 if "shadow_free" in settings.outputs else 1,
+                              outputs=2 if _unblocked_asked(settings.outputs) else 1,
                               clear_written_texels=settings.clear_written_texels,
                               highlight_spill=settings.highlight_spill, light_radius=settings.light_radius)
         GL.glPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
@@ -302,10 +303,10 @@ class SceneRenderer:
         drawn = [draws.occluders[i] for i in sorted(plan.drawn)]
         # With no emitter that can cast a shadow on what the camera sees (the painting is not a
         # caster), the lit draw without lookups gives the same pixels without the shadow passes.
-        # The shadow-free view comes from the same draw (a second output, quirk 10); without a
-        # shadowed light the view is its own shadow-free view.
+        # The unblocked colour comes from the same draw (a second output, quirk 10); without a
+        # shadowed light the view is its own unblocked colour.
         outputs = self.settings.outputs
-        both = "shadow_free" in outputs and bool(shadowed)
+        both = _unblocked_asked(outputs) and bool(shadowed)
         # The colour pass leaves the mask's answer in the stencil whenever it can (single-sampled):
         # always, so that its programs meet the same GL state in every view (one llvmpipe variant each).
         stencil = self.settings.masks_from_stencil and self.settings.antialias == 1
@@ -313,11 +314,7 @@ class SceneRenderer:
             image = self._passes.draw(draws, "lit", [draws.painting, *drawn], casters=casters, transmitting=transmitting,
                                       shadowed=shadowed, stale=stale, painting_parts=plan.painting_parts,
                                       shadow_free=both, stencil=stencil, timings=timings, step="colour")
-        extra = {}
-        if both:
-            image, extra["shadow_free"] = image[0], image[1, ..., :3]
-        elif "shadow_free" in outputs:
-            extra["shadow_free"] = image[..., :3]
+        image, unblocked = (image[0], image[1, ..., :3]) if both else (image, image[..., :3])
         self._shadows.drawn(map_keys)
         masked = [draws.occluders[i] for i in sorted(plan.drawn)
                   if view.occluders[i].material.base_color[3] >= self.settings.mask_min_opacity]
@@ -339,19 +336,14 @@ class SceneRenderer:
             seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey,
                                     timings=timings, step="mask")
             mask = seg[..., 0] < 128
-        if "depth" in outputs:  # the surfaces the mask counts: the painting and the masked occluders
-            extra["depth"] = self._passes.camera_depth(draws, [draws.painting, *masked], timings)
-        if "opacities" in outputs:
-            extra["opacities"] = render_opacity(self._passes, draws, drawn, mask, timings)
-        if "shadow_masks" in outputs:
-            extra["shadow_masks"] = self._render_shadow_mask(draws, plan, casters, transmitting, shadowed, mask, timings)
+        drawn_view = DrawnView(draws, plan, drawn, masked, casters, transmitting, shadowed, mask, unblocked)
+        extra = {name: OUTPUT_PASSES[row.producer](self, drawn_view, timings)
+                 for name, row in OUTPUTS.items() if name in outputs}
         return image, mask, extra
 
-    def _render_shadow_mask(self, draws: ViewDraws, plan: ViewPlan, casters: list[Surface],
-                            transmitting: list[Surface], shadowed: list, mask: np.ndarray,
-                            timings: dict[str, float] | None) -> np.ndarray:
+    def _render_shadow_mask(self, drawn: "DrawnView", timings: dict[str, float] | None) -> np.ndarray:
         """``(H, W)`` uint8: 255 times the fraction of the direct light on the visible painting that
-        occluders block, 0 where ``mask`` (painting not visible) is true.
+        occluders block, 0 where ``drawn.mask`` (painting not visible) is true.
 
         One draw of the painting alone with the lit program's ``SHADOW_FRACTION`` variant (quirk 9),
         the same shadow and transmittance maps as the colour pass (drawn by it just before: none is
@@ -359,13 +351,64 @@ class SceneRenderer:
         and the cleared framebuffer's 0 is the answer (``render.footprints``). A view without a
         shadowed light, or whose parts have no lookup, has no shadow, and no draw.
         """
+        draws, plan = drawn.draws, drawn.plan
         parts = [part for part in plan.painting_parts if part.begin < part.end]
-        if not shadowed or (plan.painting_parts and not parts):
+        if not drawn.shadowed or (plan.painting_parts and not parts):
             return np.zeros(self.image_size, np.uint8)
-        fraction = self._passes.draw(draws, "lit", [draws.painting], casters=casters, transmitting=transmitting,
-                                     shadowed=shadowed, painting_parts=parts, shadow_fraction=True,
-                                     timings=timings, step="shadow_mask")
-        return np.where(mask, 0, fraction[..., 0]).astype(np.uint8)
+        fraction = self._passes.draw(draws, "lit", [draws.painting], casters=drawn.casters,
+                                     transmitting=drawn.transmitting, shadowed=drawn.shadowed, painting_parts=parts,
+                                     shadow_fraction=True, timings=timings, step="shadow_mask")
+        return np.where(drawn.mask, 0, fraction[..., 0]).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class DrawnView:
+    """What a view's colour pass and mask left for the passes of its optional outputs.
+
+    Attributes:
+        draws: the view's draw list.
+        plan: its plan (``render.plan``).
+        drawn: the occluders the colour pass drew; masked: those of them the mask counts (at least
+            ``mask_min_opacity`` opaque).
+        casters, transmitting, shadowed: the colour pass's shadow casters, its transparent casters
+            and its shadowed emitters (their maps hold this view's shadows).
+        mask: ``(H, W)`` bool, True where the painting is not visible.
+        unblocked: ``(H, W, 3)`` uint8 sRGB, the colour pass's view with no light blocked (its second
+            output with a shadowed emitter; else the view itself).
+    """
+
+    draws: ViewDraws
+    plan: ViewPlan
+    drawn: list[Surface]
+    masked: list[Surface]
+    casters: list[Surface]
+    transmitting: list[Surface]
+    shadowed: list
+    mask: np.ndarray
+    unblocked: np.ndarray
+
+
+OutputPass = Callable[[SceneRenderer, DrawnView, "dict[str, float] | None"], np.ndarray]
+
+OUTPUT_PASSES: dict[str, OutputPass] = {
+    "unblocked_colour": lambda renderer, drawn, timings: drawn.unblocked,
+    # The surfaces the mask counts: the painting and the masked occluders.
+    "camera_depth": lambda renderer, drawn, timings: renderer._passes.camera_depth(
+        drawn.draws, [drawn.draws.painting, *drawn.masked], timings),
+    "opacity": lambda renderer, drawn, timings: render_opacity(renderer._passes, drawn.draws, drawn.drawn,
+                                                               drawn.mask, timings),
+    "shadow_fraction": lambda renderer, drawn, timings: renderer._render_shadow_mask(drawn, timings),
+}
+"""The renderer's producers of the drawn outputs, by ``OptionalOutput.producer`` (``render_choices.OUTPUTS``):
+each returns one view's array of its output (:class:`RenderedSequence`) after the colour pass and the mask,
+in the order of ``OUTPUTS``. ``unblocked_colour`` is no pass of its own: the colour pass draws it as a second
+output whenever a row of this producer is asked for (:func:`_unblocked_asked`)."""
+
+
+def _unblocked_asked(outputs: frozenset[str]) -> bool:
+    """Whether ``outputs`` (names of ``render_choices.OUTPUTS``) holds one the colour pass draws as its
+    second output (``unblocked_colour``)."""
+    return any(OUTPUTS[name].producer == "unblocked_colour" for name in outputs)
 
 
 _SHARED: dict[tuple, SceneRenderer] = {}
