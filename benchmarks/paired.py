@@ -1,5 +1,5 @@
-"""Time per view of the same scenes rendered two ways (a boolean ``RenderSettings`` field off and on,
-or two settings), in one process: what the ``*_cost`` benchmarks share.
+"""Time per view of the same scenes rendered two ways (two ``RenderSettings``), in one process: the
+command line and clocks ``setting_cost`` and ``lens_cost`` share, and ``setting_cost``'s measurement.
 
 Both renderers are this process's shared ones (one per setting); each sequence is rendered both
 ways, alternating which goes first, after warm-up sequences (shader variants compile at first use).
@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -21,7 +20,7 @@ from sidar_torch import SidarConfig, SidarDataset, load_config
 
 from .common import DEFAULT_PRESET, parse_set, parse_size
 
-__all__ = ["CLOCKS", "paired_config", "paired_parser", "paired_settings_times", "paired_view_times", "print_paired"]
+__all__ = ["CLOCKS", "paired_config", "paired_parser", "paired_settings_times", "print_paired"]
 
 CLOCKS = {"wall": time.perf_counter, "cpu": time.process_time}
 
@@ -48,21 +47,6 @@ def paired_config(name: str, args: argparse.Namespace) -> SidarConfig:
         return load_config(args.config, image_size=args.size, **parse_set(args.set))
     except (ValueError, FileNotFoundError) as error:
         raise SystemExit(f"{name}: {error}") from error
-
-
-def paired_view_times(config: Any, field: str, samples: int) -> tuple[dict, list[tuple[dict, dict]]]:
-    """Render ``samples`` sequences of ``config`` with ``RenderSettings.<field>`` False and True, or, for
-    the name of an optional output (``render_choices.OUTPUTS``), without and with it in
-    ``RenderSettings.outputs`` (:func:`paired_settings_times`)."""
-    from sidar_torch.render import RenderSettings  # imports the renderer: here, so parsing loads no GL
-    from sidar_torch.render_choices import OUTPUTS
-
-    settings = RenderSettings.from_config(config)
-    if field in OUTPUTS:
-        off, on = (replace(settings, outputs=outputs) for outputs in (settings.outputs - {field}, settings.outputs | {field}))
-    else:
-        off, on = (replace(settings, **{field: flag}) for flag in (False, True))
-    return paired_settings_times(config, off, on, samples)
 
 
 def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
@@ -105,7 +89,7 @@ def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
     return ms_per_view, steps
 
 
-def print_paired(ms_per_view: dict, labels: tuple[str, str] = ("without", "with")) -> None:
+def print_paired(ms_per_view: dict, labels: tuple[str, str]) -> None:
     """One line per clock: the medians of the two ways (``labels``: off, on), and the median paired
     difference (same sequence, on minus off; steadier on a loaded machine)."""
     for clock in CLOCKS:

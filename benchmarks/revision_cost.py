@@ -2,7 +2,7 @@
 repository, alternated in fresh processes. ``python -m benchmarks.revision_cost --trees A B
 [--config P] [--size HxW] [--samples N] [--rounds R]`` from the repository root.
 
-For changes that :mod:`benchmarks.setting_cost` and :mod:`benchmarks.skip_cost` cannot compare in one
+For changes that :mod:`benchmarks.setting_cost` (two settings of one renderer, one process) cannot compare in one
 process: a shader edit, a scene sampler that draws differently. Each round runs, for each tree in
 turn, one process that imports ``sidar_torch`` from that tree, makes one warm-up sample (start-up,
 shaders) and then samples ``0 .. N - 1`` of ``SidarDataset(config=P at HxW, seed=0)``, timing each

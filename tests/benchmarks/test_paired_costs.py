@@ -1,39 +1,64 @@
-"""The paired cost benchmarks (``opacity_cost``, ``mirror_cost``, ``skip_cost``, ``output_cost``, over ``benchmarks.paired``) on tiny
-settings: what they print and that a wrong override is named, never speed."""
+"""``benchmarks.setting_cost`` (over ``benchmarks.paired``: a setting, a switch or an output compared two
+ways), the former commands that run it, and ``revision_cost``, on tiny settings: what they print and
+that a wrong field or override is named, never speed."""
 
 import numpy as np
 import pytest
 
-from benchmarks import mirror_cost, opacity_cost, setting_cost, output_cost, skip_cost
+from benchmarks import mirror_cost, opacity_cost, output_cost, setting_cost
 
 pytestmark = pytest.mark.gl  # renders
 
 
-def test_mirror_cost_prints_both_clocks_and_the_share_of_mirrored_views(capsys):
-    mirror_cost.main(["--size", "24x32", "--samples", "2", "--set", "occluder_materials=[metallic]",
-                      "--set", "n_occluders=[1,1]", "--set", "n_views=2"])
+def test_a_switch_is_drawn_off_and_on_with_its_note(capsys):
+    setting_cost.main(["--field", "mirrors", "--size", "24x32", "--samples", "2", "--set", "occluder_materials=[metallic]",
+                       "--set", "n_occluders=[1,1]", "--set", "n_views=2"])
     out = capsys.readouterr().out.splitlines()
-    assert "4 of 4 views have a reflective or glass occluder" in out[0]
-    assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
+    assert out[0].startswith("mirrors: ") and out[0].endswith("renderer: off: mirrors=False; on: mirrors=True")
+    assert out[1].startswith("wall: median ms / view off") and out[2].startswith(" cpu: median ms / view off")
+    assert out[3] == "4 of 4 views have a reflective or glass occluder"
+    assert out[4].startswith("views: on against off: PSNR ")
 
 
-def test_opacity_cost_prints_both_clocks_and_the_draw(capsys):
-    opacity_cost.main(["--size", "24x32", "--samples", "2"])
+def test_an_output_is_drawn_without_and_with_and_its_steps_are_timed(capsys):
+    setting_cost.main(["--field", "opacities", "--size", "24x32", "--samples", "2"])
     out = capsys.readouterr().out.splitlines()
-    assert [line.split(":")[0].strip() for line in out[1:]] == ["wall", "cpu", "opacity draw (wall)"]
+    assert out[0].endswith("renderer: without: outputs=[]; with: outputs=['opacities']")
+    assert [line.split(":")[0].strip() for line in out[1:]] == ["wall", "cpu", "opacity (wall)", "views"]
 
 
-def test_mirror_cost_names_a_wrong_override():
+@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free", "depth"])
+def test_the_former_output_cost_command_reads_its_output_as_the_field(capsys, output):
+    output_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
+    out = capsys.readouterr().out.splitlines()
+    steps = {"shadow_masks": "shadow_mask", "shadow_free": "colour + readback", "depth": "depth + readback"}[output]
+    assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
+        "wall", "cpu", f"{steps} (wall)", "views"]
+    assert "PSNR inf (the same bytes)" in out[-1]  # an output changes no view
+
+
+def test_the_former_commands_parse_as_the_one_command():
+    assert vars(mirror_cost.parse_args(["--samples", "3"])) == vars(setting_cost.build_parser().parse_args(
+        ["--field", "mirrors", "--samples", "3"]))
+    assert opacity_cost.parse_args([]).samples == 60 and opacity_cost.parse_args(["--samples", "5"]).samples == 5
+    assert output_cost.parse_args([]).field == "shadow_masks"
+    assert output_cost.parse_args(["--output", "depth"]).field == "depth"
+
+
+def test_a_field_that_is_not_a_switch_wants_two_values_and_a_wrong_override_is_named():
+    with pytest.raises(SystemExit, match=r"shadow_map_size: not a RenderSettings switch .* \(--values A B\)"):
+        setting_cost.main(["--field", "shadow_map_size", "--samples", "1"])
     with pytest.raises(SystemExit, match="occluder_materials"):
         mirror_cost.main(["--set", "occluder_materials=[chrome]", "--samples", "1"])
 
 
-def test_skip_cost_prints_the_lookups_kept_and_both_clocks(capsys):
-    skip_cost.main(["--size", "96x128", "--samples", "2", "--set", "n_views=2", "--set", "n_occluders=[2,2]"])
+def test_a_skip_prints_the_lookups_kept_and_leaves_the_views_the_same(capsys):
+    setting_cost.main(["--field", "split_shadow_lookups", "--size", "96x128", "--samples", "2", "--set", "n_views=2",
+                       "--set", "n_occluders=[2,2]"])
     out = capsys.readouterr().out.splitlines()
-    share = int(out[0].split("keeps ")[1].split(" %")[0])
+    share = int(out[3].split("keeps ")[1].split(" %")[0])
     assert 0 < share < 100  # a split happened and kept some lookups
-    assert out[1].startswith("wall: median ms / view without") and out[2].startswith(" cpu: median ms / view")
+    assert out[4].startswith("views: on against off: PSNR inf (the same bytes)")
 
 
 def test_setting_cost_prints_what_each_value_gives_the_renderer(capsys):
@@ -70,7 +95,7 @@ def test_the_view_difference_line_tells_the_same_bytes_from_a_difference():
     assert f"PSNR {10 * np.log10(96 * 25):.2f} dB; 1 of 2 views the same bytes" in line and line.endswith("largest 51")
 
 
-def test_skip_cost_prints_the_texels_cleared(capsys):
+def test_clear_written_texels_prints_the_texels_cleared(capsys):
     from sidar_torch import load_config
     from sidar_torch.render import RenderSettings, shared_renderer
     from sidar_torch.scene import sample_sequence
@@ -81,19 +106,11 @@ def test_skip_cost_prints_the_texels_cleared(capsys):
     for seed in range(8):  # 48 views: more clears than the measured run's, had they counted
         shared_renderer(RenderSettings.from_config(config)).render(sample_sequence(config, np.random.default_rng(seed)),
                                                                    painting)
-    skip_cost.main(["--skip", "clear_written_texels", "--size", "48x64", "--samples", "3", "--set", "n_views=2",
-                    "--set", "n_occluders=[2,3]"])
+    setting_cost.main(["--field", "clear_written_texels", "--size", "48x64", "--samples", "3", "--set", "n_views=2",
+                       "--set", "n_occluders=[2,3]"])
     out = capsys.readouterr().out.splitlines()
-    depth = int(out[0].split("; ")[1].split(" %")[0])
+    depth = int(out[3].split(" %")[0])
     assert 0 < depth < 100 and out[0].startswith("clear_written_texels: ")
-
-
-@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free", "depth"])
-def test_output_cost_prints_both_clocks_and_the_draw(capsys, output):
-    output_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
-    out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
-        "wall", "cpu", f"{' + '.join(output_cost.OUTPUTS[output])} (wall)"]
 
 
 def test_revision_cost_runs_each_tree_in_its_own_process_and_prints_the_ratio(capsys, tmp_path):
