@@ -21,11 +21,13 @@ its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
    first view with that many lights, once with every occluder and once without (the painting's
    program for that count, drawn beside the shadow maps and without them).
 
-:func:`warm_renderer`, which every sample is rendered through (``sample.render_arrays``), renders
-it once per renderer before the renderer's first sample (``SceneRenderer.warm_up``): it hands out no
-sample and changes no pixel of later samples (``tests/render/test_warm_up.py``). A forked DataLoader
-worker or render-pool process takes over its parent's renderer (``render.renderer.shared_renderer``):
-if the parent rendered, or called ``SidarDataset.warm_up``, the worker compiles nothing at all.
+A renderer renders it once (``SceneRenderer.warm_up``): it hands out no sample and changes no pixel of
+later samples (``tests/render/test_warm_up.py``). :func:`sample_renderer`, which every sample is
+rendered through (``sample.render_arrays``), does it after the renderer's first sample (which compiles
+only what it draws) and before its second; :func:`warm_renderer` (``SidarDataset.warm_up``, the
+render pool's workers) before the first. A forked DataLoader worker or render-pool process takes over
+its parent's renderer (``render.renderer.shared_renderer``): if the parent rendered, or called
+``SidarDataset.warm_up``, the worker compiles nothing at all.
 """
 
 from __future__ import annotations

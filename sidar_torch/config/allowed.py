@@ -13,9 +13,12 @@ __all__ = [
     "TEXTURE_FILTERS",
 ]
 
+# The kinds' own tables are ``sidar_torch.scene``'s (``LIGHT_KINDS``, ``SHAPES``, ``MATERIAL_KINDS``, keyed by
+# these names). Config is the floor under scene and cannot import them (``scene.kinds`` imports config),
+# so the names the fields accept are written here once; ``tests/scene/test_scene.py`` checks that they
+# are the tables' keys (and the renderer's meshes').
 LIGHT_EMITTERS = {"spot": None, "point": None, "area": "area_light_samples"}
-"""Light kind -> the config field that sets how many emitters a light of that kind has (None: one);
-the kinds' own table is ``sidar_torch.scene.LIGHT_KINDS``."""
+"""Light kind -> the config field that sets how many emitters a light of that kind has (None: one)."""
 LIGHT_TYPES = tuple(LIGHT_EMITTERS)
 OCCLUDER_SHAPES = ("sphere", "cube", "cylinder", "cone", "torus", "capsule", "icosahedron", "hull", "prism")
 OCCLUDER_MATERIALS = ("diffuse", "glossy", "metallic", "transparent", "glass", "principled")
