@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from sidar_torch import geometry
 from sidar_torch.scene import Camera, Material, Occluder, ViewScene
@@ -162,58 +163,188 @@ def test_occluders_over_painting_counts_what_the_view_sees_above_the_painting():
     assert realism.occluders_over_painting(scene, region) == 1
 
 
-def test_verdict_ratio_and_tolerance():
-    def figure(centre, interval=(0.0, 0.0), mean=None, mean_interval=(0.0, 0.0)):
-        return realism.Figure(centre, centre, centre, centre if mean is None else mean, interval, mean_interval)
-
-    assert realism.verdict(figure(105), figure(100)) == ("1.05", "yes")
-    assert realism.verdict(figure(150), figure(100, (90, 120))) == ("1.50", "no")
-    assert realism.verdict(figure(115), figure(100, (90, 120))) == ("1.15", "yes")
-    assert realism.verdict(figure(0.5), figure(0.0)) == ("n/a", "no")
-    # Blender's median 0 (most views have none): the means are compared, with the mean's interval
-    assert realism.verdict(figure(0.0, mean=0.002), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
-        == ("0.15 (means)", "no")
-    assert realism.verdict(figure(0.0, mean=0.010), figure(0.0, mean=0.013, mean_interval=(0.004, 0.025))) \
-        == ("0.77 (means)", "yes")
+def figure(mean, interval, median=None):
+    return realism.Figure(mean, interval, mean if median is None else median, 6)
 
 
-def test_table_prints_our_diagnostics_without_a_verdict_against_blender():
+def test_a_row_passes_only_when_our_mean_is_inside_blenders_interval():
+    theirs = figure(100, (90, 110))
+    assert realism.verdict(figure(105, (95, 115)), theirs) == ("1.05", "overlap", "yes")
+    # within 10 % of Blender's mean (the old tolerance's pass) but outside its interval: out
+    assert realism.verdict(figure(92, (85, 99)), figure(100, (95, 105))) == ("0.92", "overlap", "no")
+    # intervals that overlap are printed as such but are not a pass
+    assert realism.verdict(figure(120, (100, 140)), theirs) == ("1.20", "overlap", "no")
+    assert realism.verdict(figure(150, (140, 160)), theirs) == ("1.50", "apart", "no")
+    assert realism.verdict(figure(0.5, (0.4, 0.6)), figure(0.0, (0.0, 0.0))) == ("n/a", "apart", "no")
+    # one sequence of ours: no interval of ours, still a verdict on our mean
+    assert realism.verdict(figure(101, (np.nan, np.nan)), theirs) == ("1.01", "n/a", "yes")
+    assert realism.verdict(figure(101, (95, 105)), figure(100, (np.nan, np.nan)))[2] == "no"
+
+
+def test_the_interval_is_students_t_over_the_sequences_about_the_per_painting_mean():
+    values = [np.array([v]) for v in (1.0, 2, 3, 4, 5, 6)]
+    f = realism.per_painting(values, np.arange(6))
+    half = 2.015048 * np.std(np.arange(1, 7), ddof=1) / np.sqrt(6)  # t(5) at 95 %: 2.015
+    assert f.mean == 3.5 and f.interval == (pytest.approx(3.5 - half), pytest.approx(3.5 + half))
+    assert f.sequences == 6 and f.median == 3.5
+    # a bootstrap of the same six means reads narrower: the t interval is the honest one for six
     rng = np.random.default_rng(0)
-    views = realism.ViewStats(*(rng.uniform(0.01, 0.5, 12) for _ in realism.dataclasses.fields(realism.ViewStats)))
-    sequence = realism.SequenceStats(0.6, realism.MatcherStats(np.full(6, 100), np.full(15, 20), np.ones(15)))
+    boot = np.percentile(rng.choice(np.arange(1, 7.0), (4000, 6)).mean(1), [5, 95])
+    assert boot[1] - boot[0] < 0.85 * 2 * half
+    # each painting counts once, whatever its number of sequences: three of painting 0 at 0, one of 1 at 1
+    uneven = realism.per_painting([np.zeros(1)] * 3 + [np.ones(1)], np.array([0, 0, 0, 1]))
+    assert uneven.mean == 0.5  # the pooled mean of the sequences would be 0.25
+    # a sequence's value is the mean of its items (its views), NaN items dropped; a sequence of none is left out
+    views = realism.per_painting([np.array([0.0, 1, np.nan]), np.array([np.nan]), np.array([2.0, 2])], np.arange(3))
+    assert views.mean == pytest.approx(1.25) and views.sequences == 2
+    # clipped at 0 for values that cannot be negative
+    assert realism.per_painting([np.array([v]) for v in (0.0, 0, 0, 0, 0, 0.3)], np.arange(6)).interval[0] == 0
+    assert np.isnan(realism.per_painting([np.array([1.0])], np.zeros(1)).interval[0])  # one sequence: none
+
+
+def test_a_fraction_has_at_least_the_exact_binomial_interval_not_a_point_at_zero():
+    none = realism.per_painting([np.zeros(6, bool)] * 6, np.arange(6), fraction=True)
+    assert none.mean == 0 and none.interval[0] == 0 and none.interval[1] == pytest.approx(0.0798, abs=1e-4)
+    assert (1 - none.interval[1]) ** 36 == pytest.approx(0.05)  # seeing 0 of 36 has probability 5 % there
+    low, high = realism.binomial_interval(6, 36)
+    assert sum(math.comb(36, k) * low**k * (1 - low) ** (36 - k) for k in range(6, 37)) == pytest.approx(0.05)
+    assert sum(math.comb(36, k) * high**k * (1 - high) ** (36 - k) for k in range(0, 7)) == pytest.approx(0.05)
+    # 3 of 144 views is inside 0 of 36's interval
+    ours = realism.per_painting([np.arange(6) < (k < 3) for k in range(24)], np.arange(24) % 6, fraction=True)
+    assert ours.mean == pytest.approx(3 / 144) and realism.verdict(ours, none)[2] == "yes"
+    assert ours.median == pytest.approx(3 / 144)  # a fraction's pooled figure is the pooled fraction
+    # sequences that disagree widen it past the binomial one: 0 or all of each sequence's views
+    split = realism.per_painting([np.full(6, k % 2 == 0) for k in range(6)], np.arange(6), fraction=True)
+    exact = realism.binomial_interval(18, 36)
+    assert split.interval[0] < exact[0] and split.interval[1] > exact[1] and split.interval[1] <= 1
+
+
+def painting_texture(size=(96, 128), seed=0):
+    """Linear albedo with detail at every scale (blocks of 8, 2 and 1 pixels)."""
+    rng = np.random.default_rng(seed)
+    h, w = size
+    coarse = rng.uniform(0.2, 0.8, (h // 8, w // 8)).repeat(8, 0).repeat(8, 1)
+    medium = rng.uniform(-0.1, 0.1, (h // 2, w // 2)).repeat(2, 0).repeat(2, 1)
+    return np.clip(coarse + medium + rng.uniform(-0.05, 0.05, size), 0, 1)
+
+
+def test_detail_gain_is_one_for_the_painting_warped_and_below_one_blurred():
+    h, w = SIZE
+    albedo = painting_texture()
+    source = encode(np.repeat(albedo[..., None], 3, -1))
+    H = shift(5, 3)
+    region = realism.painting_region(H, SIZE)
+    seen = np.full(SIZE, np.nan)
+    seen[3:, 5:] = albedo[:-3, :-5]
+    y, x = np.mgrid[0:h, 0:w]
+    light = 0.2 + 0.5 * x / w  # uneven, and far from 1: the light's level does not count
+    visible = np.ones(SIZE, bool)
+    visible[40:60, 60:80] = False  # an occluder, painted white in the view: its edge is not detail
+    ring = ndimage.binary_dilation(~visible) & visible  # its antialiased edge, under half covered: mask 0
+    linear = np.where(visible, np.nan_to_num(seen) * light, 1.0)
+    linear[ring] = 0.6 * linear[ring] + 0.4
+    sharp = realism.detail_gain(encode(np.repeat(linear[..., None], 3, -1)), source, H, visible, region)
+    assert sharp[0] == pytest.approx(1.0, abs=0.02)
+    blurred = ndimage.gaussian_filter(np.nan_to_num(seen), 1.0) * light
+    soft = realism.detail_gain(encode(np.repeat(np.where(visible, blurred, 1.0)[..., None], 3, -1)), source, H,
+                               visible, region)
+    assert soft[0] < 0.5
+    softer = ndimage.gaussian_filter(np.nan_to_num(seen), 2.0) * light
+    assert realism.detail_gain(encode(np.repeat(softer[..., None], 3, -1)), source, H, visible, region)[0] < soft[0]
+    # at scale 1 every pixel is resolved: no minified figure
+    assert np.isnan(sharp[1]) and sharp[2] == sharp[0]
+
+
+def test_detail_gain_of_a_minified_view_by_scale():
+    """A view 0.4 times the painting's size: every pixel is minified. Drawn unfiltered (point sampled)
+    it gains 1; averaged over each pixel's footprint, as a path tracer's pixel does, less."""
+    big = painting_texture((240, 320), seed=3)
+    source = encode(np.repeat(big[..., None], 3, -1))
+    H = np.diag([0.4, 0.4, 1.0])
+    H[:2, 2] = 0.4 * 0.5 - 0.5  # pixel centres at integers: x' = 0.4 (x + 0.5) - 0.5
+    size = (240, 320)
+    scale = realism.local_scale(H, size)
+    assert np.allclose(scale, 0.4)
+    x, y = realism.inverse_map(H, size)
+    inside = (x <= 319.5) & (y <= 239.5)
+    region = realism.painting_region(H, size)
+    point = ndimage.map_coordinates(big, [np.where(inside, y, 0), np.where(inside, x, 0)], order=3, mode="nearest")
+    view = encode(np.repeat(np.where(inside, point, 0)[..., None], 3, -1))
+    gain = realism.detail_gain(view, source, H, inside, region)
+    assert np.isnan(gain[2]) and gain[1] == gain[0] == pytest.approx(1.0, abs=0.05)
+    box = ndimage.uniform_filter(big, 5)[1::5, 1::5]  # each view pixel the mean of its 2.5 x 2.5 footprint
+    footprint = np.zeros(size)
+    footprint[:96, :128] = ndimage.zoom(box, 2, order=1)[:96, :128]
+    filtered = realism.detail_gain(encode(np.repeat(np.where(inside, footprint, 0)[..., None], 3, -1)), source, H,
+                                   inside, region)
+    assert filtered[1] < 0.7
+
+
+def test_local_scale_is_the_smaller_singular_value_of_the_maps_jacobian():
+    assert np.allclose(realism.local_scale(np.diag([1.0, 0.3, 1.0]), SIZE), 0.3)
+    assert np.allclose(realism.local_scale(np.diag([2.0, 3.0, 1.0]), SIZE), 2.0)
+    H = np.array([[0.9, 0.2, 4.0], [-0.1, 0.7, 3.0], [4e-4, 1e-3, 1.0]])
+    scale = realism.local_scale(H, SIZE)
+    G = np.linalg.inv(H)
+    u, v, e = 70.0, 40.0, 1e-4
+
+    def to_painting(u, v):
+        p = G @ [u, v, 1]
+        return p[:2] / p[2]
+
+    J = np.stack([(to_painting(u + e, v) - to_painting(u - e, v)) / (2 * e),
+                  (to_painting(u, v + e) - to_painting(u, v - e)) / (2 * e)], axis=1)
+    assert scale[40, 70] == pytest.approx(1 / np.linalg.svd(J, compute_uv=False)[0], rel=1e-5)
+
+
+def test_dark_area_counts_light_below_a_quarter_of_the_median():
+    h, w = SIZE
+    albedo = painting_texture()
+    light = np.ones(SIZE)  # the median light
+    light[:20] = 0.2  # a fifth of it: dark
+    light[80:] = 0.3  # 0.3 of it: not dark
+    view = encode(np.repeat((albedo * light)[..., None], 3, -1))
+    label = encode(np.repeat(albedo[..., None], 3, -1)).astype(np.float64)
+    region = realism.painting_region(np.eye(3), SIZE)  # rows 2-93
+    visible = np.ones(SIZE, bool)
+    fraction = realism.dark_area(view, label, visible, region)
+    # 18 of the region's 92 rows are dark; the light is smoothed by 3 px, which lifts the 4-5 rows next to
+    # the lit ones above a quarter
+    assert (18 - 6) / 92 <= fraction <= 18 / 92
+    hidden = visible.copy()
+    hidden[:, : w // 2] = False  # an occluder over the left half: the same fraction of what is seen
+    assert realism.dark_area(view, label, hidden, region) == pytest.approx(fraction, abs=0.02)
+    assert realism.dark_area(encode(np.repeat(albedo[..., None], 3, -1)), label, visible, region) == 0
+
+
+def test_table_prints_per_painting_rows_and_our_diagnostics_without_a_verdict():
+    rng = np.random.default_rng(0)
+    fields = [f.name for f in realism.dataclasses.fields(realism.ViewStats)]
+    values = {name: rng.uniform(0.01, 0.5, 12) for name in fields}
+    values.update(view=np.tile(np.arange(6.0), 2), sequence=np.repeat([0.0, 1.0], 6), painting=np.repeat([0.0, 1.0], 6))
+    views = realism.ViewStats(**values)
+    sequences = [realism.SequenceStats(0.6, realism.MatcherStats(np.full(6, 100), np.full(15, 20), np.ones(15)), k)
+                 for k in range(2)]
     rows = {line.split(" | ")[0].lstrip("| "): line for line in
-            realism.table("preset", views, [sequence], views, [sequence]).splitlines() if line.startswith("| ")}
+            realism.table("preset", views, sequences, views, sequences).splitlines() if line.startswith("| ")}
     diagnostics = [label for label, *_ in realism.DIAGNOSTICS]
     assert len(diagnostics) == 3 and all(label in rows for label in diagnostics)
+    for label in ("detail gain, views 1-5", "occluder coverage of the painting region",
+                  f"dark area (light < {realism.DARK_LIGHT:g} of the view's median light)",
+                  "pairs matched (SIFT + RANSAC corner error < 3 px)"):
+        assert label in rows
     for label, line in rows.items():
         cells = [c.strip() for c in line.strip("| ").split(" | ")]
+        assert len(cells) == 7
         if label in diagnostics:  # no Blender figure and no verdict, our figure still printed
-            assert cells[2] == "n/a" and cells[5] == "diagnostic" and cells[1] != "n/a"
+            assert cells[2] == "n/a" and cells[6] == "diagnostic" and cells[1] != "n/a"
+        elif label == "occluders per view (ours: scene, bounding spheres)":  # against Blender's mask components
+            assert cells[6] in ("yes", "no")
         elif label != "statistic":
-            assert cells[5] in ("yes", "no")
+            assert cells[6] == "yes" and cells[5] == "overlap"  # the same views on both sides
     exact = rows["cast-shadow fraction (ours exact: vs shadows=False)"]
     assert "of ours estimated" in exact  # the estimate's recall: exact over our own estimate
     twin = [line for label, line in rows.items() if "false shadows" in label][0]
     assert "near 0" in twin and "of ours estimated" not in twin
     verdicts = [label for label, *_ in realism.STATISTICS] + [label for label, _ in realism.SEQUENCE_STATISTICS]
     assert not set(verdicts) & set(diagnostics)
-
-
-def test_dark_view_fraction_and_median_over_views():
-    medians = np.array([10, 40, 60, 200, np.nan])
-    assert realism.of_views(medians[:4] < realism.DARK_MEDIAN).centre == 0.5
-    figure = realism.per_view(medians)
-    assert (figure.centre, figure.low, figure.high) == (50, 32.5, 95)
-
-
-def test_a_fraction_of_views_has_the_exact_binomial_interval_not_a_point_at_zero():
-    none = realism.of_views(np.zeros(36, bool))
-    assert none.centre == 0 and none.interval[0] == 0 and none.interval[1] == pytest.approx(0.0798, abs=1e-4)
-    # at the upper end, seeing 0 of 36 has probability 5 %; at the lower end of 6 of 36, seeing 6 or more does
-    assert (1 - none.interval[1]) ** 36 == pytest.approx(0.05)
-    low, high = realism.of_views(np.arange(36) < 6).interval
-    assert sum(math.comb(36, k) * low**k * (1 - low) ** (36 - k) for k in range(6, 37)) == pytest.approx(0.05)
-    assert sum(math.comb(36, k) * high**k * (1 - high) ** (36 - k) for k in range(0, 7)) == pytest.approx(0.05)
-    assert realism.of_views(np.ones(36, bool)).interval == (pytest.approx(1 - 0.0798, abs=1e-4), 1.0)
-    # 3 of 144 views is inside 0 of 36's interval: no rate but 0 met the bootstrap's 0 - 0
-    assert realism.verdict(realism.of_views(np.arange(144) < 3), none)[1] == "yes"
