@@ -66,7 +66,8 @@ class OptionalOutput:
         name: its name everywhere: the sample key (``sample.KEYS``), the ``SampleArrays`` field, the key of
             ``RenderedSequence.outputs`` and of ``RenderSettings.outputs``.
         switch: the boolean config field that turns it on.
-        channels: 1 (an ``(H, W)`` uint8 array per view) or 3 (``(H, W, 3)`` sRGB).
+        channels: values per pixel: 1 (an ``(H, W)`` array per view) or ``C`` (an ``(H, W, C)`` array; 3 of
+            uint8 are sRGB).
         entry: its export file per view (``{v}`` the view's number).
         description: what ``export.json`` says of its files.
         view_pixel_bytes: memory it adds per view and pixel (``config.memory``: its uint8 array and
@@ -88,6 +89,8 @@ class OptionalOutput:
             lens (``config.validation``).
         min_image_side: the fewest pixels each side of the image must have for it (its producer reads
             that many pixel centres around each point).
+        values: the dtype and range of its sample tensor, as ``sample.KEYS`` says them.
+        meaning: what its values are, with units and frames: its ``sample.KEYS`` row's meaning.
     """
 
     name: str
@@ -103,33 +106,62 @@ class OptionalOutput:
     computed_from: str | None = None
     lens_resample: bool = True
     min_image_side: int = 1
+    values: str = field(kw_only=True)
+    meaning: str = field(kw_only=True)
 
 
 OUTPUTS = {row.name: row for row in (
-    OptionalOutput("opacities", "opacity_output", 1, "{v}-o.png",
-                   "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)", producer="opacity"),
-    OptionalOutput("shadow_masks", "shadow_mask_output", 1, "{v}-s.png",
-                   "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
-                   "(0 off the painting and where it is hidden)", view_pixel_bytes=5, producer="shadow_fraction"),
-    OptionalOutput("shadow_free", "shadow_free_output", 3, "{v}-f.png",
-                   "<i>-f.png: the view with no light blocked (the target of shadow removal)",
-                   view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True, producer="unblocked_colour"),
-    OptionalOutput("depth", "depth_output", 1, "{v}-d.npy",
-                   "<i>-d.npy: float32 (H, W), the distance along the camera's z axis to the painting or an occluder, "
-                   "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32",
-                   producer="camera_depth", lens_resample=False),
-    OptionalOutput("flow_to_reference", "flow_output", 2, "{v}-flow.npy",
-                   "<i>-flow.npy: float32 (H, W, 2), where each pixel of view i lands in view 0 minus the pixel, "
-                   "(du, dv) in pixels; NaN where that is not a seen correspondence (sidar_torch.flow)",
-                   view_pixel_bytes=24, target_pixel_bytes=8, dtype="float32", producer="flow", computed_from="depth",
-                   lens_resample=False, min_image_side=2),
+    OptionalOutput(
+        "opacities", "opacity_output", 1, "{v}-o.png",
+        "<i>-o.png: 255 x the fraction of the painting hidden (1 off the painting)",
+        producer="opacity", values="float32 in [0, 1], multiples of 1/255",
+        meaning="the fraction of the painting hidden at each pixel, a soft mask: 1 off the painting and behind "
+                "opaque occluders, 0 where the painting is seen unobstructed, 1 - prod_k (1 - a_k) where "
+                "transparent occluders k cover it, a_k the opacity the view blends them with (material alpha "
+                "raised by Fresnel towards grazing views; their highlights are left out). Every visible occluder "
+                "counts, whatever mask_min_opacity is"),
+    OptionalOutput(
+        "shadow_masks", "shadow_mask_output", 1, "{v}-s.png",
+        "<i>-s.png: 255 x the fraction of the direct light on the visible painting that occluders block "
+        "(0 off the painting and where it is hidden)", view_pixel_bytes=5,
+        producer="shadow_fraction", values="float32 in [0, 1], multiples of 1/255",
+        meaning="the fraction of the direct light falling on the visible painting that occluders block: each "
+                "light weighted by its irradiance there (luminance; a transparent occluder's coloured shadow "
+                "counts by its luminance); 0 exactly where no occluder blocks any light (any blocked light gives at "
+                "least 1/255), off the painting and where the painting is hidden (masks); ambient light counts for "
+                "nothing"),
+    OptionalOutput(
+        "shadow_free", "shadow_free_output", 3, "{v}-f.png",
+        "<i>-f.png: the view with no light blocked (the target of shadow removal)",
+        view_pixel_bytes=15, target_pixel_bytes=4, view_effects=True,
+        producer="unblocked_colour", values="float32 in [0, 1], multiples of 1/255",
+        meaning="each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
+                "blocked: the target of shadow removal; equal to images wherever no shadow falls"),
+    OptionalOutput(
+        "depth", "depth_output", 1, "{v}-d.npy",
+        "<i>-d.npy: float32 (H, W), the distance along the camera's z axis to the painting or an occluder, "
+        "painting units (inf where neither is hit)", view_pixel_bytes=8, target_pixel_bytes=8, dtype="float32",
+        producer="camera_depth", lens_resample=False, values="float32, painting units",
+        meaning="the distance along the view's camera z axis (R X + t's third coordinate) to the nearest surface the "
+                "masks count (the painting, or an occluder at least mask_min_opacity opaque) at each pixel centre, "
+                "inf where none is hit; sidar_torch.flow turns it into dense correspondence"),
+    OptionalOutput(
+        "flow_to_reference", "flow_output", 2, "{v}-flow.npy",
+        "<i>-flow.npy: float32 (H, W, 2), where each pixel of view i lands in view 0 minus the pixel, "
+        "(du, dv) in pixels; NaN where that is not a seen correspondence (sidar_torch.flow)",
+        view_pixel_bytes=24, target_pixel_bytes=8, dtype="float32",
+        producer="flow", computed_from="depth", lens_resample=False, min_image_side=2, values="float32, pixels",
+        meaning="where each pixel of the view lands in view 0 minus the pixel, (du, dv): sidar_torch.flow(sample, i, 0) "
+                "of every view i, NaN where it is not valid (view i sees nothing there, or view 0 does not see the "
+                "point); on the painting H[i, 0]'s mapping, on occluders of a static scene their parallax"),
 )}
-"""The optional outputs, by name (``flow_to_reference``'s memory counts the depth it is computed from). Adding one: a row here, its switch in ``config/fields.py``, its key in
-``sample.KEYS`` (shape, dtype, meaning), a ``SampleArrays`` field, and its producer: the pass or render
-target that draws it (a row of ``render.renderer.OUTPUT_PASSES``) or the computation from another output
-(a row of ``sample.COMPUTATIONS``) (``docs/architecture.md``). Memory, the manifest, export, the reader, Ray,
-the render settings, the renderer's and the sample's steps and the config's checks follow the row; no code
-outside these tables branches on an output's name. Opacities' memory is in the measured per-view figure (``config.memory``)."""
+"""The optional outputs, by name (``flow_to_reference``'s memory counts the depth it is computed from;
+opacities' memory is in the measured per-view figure, ``config.memory``). Adding one: a row here, its
+switch in ``config/fields.py`` and its producer: the pass or render target that draws it (a row of
+``render.renderer.OUTPUT_PASSES``) or the computation from another output (a row of
+``sample.COMPUTATIONS``) (``docs/architecture.md``). Its sample key (``sample.KEYS``), its ``SampleArrays``
+field, memory, the manifest, export, the reader, Ray, the render settings, the renderer's and the sample's
+steps and the config's checks follow the row; no code outside these tables branches on an output's name."""
 
 
 def drawn_outputs(asked: frozenset[str] | set[str]) -> frozenset[str]:

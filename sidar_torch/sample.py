@@ -7,8 +7,8 @@ Every consumer goes through this module: :class:`sidar_torch.SidarDataset` and
 :class:`SampleArrays` and :class:`sidar_torch.ExportedDataset` rebuilds one from the files and
 calls the same :meth:`SampleArrays.to_tensors`, so a set read back equals the rendered samples by
 construction. An optional output is a row of ``render_choices.OUTPUTS`` (its switch, channels, file,
-memory), its row of :data:`KEYS` (shape, dtype, meaning) and a field of :class:`SampleArrays`; the
-checks, the tensors and :func:`render_arrays` follow the rows (and the renderer draws it).
+memory, values, meaning and producer); its row of :data:`KEYS`, its field of :class:`SampleArrays`, the
+checks, the tensors and :func:`render_arrays` follow the row (and the renderer draws it).
 
 Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) adds a leading ``B``.
 """
@@ -59,11 +59,11 @@ class SampleKey:
     entry: str | None = None
 
     @classmethod
-    def optional(cls, name: str, dtype: str, meaning: str) -> "SampleKey":
-        """The key of the optional output ``name`` (a row of ``render_choices.OUTPUTS``, which gives its
-        switch, export entry and channels: the shape ``(V, C, H, W)``)."""
+    def optional(cls, name: str) -> "SampleKey":
+        """The key of the optional output ``name``: its row of ``render_choices.OUTPUTS`` gives all of it
+        (switch, export entry, values, meaning and channels: the shape ``(V, C, H, W)``)."""
         row = OUTPUTS[name]
-        return cls(name, f"(V, {row.channels}, H, W)", dtype, meaning, switch=row.switch, entry=row.entry)
+        return cls(name, f"(V, {row.channels}, H, W)", row.values, row.meaning, switch=row.switch, entry=row.entry)
 
 
 KEYS: tuple[SampleKey, ...] = (
@@ -72,29 +72,7 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey("masks", "(V, 1, H, W)", "float32 in {0, 1}",
               "1 where the painting is not visible (an occluder, or off the painting), 0 where it is",
               entry="{v}-m.png"),
-    SampleKey.optional("opacities", "float32 in [0, 1], multiples of 1/255",
-              "the fraction of the painting hidden at each pixel, a soft mask: 1 off the painting and behind "
-              "opaque occluders, 0 where the painting is seen unobstructed, 1 - prod_k (1 - a_k) where "
-              "transparent occluders k cover it, a_k the opacity the view blends them with (material alpha "
-              "raised by Fresnel towards grazing views; their highlights are left out). Every visible occluder "
-              "counts, whatever mask_min_opacity is"),
-    SampleKey.optional("shadow_masks", "float32 in [0, 1], multiples of 1/255",
-              "the fraction of the direct light falling on the visible painting that occluders block: each "
-              "light weighted by its irradiance there (luminance; a transparent occluder's coloured shadow "
-              "counts by its luminance); 0 exactly where no occluder blocks any light (any blocked light gives at "
-              "least 1/255), off the painting and where the painting is hidden (masks); ambient light counts for "
-              "nothing"),
-    SampleKey.optional("shadow_free", "float32 in [0, 1], multiples of 1/255",
-              "each view from the same scene (lights, occluders, cameras, view effects and noise) with no light "
-              "blocked: the target of shadow removal; equal to images wherever no shadow falls"),
-    SampleKey.optional("depth", "float32, painting units",
-              "the distance along the view's camera z axis (R X + t's third coordinate) to the nearest surface the "
-              "masks count (the painting, or an occluder at least mask_min_opacity opaque) at each pixel centre, "
-              "inf where none is hit; sidar_torch.flow turns it into dense correspondence"),
-    SampleKey.optional("flow_to_reference", "float32, pixels",
-              "where each pixel of the view lands in view 0 minus the pixel, (du, dv): sidar_torch.flow(sample, i, 0) "
-              "of every view i, NaN where it is not valid (view i sees nothing there, or view 0 does not see the "
-              "point); on the painting H[i, 0]'s mapping, on occluders of a static scene their parallax"),
+    *(SampleKey.optional(name) for name in OUTPUTS),
     SampleKey("label", "(3, H, W)", "float32 in [0, 1], multiples of 1/255",
               "the painting in view 0's frame, unlit, unoccluded", entry="gt.png"),
     SampleKey("homographies", "(V, V, 3, 3)", "geometry_dtype",
@@ -152,7 +130,18 @@ def present_keys(config: SidarConfig | Mapping[str, Any]) -> tuple[SampleKey, ..
     return tuple(key for key in KEYS if key.switch is None or fields.get(key.switch, False) not in (False, NO_LENS))
 
 
+def _with_output_fields(cls: type) -> type:
+    """``cls`` with one field per optional output (``render_choices.OUTPUTS``, in its order, after the
+    fields of the class body), ``None`` by default (not rendered): applied before ``dataclass``, so a
+    new row is a new field without a line here."""
+    for name in OUTPUTS:
+        cls.__annotations__[name] = "np.ndarray | None"
+        setattr(cls, name, None)
+    return cls
+
+
 @dataclass(frozen=True)
+@_with_output_fields
 class SampleArrays:
     """One sample as NumPy arrays: what the renderer made and export writes, exactly.
 
@@ -164,13 +153,13 @@ class SampleArrays:
         homography_error: pixels.
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
-        opacities, shadow_masks, shadow_free, depth, flow_to_reference: the optional outputs (``render_choices.OUTPUTS``), each
-            ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's dtype (uint8 or
-            float32), or None (not rendered).
         lens: ``(V, 5)`` float64, each view's lens (None: no lens).
         lens_model: the model of ``lens``, a row of :data:`sidar_torch.distortion.LENS_MODELS` (None:
             no lens; given exactly when ``lens`` is).
         distortion_maps: ``(V, 2, H, W)`` float32 (None: not asked for).
+        and one field per optional output, named as its row of ``render_choices.OUTPUTS`` (``opacities``,
+            ``depth``, ...): ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's
+            dtype (uint8 or float32), or None (not rendered).
 
     Raises:
         ValueError: a field of another dtype or shape (named in the message).
@@ -185,11 +174,6 @@ class SampleArrays:
     R: np.ndarray
     t: np.ndarray
     index: int
-    opacities: np.ndarray | None = None
-    shadow_masks: np.ndarray | None = None
-    shadow_free: np.ndarray | None = None
-    depth: np.ndarray | None = None
-    flow_to_reference: np.ndarray | None = None
     lens: np.ndarray | None = None
     lens_model: str | None = None
     distortion_maps: np.ndarray | None = None

@@ -94,14 +94,9 @@ class RenderedSequence:
             positive alpha, except transparent material without refraction of opacity under about
             0.06 over the background, whose blended alpha rounds to 0 in 8 bits (refracting glass
             writes alpha 1: it blends with the painting it shows itself, see ``render.mirror``).
-        outputs: the optional outputs asked for (``RenderSettings.outputs``), by name
-            (``render_choices.OUTPUTS``): ``"opacities"`` ``(V, H, W)`` uint8, 255 times the fraction of
-            the painting hidden at each pixel (``unlit.render_opacity``); ``"shadow_masks"`` ``(V, H, W)``
-            uint8, 255 times the fraction of the direct light on the visible painting that occluders
-            block (:meth:`SceneRenderer._render_shadow_mask`); ``"shadow_free"`` ``(V, H, W, 3)`` uint8
-            sRGB, the views with no light blocked, from the colour pass's second output; ``"depth"``
-            ``(V, H, W)`` float32, the distance along each camera's axis to the painting or an occluder
-            the mask counts (``inf``: neither), from the camera-depth pass (``Passes.camera_depth``).
+        outputs: the optional outputs asked for (``RenderSettings.outputs``), by name: each row of
+            ``render_choices.OUTPUTS`` drawn by its producer (:data:`OUTPUT_PASSES`), ``(V, H, W)`` or
+            ``(V, H, W, C)`` of the row's dtype (uint8 levels, or float32 values), meaning what the row says.
     """
 
     views: np.ndarray
