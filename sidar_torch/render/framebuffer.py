@@ -40,7 +40,7 @@ from typing import Iterator
 import numpy as np
 from OpenGL import GL
 
-__all__ = ["FLIP_Y", "DepthFramebuffer", "Framebuffer", "sample_counts", "size_limits"]
+__all__ = ["FLIP_Y", "FloatFramebuffer", "Framebuffer", "sample_counts", "size_limits"]
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 """Left-multiplies a projection matrix so that clip-space y, and so the image, is drawn upside down."""
@@ -67,8 +67,8 @@ _COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
 
 
 def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8) -> int:
-    """A framebuffer with ``outputs`` colour renderbuffers of format ``colour`` (RGBA8, or R32F for
-    the camera depth) and a 24-bit depth, 8-bit stencil renderbuffer, ``samples`` per pixel (1:
+    """A framebuffer with ``outputs`` colour renderbuffers of format ``colour`` (RGBA8, or a float format
+    for the camera pass) and a 24-bit depth, 8-bit stencil renderbuffer, ``samples`` per pixel (1:
     single-sampled). Raises RuntimeError if the driver reports it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
@@ -165,18 +165,22 @@ class Framebuffer:
         return np.frombuffer(pixels, dtype=np.uint8).reshape(self.height, self.width)
 
 
-class DepthFramebuffer:
-    """A single-sampled R32F colour renderbuffer (and a depth and stencil one for the depth test) of
-    ``width`` x ``height`` pixels: the camera-depth pass (``Passes.camera_depth``) writes each pixel's
-    distance along the camera's axis into it, in float32, drawn upside down like every pass.
+class FloatFramebuffer:
+    """A single-sampled float colour renderbuffer (R32F for one channel) and a depth and stencil one for the depth test, of ``width`` x ``height`` pixels:
+    the camera pass (``Passes.camera_frame``) writes each pixel's value into it, in float32, drawn upside
+    down like every pass.
 
     Raises:
         RuntimeError: the driver reports it incomplete.
     """
 
-    def __init__(self, width: int, height: int):
-        self.width, self.height = width, height
-        self.id = _new_framebuffer(width, height, 1, 1, GL.GL_R32F)
+    _FORMATS = {1: (GL.GL_R32F, GL.GL_RED)}
+    """channels -> (renderbuffer format, read-back format)."""
+
+    def __init__(self, width: int, height: int, channels: int = 1):
+        self.width, self.height, self.channels = width, height, channels
+        storage, self._read = self._FORMATS[channels]
+        self.id = _new_framebuffer(width, height, 1, 1, storage)
 
     def begin_drawing(self) -> None:
         """Make it the draw framebuffer, with clockwise front faces (see :meth:`Framebuffer.begin_drawing`)."""
@@ -185,11 +189,12 @@ class DepthFramebuffer:
         GL.glFrontFace(GL.GL_CW)
 
     def end_drawing(self) -> np.ndarray:
-        """Restore counter-clockwise front faces and return the red channel: ``(height, width)``
-        float32, top row first."""
+        """Restore counter-clockwise front faces and return the first ``channels`` channels: ``(height,
+        width)`` (one) or ``(height, width, channels)`` float32, top row first."""
         GL.glFrontFace(GL.GL_CCW)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 4)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
         GL.glReadBuffer(_COLOURS[0])
-        pixels = GL.glReadPixels(0, 0, self.width, self.height, GL.GL_RED, GL.GL_FLOAT)
-        return np.array(pixels, dtype=np.float32).reshape(self.height, self.width)
+        pixels = GL.glReadPixels(0, 0, self.width, self.height, self._read, GL.GL_FLOAT)
+        shape = (self.height, self.width) if self.channels == 1 else (self.height, self.width, self.channels)
+        return np.array(pixels, dtype=np.float32).reshape(shape)

@@ -13,7 +13,8 @@ the transmittance maps, the lights' uniform blocks, two sampler objects) and dra
 * ``kind="segmentation"``: the mask draw (a grey level per surface, depth-tested);
 * ``kind="unlit"``: the label and opacity draws (``unlit.frag``);
 
-and :meth:`Passes.camera_depth`: each pixel's distance along the camera's axis, float32 (``camera_depth.*``).
+and :meth:`Passes.camera_frame`: a quantity of the camera's frame at each pixel (its distance along the
+camera's axis), float32 (``camera_frame.*``, :data:`CAMERA_QUANTITIES`).
 
 Every pass draws into :class:`~.framebuffer.Framebuffer` upside down (``FLIP_Y``) and reads back.
 Nothing of pyrender runs here: pyrender opens the GL context (``render.context``) and nothing else.
@@ -27,6 +28,7 @@ drivers, e.g. a GPU under EGL, from billing the draws to ``readback``); it chang
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -36,7 +38,7 @@ from ..render_choices import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .draws import SpotEmitter, Surface, ViewDraws
 from .footprints import PaintingPart
-from .framebuffer import FLIP_Y, DepthFramebuffer, Framebuffer
+from .framebuffer import FLIP_Y, FloatFramebuffer, Framebuffer
 from .light_block import LightBlocks
 from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .programs import Program, ProgramCache
@@ -44,7 +46,7 @@ from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps
 from .visibility import map_texel_box
 
-__all__ = ["UNROLLED_LIGHT_GROUPS", "Passes", "frustum_projection", "light_group_count", "light_matrices",
+__all__ = ["CAMERA_QUANTITIES", "UNROLLED_LIGHT_GROUPS", "CameraQuantity", "Passes", "frustum_projection", "light_group_count", "light_matrices",
            "shadow_depth_range"]
 
 UNROLLED_LIGHT_GROUPS = 4
@@ -117,6 +119,30 @@ def light_group_count(lights: Sequence[SpotEmitter]) -> int:
     return count
 
 
+@dataclass(frozen=True)
+class CameraQuantity:
+    """What :meth:`Passes.camera_frame` draws: one row of :data:`CAMERA_QUANTITIES`.
+
+    Attributes:
+        define: the ``shaders/camera_frame.*`` variant that writes it.
+        channels: values per pixel (1: an ``(H, W)`` array; 3: ``(H, W, 3)``).
+        attributes: the mesh's vertex attributes it reads besides the position (their location defines).
+        empty: the value where no surface is hit. The target clears to 0, which no drawn value is (every
+            surface lies beyond the near plane).
+    """
+
+    define: str
+    channels: int
+    attributes: tuple[str, ...]
+    empty: float
+
+
+CAMERA_QUANTITIES = {
+    "depth": CameraQuantity("CAMERA_DEPTH", 1, ("INST_M_LOC",), np.inf),
+}
+"""The camera pass's quantities, by name: ``depth``, the distance along the camera's axis (painting units)."""
+
+
 class Passes:
     """The passes of one GL context (current whenever a method is called).
 
@@ -157,7 +183,7 @@ class Passes:
         self._depth_sampler = self._sampler(GL.GL_NEAREST, GL.GL_NEAREST, compare=False)  # soft lookups' search
         self._mirror_sampler = self._sampler(GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR)  # trilinear, any painting filter
         self._textures = 0  # texture units taken by the current surface's draw
-        self._depth_target: DepthFramebuffer | None = None  # made at the first camera-depth pass
+        self._float_targets: dict[int, FloatFramebuffer] = {}  # by channels, made at the first camera pass
 
     @staticmethod
     def _sampler(minify: int, magnify: int, compare: bool = True) -> int:
@@ -243,46 +269,49 @@ class Passes:
         groups = light_group_count(view.lights)
         return groups if groups <= self.unrolled_light_groups else None
 
-    def camera_depth(self, view: ViewDraws, surfaces: Sequence[Surface], timings: dict[str, float] | None = None
-                     ) -> np.ndarray:
-        """The distance along ``view``'s camera axis to the nearest of ``surfaces`` at each pixel
-        centre: ``(H, W)`` float32, painting units, ``inf`` where none is hit.
+    def camera_frame(self, view: ViewDraws, surfaces: Sequence[Surface], quantity: str,
+                     timings: dict[str, float] | None = None) -> np.ndarray:
+        """A quantity of the camera's frame at each pixel centre, from the nearest of ``surfaces``: a row of
+        :data:`CAMERA_QUANTITIES` (``"depth"``: ``(H, W)`` float32), its ``empty`` value where none is hit.
 
         One draw of each surface (back faces culled, depth-tested, no blending, nothing of its
-        material) into a float target (:class:`~.framebuffer.DepthFramebuffer`), single-sampled
-        whatever ``antialias`` is; the value is the vertex stage's camera-frame depth interpolated
-        perspective-correctly (exact for a plane up to float32 rounding), not the 24-bit depth buffer,
-        whose resolution at the painting is about 1e-5 of the distance. Timed as ``"depth"``
-        (``"upload"``, ``"readback"``).
+        material) into a float target (:class:`~.framebuffer.FloatFramebuffer`), single-sampled
+        whatever ``antialias`` is, with ``shaders/camera_frame.*`` under the quantity's define: the vertex
+        stage's values interpolated perspective-correctly (the depth exact for a plane up to float32
+        rounding, not the 24-bit depth buffer, whose resolution at the painting is about 1e-5 of the
+        distance). Timed under the quantity's name (``"upload"``, ``"readback"``).
         """
+        row = CAMERA_QUANTITIES[quantity]
         with timed(timings, "upload", GL.glFinish):
             for surface in surfaces:
                 surface.mesh.upload()
-        if self._depth_target is None:
-            self._depth_target = DepthFramebuffer(self.width, self.height)
+        if row.channels not in self._float_targets:
+            self._float_targets[row.channels] = FloatFramebuffer(self.width, self.height, row.channels)
+        target = self._float_targets[row.channels]
         camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
-        with timed(timings, "depth", GL.glFinish):
+        with timed(timings, quantity, GL.glFinish):
             GL.glViewport(0, 0, self.width, self.height)
             GL.glEnable(GL.GL_DEPTH_TEST)
             GL.glDepthMask(GL.GL_TRUE)
             GL.glDepthFunc(GL.GL_LESS)
             GL.glDepthRange(0.0, 1.0)
-            self._depth_target.begin_drawing()
-            GL.glClearColor(0.0, 0.0, 0.0, 0.0)  # 0: nothing drawn (every surface lies beyond the near plane)
+            target.begin_drawing()
+            GL.glClearColor(0.0, 0.0, 0.0, 0.0)  # 0: nothing drawn (no drawn value is: see CameraQuantity)
             GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
             GL.glDisable(GL.GL_MULTISAMPLE)
             for surface in surfaces:
-                program = self._program(("camera_depth.vert", "camera_depth.frag"),
-                                        {"INST_M_LOC": surface.mesh.defines["INST_M_LOC"]})
+                defines = {name: surface.mesh.defines[name] for name in row.attributes}
+                program = self._program(("camera_frame.vert", "camera_frame.frag"), {**defines, row.define: 1})
                 program.use()
                 camera.set(program)
                 self._draw_plain(surface, program)
             GL.glUseProgram(0)
             GL.glFlush()
         with timed(timings, "readback"):
-            depth = self._depth_target.end_drawing()
-        depth[depth == 0] = np.inf
-        return depth
+            values = target.end_drawing()
+        drawn = values.any(-1) if values.ndim == 3 else values != 0
+        values[~drawn] = row.empty
+        return values
 
     # -- shadow passes ---------------------------------------------------------------------------
 

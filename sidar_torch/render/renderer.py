@@ -20,8 +20,9 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   colour pass is single-sampled, that pass drew what this draw would, in the same order with the
   same depth test: it marks in the stencil the pixels whose depth the painting's fragments kept,
   and the mask is read from there, without its own draw (``tests/render/test_skips.py``);
-* the **depth** (only with ``"depth"`` in ``settings.outputs``): the distance along the camera's
-  axis to the surfaces the mask draws (the painting and the occluders it counts), in float32;
+* the **camera pass** (``Passes.camera_frame``, once per asked output it draws: ``depth``): the
+  distance along the camera's axis to the surfaces the mask draws (the painting and the occluders it
+  counts), in float32;
 * the **opacity** (only with ``"opacities"`` in ``settings.outputs``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -385,11 +386,17 @@ class DrawnView:
 
 OutputPass = Callable[[SceneRenderer, DrawnView, "dict[str, float] | None"], np.ndarray]
 
+
+def _camera_pass(quantity: str) -> OutputPass:
+    """The producer of a quantity of the camera pass (``passes.CAMERA_QUANTITIES``), drawn from the
+    surfaces the mask counts: the painting and the masked occluders."""
+    return lambda renderer, drawn, timings: renderer._passes.camera_frame(
+        drawn.draws, [drawn.draws.painting, *drawn.masked], quantity, timings)
+
+
 OUTPUT_PASSES: dict[str, OutputPass] = {
     "unblocked_colour": lambda renderer, drawn, timings: drawn.unblocked,
-    # The surfaces the mask counts: the painting and the masked occluders.
-    "camera_depth": lambda renderer, drawn, timings: renderer._passes.camera_depth(
-        drawn.draws, [drawn.draws.painting, *drawn.masked], timings),
+    "camera_depth": _camera_pass("depth"),
     "opacity": lambda renderer, drawn, timings: render_opacity(renderer._passes, drawn.draws, drawn.drawn,
                                                                drawn.mask, timings),
     "shadow_fraction": lambda renderer, drawn, timings: renderer._render_shadow_mask(drawn, timings),
