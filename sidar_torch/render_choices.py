@@ -154,6 +154,16 @@ OUTPUTS = {row.name: row for row in (
         meaning="where each pixel of the view lands in view 0 minus the pixel, (du, dv): sidar_torch.flow(sample, i, 0) "
                 "of every view i, NaN where it is not valid (view i sees nothing there, or view 0 does not see the "
                 "point); on the painting H[i, 0]'s mapping, on occluders of a static scene their parallax"),
+    OptionalOutput(
+        "normals", "normals_output", 3, "{v}-n.npy",
+        "<i>-n.npy: float32 (H, W, 3), the unit surface normal in the camera's frame (x right, y down, z forward) "
+        "of the painting or an occluder, facing the camera (0 where neither is hit)",
+        view_pixel_bytes=24, target_pixel_bytes=20, dtype="float32",
+        producer="camera_normals", lens_resample=False, values="float32 in [-1, 1], unit vectors",
+        meaning="the unit surface normal, in the view's camera frame (x right, y down, z forward: R n for a world "
+                "normal n), of the nearest surface the masks count (the painting, or an occluder at least "
+                "mask_min_opacity opaque) at each pixel centre, facing the camera (interpolated across an "
+                "occluder's smooth faces; on the painting R[:, 2]), 0 where none is hit"),
 )}
 """The optional outputs, by name (``flow_to_reference``'s memory counts the depth it is computed from;
 opacities' memory is in the measured per-view figure, ``config.memory``). Adding one: a row here, its

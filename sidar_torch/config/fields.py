@@ -236,6 +236,11 @@ class SidarConfig:
         "float32 ``(du, dv)``), NaN where that is not a seen correspondence: ``sidar_torch.flow(sample, i, 0)`` "
         "for every view, computed on the CPU from the depth (drawn for it whether or not ``depth_output`` is on); "
         "needs an ``image_size`` of at least 2 x 2. See docs/parallax.md."))
+    normals_output: bool = _field(False, meaning=(
+        "also hand out ``normals``, per view the unit surface normal in the camera's frame (x right, y down, "
+        "z forward; float32 ``(3, H, W)``) of the nearest surface the mask counts, facing the camera, 0 where "
+        "none is hit: for relighting and intrinsic-image models. Costs one untextured draw per view; pinhole "
+        "cameras only (lens_model none)."))
     shadows: bool = _field(True, meaning="whether lights cast shadows.")
     plane_roughness: Range = _field((0.4, 1.0), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)
     plane_metallic: Range = _field((0.0, 0.2), bounds=(0.0, 1.0), meaning=_PLANE_MATERIAL)

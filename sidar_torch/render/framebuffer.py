@@ -166,7 +166,8 @@ class Framebuffer:
 
 
 class FloatFramebuffer:
-    """A single-sampled float colour renderbuffer (R32F for one channel) and a depth and stencil one for the depth test, of ``width`` x ``height`` pixels:
+    """A single-sampled float colour renderbuffer (R32F for one channel, RGBA32F for three: RGB32F need
+    not be renderable) and a depth and stencil one for the depth test, of ``width`` x ``height`` pixels:
     the camera pass (``Passes.camera_frame``) writes each pixel's value into it, in float32, drawn upside
     down like every pass.
 
@@ -174,7 +175,7 @@ class FloatFramebuffer:
         RuntimeError: the driver reports it incomplete.
     """
 
-    _FORMATS = {1: (GL.GL_R32F, GL.GL_RED)}
+    _FORMATS = {1: (GL.GL_R32F, GL.GL_RED), 3: (GL.GL_RGBA32F, GL.GL_RGB)}
     """channels -> (renderbuffer format, read-back format)."""
 
     def __init__(self, width: int, height: int, channels: int = 1):

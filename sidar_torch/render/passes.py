@@ -14,7 +14,7 @@ the transmittance maps, the lights' uniform blocks, two sampler objects) and dra
 * ``kind="unlit"``: the label and opacity draws (``unlit.frag``);
 
 and :meth:`Passes.camera_frame`: a quantity of the camera's frame at each pixel (its distance along the
-camera's axis), float32 (``camera_frame.*``, :data:`CAMERA_QUANTITIES`).
+camera's axis, its surface normal), float32 (``camera_frame.*``, :data:`CAMERA_QUANTITIES`).
 
 Every pass draws into :class:`~.framebuffer.Framebuffer` upside down (``FLIP_Y``) and reads back.
 Nothing of pyrender runs here: pyrender opens the GL context (``render.context``) and nothing else.
@@ -128,7 +128,7 @@ class CameraQuantity:
         channels: values per pixel (1: an ``(H, W)`` array; 3: ``(H, W, 3)``).
         attributes: the mesh's vertex attributes it reads besides the position (their location defines).
         empty: the value where no surface is hit. The target clears to 0, which no drawn value is (every
-            surface lies beyond the near plane).
+            surface lies beyond the near plane; a normal is a unit vector).
     """
 
     define: str
@@ -139,8 +139,11 @@ class CameraQuantity:
 
 CAMERA_QUANTITIES = {
     "depth": CameraQuantity("CAMERA_DEPTH", 1, ("INST_M_LOC",), np.inf),
+    "normals": CameraQuantity("CAMERA_NORMALS", 3, ("INST_M_LOC", "NORMAL_LOC"), 0.0),
 }
-"""The camera pass's quantities, by name: ``depth``, the distance along the camera's axis (painting units)."""
+"""The camera pass's quantities, by name: ``depth``, the distance along the camera's axis (painting units);
+``normals``, the unit surface normal in the OpenCV camera frame (x right, y down, z forward), facing the
+camera (back faces are culled)."""
 
 
 class Passes:
@@ -272,7 +275,8 @@ class Passes:
     def camera_frame(self, view: ViewDraws, surfaces: Sequence[Surface], quantity: str,
                      timings: dict[str, float] | None = None) -> np.ndarray:
         """A quantity of the camera's frame at each pixel centre, from the nearest of ``surfaces``: a row of
-        :data:`CAMERA_QUANTITIES` (``"depth"``: ``(H, W)`` float32), its ``empty`` value where none is hit.
+        :data:`CAMERA_QUANTITIES` (``"depth"``: ``(H, W)`` float32, ``"normals"``: ``(H, W, 3)`` float32),
+        its ``empty`` value where none is hit.
 
         One draw of each surface (back faces culled, depth-tested, no blending, nothing of its
         material) into a float target (:class:`~.framebuffer.FloatFramebuffer`), single-sampled

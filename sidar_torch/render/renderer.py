@@ -20,9 +20,9 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
   colour pass is single-sampled, that pass drew what this draw would, in the same order with the
   same depth test: it marks in the stencil the pixels whose depth the painting's fragments kept,
   and the mask is read from there, without its own draw (``tests/render/test_skips.py``);
-* the **camera pass** (``Passes.camera_frame``, once per asked output it draws: ``depth``): the
-  distance along the camera's axis to the surfaces the mask draws (the painting and the occluders it
-  counts), in float32;
+* the **camera pass** (``Passes.camera_frame``, once per asked output it draws: ``depth``, ``normals``):
+  the distance along the camera's axis, or the unit normal in the camera's frame, of the surfaces the
+  mask draws (the painting and the occluders it counts), in float32;
 * the **opacity** (only with ``"opacities"`` in ``settings.outputs``): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
@@ -32,7 +32,7 @@ and once per sequence the **label**: the painting through view 0's camera, unlit
 occluders (the texture as the reference camera samples it).
 
 ``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
-(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``opacity``, ``label``, ``readback``; see
+(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``normals``, ``opacity``, ``label``, ``readback``; see
 ``render.passes`` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
@@ -397,6 +397,7 @@ def _camera_pass(quantity: str) -> OutputPass:
 OUTPUT_PASSES: dict[str, OutputPass] = {
     "unblocked_colour": lambda renderer, drawn, timings: drawn.unblocked,
     "camera_depth": _camera_pass("depth"),
+    "camera_normals": _camera_pass("normals"),
     "opacity": lambda renderer, drawn, timings: render_opacity(renderer._passes, drawn.draws, drawn.drawn,
                                                                drawn.mask, timings),
     "shadow_fraction": lambda renderer, drawn, timings: renderer._render_shadow_mask(drawn, timings),
