@@ -79,8 +79,8 @@ def output_bytes(image_size: tuple[int, int], n_views: int, outputs: Mapping[str
     Args:
         image_size: ``(H, W)`` pixels, integers.
         n_views: ``V``, an integer.
-        outputs: the switches of ``render_choices.OUTPUTS`` (``opacity_output``, ``shadow_mask_output``,
-            ``shadow_free_output``), true or false; a missing one counts as false.
+        outputs: the switches of ``render_choices.OUTPUTS`` (each row's ``switch``, e.g. ``opacity_output``),
+            true or false; a missing one counts as false.
     """
     h, w = image_size
     per_view = VIEW_PIXEL_BYTES + sum(row.view_pixel_bytes for row in OUTPUTS.values() if outputs.get(row.switch))

@@ -23,7 +23,7 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 * the **camera pass** (``Passes.camera_frame``, once per asked output it draws: ``depth``, ``normals``):
   the distance along the camera's axis, or the unit normal in the camera's frame, of the surfaces the
   mask draws (the painting and the occluders it counts), in float32;
-* the **opacity** (only with ``"opacities"`` in ``settings.outputs``): an unlit draw of the painting (white, opaque) and every
+* the **opacity** (only with ``opacities`` asked for): an unlit draw of the painting (white, opaque) and every
   camera-visible occluder (black, with the alpha and Fresnel rise of the colour draw), blended
   as the colour draw blends them, so each pixel keeps the fraction of the painting that shows
   through (see :func:`.unlit.render_opacity`).

@@ -44,9 +44,9 @@ class RenderSettings:
         antialias: samples per pixel of each view's lit colour pass (1: none; 2, 4 or 8:
             multisampled, then resolved to one colour per pixel). Masks, opacities and the label are
             drawn single-sampled either way (config ``antialias``).
-        outputs: the optional outputs to render too (names of ``render_choices.OUTPUTS``: ``opacities``,
-            ``shadow_masks``, ``shadow_free``; ``RenderedSequence.outputs``); the other outputs are the
-            same either way (the config fields of the rows' ``switch``).
+        outputs: the optional outputs to render too (names of the ``render_choices.OUTPUTS`` rows the
+            renderer draws, those without ``computed_from``; ``RenderedSequence.outputs``); the other
+            outputs are the same either way (the config fields of the rows' ``switch``).
         highlight_spill: over-exposed light spills into the other channels, a blown-out red turning
             white; false: each channel clips at white on its own (config ``highlight_spill``).
         light_radius: every emitter's radius, painting units: above 0, soft shadows (percentage-closer
