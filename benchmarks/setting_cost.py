@@ -23,8 +23,8 @@ mirror program, an output's own steps, what a skip leaves out), then how far the
     python -m benchmarks.setting_cost --field shadow_masks --config misaligned --size 384x512 --samples 40
     python -m benchmarks.setting_cost --field split_shadow_lookups --config misaligned --size 384x512 --samples 40
 
-The former commands ``mirror_cost``, ``opacity_cost`` and ``output_cost --output NAME`` run this one
-(:func:`former_command`). The other ``*_cost`` commands compare something else than two renderer
+It replaces the former ``mirror_cost``, ``opacity_cost``, ``output_cost --output NAME`` and ``skip_cost``
+(the docs name them beside the figures they measured). The other ``*_cost`` commands compare something else than two renderer
 settings in one process, so they stay apart: ``effects_cost`` (the view effects, a CPU step after
 the render), ``lens_cost`` (three lens models through ``sample.render_arrays``, whose lens step follows
 the read-back), ``shader_cost`` (our GLSL with pieces cut out, a renderer per cut) and
@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 from dataclasses import fields, replace
 from typing import Any, Callable
 
@@ -261,16 +260,6 @@ def view_difference(differences: list[np.ndarray], labels: tuple[str, str]) -> s
     for difference in differences:
         summary.append(difference)
     return summary.line(labels)
-
-
-def former_command(first: list[str], renamed: str | None = None) -> tuple[Callable, Callable]:
-    """``(parse_args, main)`` of a former ``*_cost`` command that docs still cite: this command with the
-    words ``first`` before the given ones, and the option ``renamed`` read as ``--field``."""
-    def words(argv: list[str] | None) -> list[str]:
-        given = sys.argv[1:] if argv is None else argv
-        return [*first, *("--field" if word == renamed else word for word in given)]
-
-    return (lambda argv=None: build_parser().parse_args(words(argv))), (lambda argv=None: main(words(argv)))
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ that a wrong field or override is named, never speed."""
 import numpy as np
 import pytest
 
-from benchmarks import mirror_cost, opacity_cost, output_cost, setting_cost
+from benchmarks import setting_cost
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -27,29 +27,11 @@ def test_an_output_is_drawn_without_and_with_and_its_steps_are_timed(capsys):
     assert [line.split(":")[0].strip() for line in out[1:]] == ["wall", "cpu", "opacity (wall)", "views"]
 
 
-@pytest.mark.parametrize("output", ["shadow_masks", "shadow_free", "depth"])
-def test_the_former_output_cost_command_reads_its_output_as_the_field(capsys, output):
-    output_cost.main(["--output", output, "--size", "24x32", "--samples", "2"])
-    out = capsys.readouterr().out.splitlines()
-    steps = {"shadow_masks": "shadow_mask", "shadow_free": "colour + readback", "depth": "depth + readback"}[output]
-    assert out[0].startswith(output) and [line.split(":")[0].strip() for line in out[1:]] == [
-        "wall", "cpu", f"{steps} (wall)", "views"]
-    assert "PSNR inf (the same bytes)" in out[-1]  # an output changes no view
-
-
-def test_the_former_commands_parse_as_the_one_command():
-    assert vars(mirror_cost.parse_args(["--samples", "3"])) == vars(setting_cost.build_parser().parse_args(
-        ["--field", "mirrors", "--samples", "3"]))
-    assert opacity_cost.parse_args([]).samples == 60 and opacity_cost.parse_args(["--samples", "5"]).samples == 5
-    assert output_cost.parse_args([]).field == "shadow_masks"
-    assert output_cost.parse_args(["--output", "depth"]).field == "depth"
-
-
 def test_a_field_that_is_not_a_switch_wants_two_values_and_a_wrong_override_is_named():
     with pytest.raises(SystemExit, match=r"shadow_map_size: not a RenderSettings switch .* \(--values A B\)"):
         setting_cost.main(["--field", "shadow_map_size", "--samples", "1"])
     with pytest.raises(SystemExit, match="occluder_materials"):
-        mirror_cost.main(["--set", "occluder_materials=[chrome]", "--samples", "1"])
+        setting_cost.main(["--field", "mirrors", "--set", "occluder_materials=[chrome]", "--samples", "1"])
 
 
 def test_a_skip_prints_the_lookups_kept_and_leaves_the_views_the_same(capsys):
