@@ -10,6 +10,7 @@ from typing import Any, Callable
 
 import yaml
 
+from ..config import SidarConfig
 from ..config.allowed import LENS_MODELS as LENS_MODEL_NAMES
 from ..distortion import NO_LENS
 from ..sample import GEOMETRY_DTYPES, KEYS
@@ -63,6 +64,7 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
     manifest.update({key.name: OUTPUTS[key.name].description for key in OPTIONAL_KEYS if config.get(key.switch)})
     if (out / MANIFEST).exists():
         old = read_manifest(out)
+        old["config"] = {**_added_fields(old["config"]), **old["config"]}
         differences = [_difference(key, old.get(key), manifest[key]) for key in RESUME_KEYS
                        if old.get(key) != manifest[key]]
         if differences:
@@ -76,6 +78,13 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
         replace_file(out / MANIFEST, (json.dumps(manifest, indent=2) + "\n").encode())
     if not (out / CONFIG).exists():
         replace_file(out / CONFIG, yaml.safe_dump(manifest["config"], sort_keys=False).encode())
+
+
+def _added_fields(config: dict[str, Any]) -> dict[str, Any]:
+    """The config fields added to the package after ``config`` was recorded, at their defaults: what an
+    export recorded before a field existed did (a field is added with the default that keeps what the
+    package drew before it, as ``normals_output: false``), so a rerun resumes it."""
+    return {name: value for name, value in SidarConfig().to_dict().items() if name not in config}
 
 
 def _difference(key: str, there: Any, now: Any) -> str:

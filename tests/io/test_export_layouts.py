@@ -3,6 +3,7 @@
 the manifest's ``layout`` names are the table's keys; a painting source describes itself."""
 
 import hashlib
+import json
 from functools import partial
 
 import numpy as np
@@ -120,3 +121,17 @@ def test_a_painting_source_describes_itself():
         "type": "ImageFiles", "paintings": 2, "crop": "none", "first_path": "/paintings/a.png",
         "paths_sha256": hashlib.sha256(b"/paintings/a.png\n/paintings/b.png").hexdigest()}
     assert ProceduralPaintings(7).describe() == {"type": "ProceduralPaintings", "paintings": 7}
+
+
+def test_a_rerun_resumes_an_export_recorded_before_a_config_field_existed_and_refuses_a_change(tmp_path):
+    """An export (or a test set's cache) recorded before a field was added holds no value for it: it
+    drew what the field's default draws, so a rerun resumes it; any other change is still refused."""
+    layout = layout_for(None, "folders")
+    config = small_config().to_dict()
+    write_manifest(tmp_path, 0, ProceduralPaintings(10), config, layout)
+    recorded = json.loads((tmp_path / "export.json").read_text())
+    del recorded["config"]["normals_output"]  # as written before normals existed
+    (tmp_path / "export.json").write_text(json.dumps(recorded))
+    write_manifest(tmp_path, 0, ProceduralPaintings(10), config, layout)  # resumes
+    with pytest.raises(ValueError, match=r"config.normals_output: False there, True now"):
+        write_manifest(tmp_path, 0, ProceduralPaintings(10), {**config, "normals_output": True}, layout)
