@@ -1,5 +1,5 @@
 """The matcher statistics (``benchmarks/matcher.py``) on pairs whose true homography is known, and the
-realism report's bootstrap over sequences (``benchmarks/realism.py``)."""
+realism report's occluder and anchor readers (``benchmarks/realism.py``)."""
 
 import cv2
 import numpy as np
@@ -103,24 +103,6 @@ def test_the_error_is_measured_at_the_paintings_corners_not_the_images(monkeypat
     stats = matcher.matcher_stats(views, masks, homographies)
     assert stats.errors[0] < 1.3 and stats.success.tolist() == [True]
     assert matcher.corner_error(off, np.eye(3), matcher.image_corners(SIZE)) > 3
-
-
-def test_bootstrap_over_sequences_resamples_whole_sequences():
-    groups = [np.zeros(50), np.ones(50)]  # two sequences, each of identical values
-    figure = realism.pooled(groups)
-    assert figure.mean == 0.5
-    # whole sequences: the pooled mean of a resample is 0, 0.5 or 1; resampling the 100 values instead
-    # would give an interval of about 0.42 - 0.58
-    assert figure.mean_interval == (0.0, 1.0)
-    rate = realism.pooled_fraction([np.array([True, True, True]), np.array([False] * 3), np.array([True, False, True])])
-    assert rate.centre == pytest.approx(5 / 9) and rate.interval == (pytest.approx(2 / 9), pytest.approx(8 / 9))
-
-
-def test_bootstrap_over_sequences_keeps_sequences_without_values():
-    groups = [np.array([1.0]), np.array([]), np.array([])]  # one sequence with a matched pair, two without
-    figure = realism.pooled(groups)
-    assert figure.centre == 1.0 and figure.interval == (1.0, 1.0)
-    assert np.isnan(realism.pooled([np.array([]), np.array([])]).centre)
 
 
 def test_occluder_saturation_is_the_median_over_occluder_pixels_in_the_region():
