@@ -1,7 +1,8 @@
 """Does the data teach? One network, one budget, two data arms (issue #45).
 
     python -m benchmarks.transfer train [--steps N] [--sequences S] [--out out/transfer]
-    python -m benchmarks.transfer table [--paper DIR] [--out out/transfer] [--markdown FILE]
+    python -m benchmarks.transfer record [--out out/transfer]
+    python -m benchmarks.transfer table [--paper DIR] [--out out/transfer]
 
 ``train`` renders the training sequences once (``misaligned``, 384 x 512, 6 views, procedural
 paintings 1000 .. 1000 + S - 1, seed 0; kept in ``OUT``), then trains the same
@@ -11,16 +12,25 @@ pairs of those sequences (``sidar-net``) and on the classic 2-D recipe on the sa
 (run the same command again). Each arm ends with its score on held-out data of both kinds (24
 sequences of paintings 5000-5023; ``warps-v1``), beside the identity's, and its weights in ``OUT``.
 
-``table`` scores ``sidar-net``, ``warp-net`` (the package's shipped weights, or ``--weights OUT``),
-SIFT + RANSAC and the identity with the patch protocol on ``warps-v1``, ``homography-v1`` and, with
-``--paper DIR``, a folder in the SIDAR paper's layout, with 90 % bootstrap intervals over pairs.
+``record`` copies the two networks' weights from ``OUT`` into the package
+(``sidar_torch/deep_homography/weights/``) with what the shipped-weights test checks: each network's
+corner offsets on the first protocol pairs of ``warps-v1`` (``scores.json``).
+
+``table`` scores the shipped ``sidar-net`` and ``warp-net``, SIFT + RANSAC and the identity with the
+patch protocol (128 px, rho 32, seed 0) on ``warps-v1``, ``homography-v1`` (rendered into
+``OUT/homography-v1``) and, with ``--paper DIR``, a folder in the SIDAR paper's layout, and prints a
+markdown table: MACE with its 90 % bootstrap interval over pairs (2000 resamples, seed 0), the median
+and success rates, and the paired bootstrap interval of sidar-net's MACE over warp-net's.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import os
-import sys
+import shutil
+import subprocess
 import time
 from pathlib import Path
 
@@ -28,7 +38,8 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 
-from sidar_torch import SidarDataset, load_config
+from sidar_torch import SidarDataset, evaluate, load_config
+from sidar_torch.deep_homography import estimators
 from sidar_torch.deep_homography.protocol import cut_pair, draw_pairs
 from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, WarpPairs, train
 from sidar_torch.deep_homography.warps import WarpTestSet
@@ -144,6 +155,92 @@ def _train(args: argparse.Namespace) -> None:
                   f"median {np.median(errors):.2f}, {len(errors)} pairs", flush=True)
 
 
+RECORDED_PAIRS = 4
+"""How many protocol pairs of ``warps-v1`` the shipped-weights test replays."""
+
+
+def recorded_offsets(name: str) -> list[list[list[float]]]:
+    """The shipped network ``name``'s corner offsets (pixels, ``(4, 2)`` each) on the first
+    :data:`RECORDED_PAIRS` protocol pairs of ``warps-v1`` (seed 0, 128 px, rho 32)."""
+    data, found = WarpTestSet(), []
+    network = estimators.load_network(name)
+    for k in range(len(data)):
+        for pair in draw_pairs(data[k], k):
+            cut = cut_pair(data[k]["images"], np.eye(3), pair)
+            with torch.no_grad():
+                found.append(network(cut["source"][None], cut["target"][None])[-1, 0].double().tolist())
+            if len(found) == RECORDED_PAIRS:
+                return found
+    return found
+
+
+def _record(args: argparse.Namespace) -> None:
+    folder = Path(estimators.__file__).parent / "weights"
+    folder.mkdir(exist_ok=True)
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    record = {"recorded_pairs": RECORDED_PAIRS, "networks": {}}
+    for name, file in estimators.NETWORKS.items():
+        shutil.copyfile(Path(args.out) / file, folder / file)
+        estimators.load_network.cache_clear()
+        record["networks"][name] = {"sha256": hashlib.sha256((folder / file).read_bytes()).hexdigest(),
+                                    "offsets": recorded_offsets(name)}
+        print(f"{name}: {folder / file}, SHA-256 {record['networks'][name]['sha256']}")
+    (folder / "scores.json").write_text(json.dumps(record, indent=1) + "\n")
+    print(f"wrote {folder / 'scores.json'} (recorded at commit {commit or 'unknown'})")
+
+
+def bootstrap(values: np.ndarray, statistic, resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
+    """The 5-95 % percentile interval of ``statistic(values[sample])`` over bootstrap resamples of the
+    rows of ``values`` (pairs; several columns resample together, for paired statistics)."""
+    rng = np.random.default_rng(seed)
+    picks = rng.integers(0, len(values), (resamples, len(values)))
+    found = np.array([statistic(values[pick]) for pick in picks])
+    return float(np.percentile(found, 5)), float(np.percentile(found, 95))
+
+
+TABLE_ESTIMATORS = ("sidar-net", "warp-net", "sift", "identity")
+
+
+def _scored(name: str, label: str, testset: str, out: Path) -> dict:
+    """``evaluate``'s result for one row, kept in ``OUT/table/`` and reused while the estimator is the same
+    (for a network: the same weights, by SHA-256), so a stopped table resumes."""
+    version = estimators.weights_sha256(name)[:16] if name in estimators.NETWORKS else "-"
+    path = out / "table" / f"{label}-{name}-{version}.json".replace(" ", "_").replace("'", "")
+    if path.is_file():
+        return json.loads(path.read_text())
+    result = evaluate(name, testset, protocol="patches", progress=True,
+                      cache=out / "homography-v1" if testset == "homography-v1" else None)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(result))
+    return result
+
+
+def _table(args: argparse.Namespace) -> None:
+    sets = {"warps-v1": "warps-v1", "homography-v1": "homography-v1"}
+    if args.paper:
+        sets["paper's sequences"] = args.paper
+    lines = ["| set | estimator | pairs | MACE (90 % interval) | median | <= 3 px | <= 10 px | failures |",
+             "|---|---|---|---|---|---|---|---|"]
+    ratios = []
+    for label, testset in sets.items():
+        errors = {}
+        for name in TABLE_ESTIMATORS:
+            wall = time.perf_counter()
+            result = _scored(name, label, testset, Path(args.out))
+            errors[name] = np.array(result["pair_errors"])
+            low, high = bootstrap(errors[name], np.mean)
+            lines.append(f"| {label} | {name} | {result['pairs']} | {result['mace']:.2f} ({low:.2f}-{high:.2f}) | "
+                         f"{result['median_error']:.2f} | {100 * result['success']['3']:.0f} % | "
+                         f"{100 * result['success']['10']:.0f} % | {result['failures']} |")
+            print(lines[-1], f"({time.perf_counter() - wall:.0f} s)", flush=True)
+        paired = np.stack([errors["sidar-net"], errors["warp-net"]], 1)
+        ratio = paired[:, 0].mean() / paired[:, 1].mean()
+        low, high = bootstrap(paired, lambda rows: rows[:, 0].mean() / rows[:, 1].mean())
+        ratios.append(f"| {label} | {ratio:.3f} ({low:.3f}-{high:.3f}) |")
+    print("\n".join(["", *lines, "", "| set | sidar-net MACE / warp-net MACE (paired 90 % interval) |", "|---|---|",
+                     *ratios]))
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -156,11 +253,13 @@ def main(argv: list[str] | None = None) -> None:
     training.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     training.add_argument("--arms", nargs="+", default=["sidar-net", "warp-net"], choices=["sidar-net", "warp-net"])
     training.add_argument("--out", default="out/transfer")
+    recording = commands.add_parser("record", help="copy the trained weights into the package, with their scores")
+    recording.add_argument("--out", default="out/transfer")
+    table = commands.add_parser("table", help="score the shipped networks, SIFT and the identity (patch protocol)")
+    table.add_argument("--paper", metavar="DIR", help="also a folder in the SIDAR paper's layout")
+    table.add_argument("--out", default="out/transfer", help="where homography-v1 is rendered (kept)")
     args = parser.parse_args(argv)
-    if args.command == "train":
-        _train(args)
-    else:  # pragma: no cover - argparse's choices
-        sys.exit(2)
+    {"train": _train, "record": _record, "table": _table}[args.command](args)
 
 
 if __name__ == "__main__":

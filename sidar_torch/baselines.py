@@ -7,23 +7,23 @@ view to its shadow-free version, ``(H, W, 3)`` uint8.
 
 The OpenCV baselines need the ``bench`` extra (``pip install "sidar_torch[bench]"``, OpenCV): without
 it they raise an ``ImportError`` that says so. RANSAC is seeded (``cv2.setRNGSeed(0)`` before each
-estimate), so scores repeat.
+estimate), so scores repeat. ``sidar-net`` and ``warp-net`` are the two shipped networks of
+:mod:`sidar_torch.deep_homography` (one architecture and budget, trained on sidar_torch pairs and on
+classic 2-D warps); they see 128 x 128 pixels (the patch protocol's patches, or whole views resized).
 """
 
 from __future__ import annotations
 
 import importlib
 import os
-from pathlib import Path
 from typing import Any, Callable
 
-import kornia
 import numpy as np
-import torch
-from torch import nn
 
-__all__ = ["ESTIMATORS", "Estimator", "HOMOGRAPHYNET_WEIGHTS", "ecc", "homography_net", "homographynet",
-           "identity", "orb_ransac", "resolve_estimator", "sift_magsac", "sift_ransac"]
+from .deep_homography.estimators import network_estimator
+
+__all__ = ["ESTIMATORS", "Estimator", "ecc", "identity", "orb_ransac", "resolve_estimator", "sift_magsac",
+           "sift_ransac"]
 
 Estimator = Callable[..., Any]
 
@@ -33,10 +33,6 @@ second nearest's (the value of the repository's realism report, ``benchmarks/mat
 
 RANSAC_PX = 3.0
 """Reprojection threshold (pixels) of RANSAC and of MAGSAC's largest noise scale."""
-
-HOMOGRAPHYNET_WEIGHTS = "SIDAR_TORCH_HOMOGRAPHYNET"
-"""Environment variable naming the weights ``examples/train_homography.py --save PATH`` wrote
-(default ``~/.cache/sidar_torch/homographynet.pt``)."""
 
 
 def _cv2() -> Any:
@@ -110,57 +106,16 @@ def ecc(source: np.ndarray, target: np.ndarray) -> np.ndarray | None:
     return np.linalg.inv(warp.astype(np.float64))
 
 
-def homography_net() -> nn.Module:
-    """A small HomographyNet (DeTone et al. 2016): four conv-BN-ReLU-pool blocks (8, 16, 32, 64
-    channels) and two linear layers, ``(N, 2, 64, 64)`` standardised grey pairs -> ``(N, 8)``, the
-    four corners' displacements (TL, TR, BR, BL; x, y) divided by 16 (157k parameters)."""
-    layers, channels = [], 2
-    for out in (8, 16, 32, 64):
-        layers += [nn.Conv2d(channels, out, 3, padding=1), nn.BatchNorm2d(out), nn.ReLU(), nn.MaxPool2d(2)]
-        channels = out
-    return nn.Sequential(*layers, nn.Flatten(), nn.Linear(64 * 4 * 4, 128), nn.ReLU(), nn.Linear(128, 8))
-
-
-_NETWORKS: dict[str, nn.Module] = {}
-
-
-def homographynet(source: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """The network of ``examples/train_homography.py --save PATH`` (weights from the environment
-    variable :data:`HOMOGRAPHYNET_WEIGHTS`), on both whole views resized to 64 x 64 grey: the
-    predicted corner displacements of the 64 x 64 frame, scaled back to the views' pixels.
-
-    Raises:
-        FileNotFoundError: no weights there (the message says how to make them).
-    """
-    path = Path(os.environ.get(HOMOGRAPHYNET_WEIGHTS, Path.home() / ".cache" / "sidar_torch" / "homographynet.pt"))
-    if str(path) not in _NETWORKS:
-        if not path.is_file():
-            raise FileNotFoundError(f"{HOMOGRAPHYNET_WEIGHTS}: no HomographyNet weights at {str(path)!r}; write them "
-                                    f"with python examples/train_homography.py --save {path}")
-        network = homography_net()
-        network.load_state_dict(torch.load(path, map_location="cpu", weights_only=True))
-        _NETWORKS[str(path)] = network.eval()
-    h, w = source.shape[:2]
-    views = torch.from_numpy(np.stack([source, target])).permute(0, 3, 1, 2).float() / 255
-    grey = kornia.color.rgb_to_grayscale(nn.functional.interpolate(views, (64, 64), mode="area"))[:, 0]
-    grey = (grey - grey.mean((1, 2), keepdim=True)) / (grey.std((1, 2), keepdim=True) + 1e-3)
-    with torch.no_grad():
-        offsets = _NETWORKS[str(path)](grey[None]).view(4, 2).double() * 16
-    corners = torch.tensor([[0.0, 0], [63, 0], [63, 63], [0, 63]], dtype=torch.float64)
-    small = kornia.geometry.transform.get_perspective_transform(corners[None], (corners + offsets)[None])[0].numpy()
-    # Full-size pixels to 64 x 64 pixels (pixel centres at integers in both): x_s = (x + 1/2) 64 / W - 1/2.
-    scale = np.array([[64 / w, 0, 32 / w - 0.5], [0, 64 / h, 32 / h - 0.5], [0, 0, 1]])
-    return np.linalg.inv(scale) @ small @ scale
-
-
 ESTIMATORS: dict[str, tuple[Estimator, str]] = {
     "identity": (identity, "no motion (homography); the view unchanged (shadow removal)"),
     "sift": (sift_ransac, "OpenCV SIFT, ratio test 0.8, RANSAC 3 px"),
     "sift-magsac": (sift_magsac, "OpenCV SIFT, ratio test 0.8, USAC-MAGSAC++ 3 px"),
     "orb": (orb_ransac, "OpenCV ORB (5000 features), ratio test 0.8, RANSAC 3 px"),
     "ecc": (ecc, "cv2.findTransformECC, homography, from the identity"),
-    "homographynet": (homographynet, f"small HomographyNet trained by examples/train_homography.py (weights: "
-                                     f"${HOMOGRAPHYNET_WEIGHTS})"),
+    "sidar-net": (network_estimator("sidar-net"), "CornerNet trained on sidar_torch pairs (benchmarks.transfer; "
+                                                  "weights shipped)"),
+    "warp-net": (network_estimator("warp-net"), "CornerNet trained on classic 2-D warps of the same paintings, same "
+                                                "budget (weights shipped)"),
 }
 """Baseline name -> (estimator, what it is)."""
 

@@ -352,7 +352,8 @@ def evaluate(estimator: str | Estimator, testset: str | Path = "homography-v1", 
 
     Returns:
         ``{"set", "task", "estimator", "timeout", "pairs", "mace", "median_error", "success": {"1",
-        "3", "10"}, "failures", "errors", "timeouts", "median_seconds", "by_category": {name: {...}},
+        "3", "10"}, "failures", "errors", "timeouts", "pair_errors" (each pair's corner error, in the order
+        scored: for intervals and paired comparisons), "median_seconds", "by_category": {name: {...}},
         "by_difficulty": {measure: {bin: {...}}}, "protocol": {...}, "cache", "digests", "machine"}`` for
         homography sets
         (errors in pixels, success as fractions, times in seconds; ``failures`` includes ``errors``,
@@ -578,7 +579,7 @@ def _homography_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         if unknown:
             bins["unknown"] = _pair_metrics(unknown)
         by_difficulty[measure] = bins
-    return {**_pair_metrics(rows), **_outcomes(rows),
+    return {**_pair_metrics(rows), **_outcomes(rows), "pair_errors": [row["error"] for row in rows],
             "median_seconds": float(np.median([row["seconds"] for row in rows])),
             "by_category": {name: _pair_metrics([row for row in rows if row["category"] == name]) for name in categories},
             "by_difficulty": by_difficulty}

@@ -42,13 +42,13 @@ def test_identity_and_a_failure():
 def test_names_resolve_and_wrong_ones_are_errors_naming_them():
     assert resolve_estimator("identity") == ("identity", baselines.identity)
     assert resolve_estimator("sidar_torch.baselines:ecc") == ("sidar_torch.baselines:ecc", baselines.ecc)
-    with pytest.raises(ValueError, match=r"estimator: expected one of \[.*'homographynet'.*\] or MODULE:FUNCTION"):
+    with pytest.raises(ValueError, match=r"estimator: expected one of \[.*'sidar-net'.*\] or MODULE:FUNCTION"):
         resolve_estimator("sift2")
     with pytest.raises(ValueError, match=r"module 'math' has no 'nope'"):
         resolve_estimator("math:nope")
     with pytest.raises(ValueError, match=r"expected a callable, got float"):
         resolve_estimator("math:pi")
-    assert set(ESTIMATORS) == {"identity", "sift", "sift-magsac", "orb", "ecc", "homographynet"}
+    assert set(ESTIMATORS) == {"identity", "sift", "sift-magsac", "orb", "ecc", "sidar-net", "warp-net"}
 
 
 @pytest.mark.parametrize("spec, missing", [("no_such_module_here:f", "no_such_module_here"),
@@ -76,22 +76,3 @@ def test_without_opencv_a_baseline_names_the_extra(monkeypatch):
         baselines.sift_ransac(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8))
 
 
-def test_homographynet_without_weights_says_how_to_make_them(tmp_path, monkeypatch):
-    monkeypatch.setenv(baselines.HOMOGRAPHYNET_WEIGHTS, str(tmp_path / "none.pt"))
-    with pytest.raises(FileNotFoundError, match=r"python examples/train_homography.py --save .*none.pt"):
-        baselines.homographynet(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8, 3), np.uint8))
-
-
-def test_homographynet_maps_its_64_px_corners_back_to_the_views_pixels(tmp_path, monkeypatch):
-    import torch
-
-    network = baselines.homography_net()
-    torch.nn.init.zeros_(network[-1].weight)
-    with torch.no_grad():
-        network[-1].bias.copy_(torch.tensor([1.0, 0.5] * 4))  # every corner moves (16, 8) px at 64 x 64
-    torch.save(network.state_dict(), tmp_path / "net.pt")
-    monkeypatch.setenv(baselines.HOMOGRAPHYNET_WEIGHTS, str(tmp_path / "net.pt"))
-    image = textured(SIZE)
-    H = baselines.homographynet(image, image)
-    h, w = SIZE
-    np.testing.assert_allclose(H / H[2, 2], [[1, 0, 16 * w / 64], [0, 1, 8 * h / 64], [0, 0, 1]], atol=1e-9)
