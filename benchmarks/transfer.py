@@ -1,4 +1,4 @@
-"""Does the data teach? One network, one budget, two data arms (issue #45).
+"""Does the data teach? One network, one budget, two data arms.
 
     python -m benchmarks.transfer train [--steps N] [--sequences S] [--out out/transfer]
     python -m benchmarks.transfer record [--out out/transfer]
@@ -241,7 +241,8 @@ def _table(args: argparse.Namespace) -> None:
                      *ratios]))
 
 
-def main(argv: list[str] | None = None) -> None:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line: ``train``, ``record`` and ``table`` (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
     training = commands.add_parser("train", help="render, train both arms, score them on held-out data")
@@ -253,12 +254,16 @@ def main(argv: list[str] | None = None) -> None:
     training.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     training.add_argument("--arms", nargs="+", default=["sidar-net", "warp-net"], choices=["sidar-net", "warp-net"])
     training.add_argument("--out", default="out/transfer")
-    recording = commands.add_parser("record", help="copy the trained weights into the package, with their scores")
+    recording = commands.add_parser("record", help="copy the trained weights into the package, with their answers")
     recording.add_argument("--out", default="out/transfer")
     table = commands.add_parser("table", help="score the shipped networks, SIFT and the identity (patch protocol)")
     table.add_argument("--paper", metavar="DIR", help="also a folder in the SIDAR paper's layout")
     table.add_argument("--out", default="out/transfer", help="where homography-v1 is rendered (kept)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    args = build_parser().parse_args(argv)
     {"train": _train, "record": _record, "table": _table}[args.command](args)
 
 

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import torch
 
 from conftest import small_config
 from sidar_torch import evaluate, evaluation
@@ -308,3 +309,17 @@ def test_a_shadow_removal_estimator_that_raises_scores_the_view_unchanged(tmp_pa
     result = evaluate(broken, testset=folder)
     assert result["errors"] == result["images"] == 3 and result["rmse"] == evaluate("identity", testset=folder)["rmse"]
     assert f"| {evaluation.TOTAL} |" in format_table(result)
+
+
+def test_the_truth_is_read_in_float64_whatever_the_export_recorded(tmp_path):
+    """The paper's folders record no dtype and read as float32 by default, 15.7 px off near the horizon:
+    evaluate reads every folder's geometry in float64."""
+    out = tmp_path / "export"
+    out.mkdir()
+    config = small_config(image_size=SIZE, geometry_dtype="float32", n_views=3).to_dict()
+    write_manifest(out, 0, ProceduralPaintings(4), config, FolderLayout())
+    FolderLayout().write(out, WriteUnit(0, (0,)), lambda i: hand_made(i), lambda: None)
+    seen = []
+    evaluate(lambda source, target: seen.append(1) or np.eye(3), str(out), timeout=None)
+    _, _, categories, _, _ = evaluation._open(str(out), None, None, False, None)
+    assert categories[0].dataset[0]["homographies"].dtype == torch.float64 and seen
