@@ -73,4 +73,9 @@ def test_rebuilding_the_first_sequences_of_a_set_reproduces_their_digests(tmp_pa
     mismatch = rasteriser_mismatch(testset.recorded_on)
     if mismatch is not None:
         pytest.skip(f"pixels not compared: {mismatch}")
-    assert check.checked == 2 * 26 and check.matches, check.summary()
+    # Every image file is the recorded bytes. The float64 files (cameras.json, H_i_j.mat) hold the same
+    # geometry within 1e-9 on any machine (tests/test_stored_digests.py) but not always its last bits:
+    # numpy's and torch's float64 kernels follow the CPU's vector width (on an AVX-512 EPYC, 2026-11-28,
+    # 24 of these 52 files differed, the landed commit 239d642 included, while every PNG matched).
+    pixels = [name for name in check.differing if not name.endswith((".json", ".mat"))]
+    assert check.checked == 2 * 26 and not pixels, check.summary()

@@ -275,7 +275,7 @@ class Passes:
     def camera_frame(self, view: ViewDraws, surfaces: Sequence[Surface], quantity: str,
                      timings: dict[str, float] | None = None) -> np.ndarray:
         """A quantity of the camera's frame at each pixel centre, from the nearest of ``surfaces``: a row of
-        :data:`CAMERA_QUANTITIES` (``"depth"``: ``(H, W)`` float32, ``"normals"``: ``(H, W, 3)`` float32),
+        :data:`CAMERA_QUANTITIES` (depth: ``(H, W)`` float32; normals: ``(H, W, 3)`` float32),
         its ``empty`` value where none is hit.
 
         One draw of each surface (back faces culled, depth-tested, no blending, nothing of its
