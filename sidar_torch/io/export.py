@@ -19,7 +19,7 @@ from typing import Any, Callable, Iterator, TextIO
 
 from torch.utils.data import DataLoader, Dataset
 
-from ..config import as_int
+from ..config import MAX_WORKERS, as_int
 from ..dataset import SidarDataset
 from ..orphans import exit_with_parent
 from ..sample import SampleArrays
@@ -75,8 +75,8 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         start: first dataset index, ``>= 0``.
         shard_size: ``None`` for the folder layout, or ``N >= 1``: tar shards of (at most) ``N``
             sequences each.
-        workers: ``0`` renders in this process; ``n >= 1`` renders in ``n`` DataLoader workers
-            while this process writes.
+        workers: ``0`` renders in this process; ``n >= 1`` (at most ``config.MAX_WORKERS``) renders in
+            ``n`` DataLoader workers while this process writes.
         progress: print a progress line on stderr (redrawn in place on a terminal, else every 10 s).
         shards: the older name of ``shard_size``, still accepted.
         layout: a name of :data:`.layouts.LAYOUTS` (``"paper"``: the SIDAR paper's files, see
@@ -93,7 +93,7 @@ def export_dataset(dataset: SidarDataset, out_dir: str | os.PathLike, count: int
         ExportInterrupted: Ctrl-C (a ``KeyboardInterrupt``) stopped it; what it wrote is kept.
     """
     begin = time.perf_counter()
-    workers = as_int("workers", workers, 0)
+    workers = as_int("workers", workers, 0, MAX_WORKERS)
     with planned_export(dataset, out_dir, count, start, either_shard_size(shard_size, shards), layout) as plan:
         with Progress(len(plan.missing), sys.stderr if progress else None) as bar, ctrl_c_between() as check:
             take = _InOrder(_render(dataset, plan.missing, workers))
@@ -253,8 +253,9 @@ def _exit_with_parent(worker_id: int) -> None:
     PyTorch's workers notice a dead parent only between tasks and then wait for their result queue
     to drain, which no one reads any more: after a ``kill -9`` of the export they stayed alive for
     good. :func:`~sidar_torch.orphans.exit_with_parent` leaves at once (nothing of the worker's is
-    worth saving: the export writes only what reached it, atomically); without the death signal, as
-    the worker cannot know which of its parent's threads forked it."""
+    worth saving: the export writes only what reached it, atomically); with SIGCONT as its death
+    signal rather than SIGKILL, as the worker cannot know which of its parent's threads forked it
+    (SIGCONT wakes a stopped worker, whose watcher then sees the parent gone)."""
     exit_with_parent(os.getppid(), death_signal=False)
 
 

@@ -212,7 +212,8 @@ def test_export_refuses_other_settings_foreign_folders_concurrent_writers_and_ba
     with pytest.raises(TypeError, match="dataset: expected a SidarDataset"):
         export_dataset([ds.sample(0)], tmp_path / "c", count=1)
     for kwargs, match in (({"count": 0}, "count"), ({"count": 1, "start": -1}, "start"),
-                          ({"count": 1, "shard_size": 0}, "shard_size"), ({"count": 1, "workers": -1}, "workers")):
+                          ({"count": 1, "shard_size": 0}, "shard_size"), ({"count": 1, "workers": -1}, "workers"),
+                          ({"count": 1, "workers": 257}, "workers: expected an integer from 0 to 256")):
         with pytest.raises(ValueError, match=match):
             export_dataset(ds, tmp_path / "c", **kwargs)
 
