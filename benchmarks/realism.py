@@ -81,11 +81,12 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from PIL import Image
 from scipy import ndimage, special
 
 from benchmarks.common import parse_set
 from benchmarks.exposure import BLACK, CLIPPED, LUMA, STILL_COLOURED, WHITE, view_exposure
+from benchmarks.images import (anchor_sequences, inverse_map, luminance, painting_region, read_rgb, srgb_to_linear,
+                               to_uint8, warp_label)
 from benchmarks.matcher import SUCCESS_PX, MatcherStats, matcher_stats
 
 DARK_MEDIAN = 50
@@ -121,10 +122,6 @@ painting's edge: its fill level is exact to this (9 %)."""
 MIN_JUDGED = 100
 """Least judged pixels for a view to have an estimated cast-shadow fraction."""
 
-REGION_MARGIN = 2
-"""Pixels by which the painting region is shrunk (Blender's mask edge is antialiased and the
-renderers' coverage rules differ at the plane's border)."""
-
 MIN_COMPONENT = 30
 """Least pixels of a mask component counted as an occluder (drops slivers at the region's edge)."""
 
@@ -144,61 +141,9 @@ MIN_OCCLUDER_PIXELS = 100
 # --- statistics (pure numpy) -------------------------------------------------------------------
 
 
-def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
-    """8-bit sRGB ``(..., 3)`` uint8 to linear light float64 in [0, 1] (exact piecewise curve)."""
-    c = np.asarray(srgb, np.float64) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def luma(views: np.ndarray) -> np.ndarray:
     """Rec. 709 luma ``(...)`` in 0..255 of 8-bit sRGB ``(..., 3)``."""
     return np.asarray(views, np.float64) @ LUMA
-
-
-def luminance(views: np.ndarray) -> np.ndarray:
-    """Rec. 709 luminance ``(...)`` in linear light [0, 1] of 8-bit sRGB ``(..., 3)``."""
-    return srgb_to_linear(views) @ LUMA
-
-
-def inverse_map(H: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """Where each pixel of an ``size = (H, W)`` view comes from in the label frame.
-
-    Args:
-        H: ``(3, 3)`` homography mapping label-frame (view 0) pixels to this view's pixels (Kornia
-            convention: pixel centres at integers, top-left pixel at (0, 0)).
-
-    Returns:
-        ``x, y`` ``(H, W)`` float64 label-frame coordinates (NaN where the ray misses: w <= 0).
-    """
-    h, w = size
-    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
-    p = np.linalg.inv(H) @ np.stack([u.ravel(), v.ravel(), np.ones(u.size)])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x, y = np.where(p[2] > 0, p[0] / p[2], np.nan), np.where(p[2] > 0, p[1] / p[2], np.nan)
-    return x.reshape(h, w), y.reshape(h, w)
-
-
-def painting_region(H: np.ndarray, size: tuple[int, int], margin: float = REGION_MARGIN) -> np.ndarray:
-    """``(H, W)`` bool: pixels of a view that see the painting's plane within its borders, the borders
-    moved ``margin`` pixels inwards (in the view; see :func:`inverse_map` for ``H``)."""
-    h, w = size
-    x, y = inverse_map(H, size)
-    with np.errstate(invalid="ignore"):
-        region = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
-    if margin > 0:
-        region = ndimage.binary_erosion(region, iterations=int(np.ceil(margin)), border_value=0)
-    return region
-
-
-def warp_label(label: np.ndarray, H: np.ndarray) -> np.ndarray:
-    """The label ``(H, W, 3)`` uint8 seen in a view through ``H`` (label -> view, Kornia convention),
-    bilinear; ``(H, W, 3)`` float64 0..255, NaN outside the label."""
-    x, y = inverse_map(H, label.shape[:2])
-    inside = np.isfinite(x)
-    coords = np.stack([np.where(inside, y, -10.0), np.where(inside, x, -10.0)])
-    out = np.stack([ndimage.map_coordinates(label[..., c].astype(np.float64), coords, order=1, mode="constant",
-                                            cval=np.nan) for c in range(3)], axis=-1)
-    return out
 
 
 def exact_light_ratio(lit: np.ndarray, unshadowed: np.ndarray, painting: np.ndarray) -> np.ndarray:
@@ -587,18 +532,6 @@ def paper_to_kornia(H: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return np.linalg.inv(S) @ H @ S
 
 
-def read_rgb(path: Path) -> np.ndarray:
-    return np.asarray(Image.open(path).convert("RGB"))
-
-
-def anchor_sequences(folder: Path) -> list[Path]:
-    """The sequence folders below ``folder`` (those holding a ``gt.png``), sorted by name."""
-    found = sorted(p.parent for p in folder.glob("*/gt.png"))
-    if not found:
-        raise SystemExit(f"--anchors {str(folder)!r}: no sequence folders (with gt.png) in it")
-    return found
-
-
 def anchor_homographies(sequence: Path, count: int, size: tuple[int, int]) -> np.ndarray:
     """``(V, V, 3, 3)`` homographies between the ``count`` views of one of the paper generator's
     sequences in Kornia's convention: ``H_i_j.mat`` (``i < j``) converted by :func:`paper_to_kornia`,
@@ -682,11 +615,6 @@ def our_stats(config: Any, sources: list[Path], samples: int,
         sequences.append(SequenceStats(view_blur(views[0], masks[0], label, H[0, 0]), matcher_stats(views, masks, H),
                                        which))
     return ViewStats.concat(parts), sequences, time.perf_counter() - start
-
-
-def to_uint8(images: Any) -> np.ndarray:
-    """``(N, 3, H, W)`` float tensors in [0, 1] to ``(N, H, W, 3)`` uint8 (exact for 8-bit renders)."""
-    return (images.permute(0, 2, 3, 1).numpy() * 255).round().astype(np.uint8)
 
 
 # --- the table ----------------------------------------------------------------------------------
