@@ -41,7 +41,7 @@ from torch.utils.data import DataLoader, Dataset
 from sidar_torch import SidarDataset, evaluate, load_config
 from sidar_torch.deep_homography import estimators
 from sidar_torch.deep_homography.protocol import cut_pair, draw_pairs
-from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, WarpPairs, train
+from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, WarpPairs, protocol_errors, train
 from sidar_torch.deep_homography.warps import WarpTestSet
 from sidar_torch.paintings import ProceduralPaintings
 
@@ -92,23 +92,6 @@ def paintings(first: int, count: int) -> torch.Tensor:
                         for k in range(count)])
 
 
-@torch.no_grad()
-def held_out_errors(network: torch.nn.Module | None, sequences) -> np.ndarray:
-    """Corner errors (pixels, the mean of the four corners' distances) of ``network`` (``None``: the
-    identity) on the protocol's pairs of ``sequences`` (seed 0)."""
-    errors = []
-    for k in range(len(sequences)):
-        sample = sequences[k]
-        images = sample["images"].float() / 255 if sample["images"].dtype == torch.uint8 else sample["images"]
-        sample = {**sample, "images": images, "masks": sample["masks"].float()}
-        for pair in draw_pairs(sample, k):
-            cut = cut_pair(images, sample["homographies"][pair.source, pair.target].double().numpy(), pair)
-            truth = torch.from_numpy(pair.offsets).float()
-            estimate = torch.zeros(4, 2) if network is None else network(cut["source"][None], cut["target"][None])[-1, 0]
-            errors.append(float((estimate - truth).norm(dim=-1).mean()))
-    return np.array(errors)
-
-
 class _Indexed:
     """``dict`` of stacked tensors -> an indexable of per-sequence dicts."""
 
@@ -137,7 +120,7 @@ def _train(args: argparse.Namespace) -> None:
     arms = {"sidar-net": SidarPairs(sequences["images"], sequences["masks"], sequences["homographies"]),
             "warp-net": WarpPairs(paintings(TRAIN_FIRST, args.sequences))}
     warps = WarpTestSet(count=24)
-    identity = {"sidar held-out": held_out_errors(None, held_out), "warps-v1 (24)": held_out_errors(None, warps)}
+    identity = {"sidar held-out": protocol_errors(None, held_out), "warps-v1 (24)": protocol_errors(None, warps)}
     for name in args.arms:
         wall, cpu = time.perf_counter(), time.process_time()
 
@@ -150,7 +133,7 @@ def _train(args: argparse.Namespace) -> None:
         network = train(arms[name], settings, out / f"{name}.ckpt", report)
         torch.save(network.state_dict(), out / f"{name}.pt")
         for label, data in (("sidar held-out", held_out), ("warps-v1 (24)", warps)):
-            errors = held_out_errors(network, data)
+            errors = protocol_errors(network, data)
             print(f"  {name} on {label}: MACE {errors.mean():.2f} px (identity {identity[label].mean():.2f}), "
                   f"median {np.median(errors):.2f}, {len(errors)} pairs", flush=True)
 

@@ -18,13 +18,11 @@ from __future__ import annotations
 import argparse
 import time
 
-import numpy as np
 import torch
 from torch.utils.data import DataLoader
 
 from sidar_torch import SidarDataset, load_config
-from sidar_torch.deep_homography.protocol import cut_pair, draw_pairs
-from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, train
+from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, protocol_errors, train
 
 
 def render(first: int, count: int, size: tuple[int, int], workers: int) -> dict[str, torch.Tensor]:
@@ -51,21 +49,6 @@ class Sequences(torch.utils.data.Dataset):
                 "homographies": sample["homographies"].double()}
 
 
-@torch.no_grad()
-def mace(network: torch.nn.Module | None, sequences: dict[str, torch.Tensor], patch: int, rho: float) -> float:
-    """Mean corner error (pixels) of ``network`` (``None``: the identity) on the protocol's pairs."""
-    errors = []
-    for k in range(len(sequences["images"])):
-        sample = {"images": sequences["images"][k].float() / 255, "masks": sequences["masks"][k].float(),
-                  "homographies": sequences["homographies"][k]}
-        for pair in draw_pairs(sample, k, patch=patch, rho=rho):
-            cut = cut_pair(sample["images"], sample["homographies"][pair.source, pair.target].numpy(), pair)
-            truth = torch.from_numpy(pair.offsets).float()
-            guess = torch.zeros(4, 2) if network is None else network(cut["source"][None], cut["target"][None])[-1, 0]
-            errors.append(float((guess - truth).norm(dim=-1).mean()))
-    return float(np.mean(errors))
-
-
 def main(argv: list[str] | None = None) -> dict[str, float]:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="a smoke run: 2 sequences, small patches, 3 steps")
@@ -83,7 +66,9 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     if args.save:
         torch.save(network.state_dict(), args.save)
         print(f"wrote {args.save}")
-    scores = {"network": mace(network, held_out, patch, rho), "identity": mace(None, held_out, patch, rho)}
+    sequences = [{key: value[k] for key, value in held_out.items()} for k in range(len(held_out["images"]))]
+    scores = {name: float(protocol_errors(model, sequences, patch, rho).mean())
+              for name, model in (("network", network), ("identity", None))}
     print(f"held-out MACE: network {scores['network']:.2f} px, identity {scores['identity']:.2f} px")
     return scores
 

@@ -127,8 +127,13 @@ def cut_pair(images: torch.Tensor, H_ij: np.ndarray, pair: PatchPair) -> dict[st
 def visible_fractions(masks: torch.Tensor, H_ij: np.ndarray, pair: PatchPair) -> tuple[float, float]:
     """The fractions of the source and target patches of ``pair`` that show the painting, from
     ``masks (V, 1, H, W)`` in {0, 1} (1: not visible); target pixels outside view j do not."""
-    seen = cut_pair(1.0 - masks.float(), H_ij, pair)
-    return float(seen["source"].mean()), float((seen["target"] > 0.5).double().mean())
+    return _fractions(1.0 - masks.float(), H_ij, pair)
+
+
+def _fractions(seen: torch.Tensor, H_ij: np.ndarray, pair: PatchPair) -> tuple[float, float]:
+    """:func:`visible_fractions` from ``seen = 1 - masks`` (computed once for all of a view pair's candidates)."""
+    cut = cut_pair(seen, H_ij, pair)
+    return float(cut["source"].mean()), float((cut["target"] > 0.5).double().mean())
 
 
 def _check(name: str, value: Any, low: float, high: float) -> None:
@@ -178,14 +183,13 @@ def draw_pair(sample: Mapping[str, Any], sequence: int, i: int, j: int, rng: np.
     the first of up to ``attempts`` candidates drawn with ``rng`` (box origin uniform with a margin of
     ``ceil(rho)`` pixels inside the view, each offset uniform in ``[-rho, rho]``) whose patches both
     show the painting on at least ``min_visible`` of their pixels; ``None`` if none does."""
-    images, masks = sample["images"], sample["masks"]
-    _, _, H, W = images.shape
+    _, _, H, W = sample["images"].shape
+    seen = 1.0 - sample["masks"].float()
     H_ij = sample["homographies"][i, j].double().numpy()
     margin = int(np.ceil(rho))
     for _ in range(attempts):
         origin = (int(rng.integers(margin, W - patch - margin + 1)), int(rng.integers(margin, H - patch - margin + 1)))
         pair = PatchPair(sequence, i, j, origin, rng.uniform(-rho, rho, (4, 2)), patch)
-        seen = visible_fractions(masks, H_ij, pair)
-        if min(seen) >= min_visible:
+        if min(_fractions(seen, H_ij, pair)) >= min_visible:
             return pair
     return None

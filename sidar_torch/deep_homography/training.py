@@ -25,10 +25,10 @@ from torch import nn
 
 from ..config import as_int
 from .network import CornerNet
-from .protocol import PATCH, RHO, PatchPair, cut_pair, draw_pair
+from .protocol import PATCH, RHO, PatchPair, cut_pair, draw_pair, draw_pairs
 from .warps import jitter
 
-__all__ = ["PairSource", "SidarPairs", "TrainSettings", "WarpPairs", "corner_loss", "train"]
+__all__ = ["PairSource", "SidarPairs", "TrainSettings", "WarpPairs", "corner_loss", "protocol_errors", "train"]
 
 Batch = tuple[torch.Tensor, torch.Tensor, torch.Tensor]
 """``(source, target, offsets)``: patches ``(N, 3, P, P)`` float32 in [0, 1], the truth's corner offsets
@@ -101,6 +101,24 @@ class WarpPairs:
             targets.append(jitter(cut["target"], rng))
             offsets.append(torch.from_numpy(pair.offsets).float())
         return torch.stack(sources), torch.stack(targets), torch.stack(offsets)
+
+
+@torch.no_grad()
+def protocol_errors(network: nn.Module | None, sequences, patch: int = PATCH, rho: float = RHO) -> np.ndarray:
+    """Corner errors (pixels, the mean of the four corners' distances) of ``network`` (``None``: the
+    identity) on the protocol's pairs (seed 0) of ``sequences``, an indexable of dicts with ``images``
+    ``(V, 3, H, W)`` (uint8, or float in [0, 1]), ``masks`` ``(V, 1, H, W)`` and ``homographies``."""
+    errors = []
+    for k in range(len(sequences)):
+        sample = sequences[k]
+        images = _levels(sample["images"]) if sample["images"].dtype == torch.uint8 else sample["images"]
+        sample = dict(sample, images=images, masks=sample["masks"].float())
+        for pair in draw_pairs(sample, k, patch=patch, rho=rho):
+            cut = cut_pair(images, sample["homographies"][pair.source, pair.target].double().numpy(), pair)
+            truth = torch.from_numpy(pair.offsets).float()
+            estimate = torch.zeros(4, 2) if network is None else network(cut["source"][None], cut["target"][None])[-1, 0]
+            errors.append(float((estimate - truth).norm(dim=-1).mean()))
+    return np.array(errors)
 
 
 def corner_loss(estimates: torch.Tensor, offsets: torch.Tensor, decay: float = 0.85) -> torch.Tensor:
