@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from sidar_torch.config import load_config
-from sidar_torch.dataset import SidarDataset
+from sidar_torch.data.dataset import SidarDataset
 from .metrics import homography_errors, psnr, speckle_paintings, warp_residuals
 from sidar_torch.scene import sample_sequence
 

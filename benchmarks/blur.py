@@ -33,7 +33,7 @@ from scipy import ndimage
 from benchmarks.common import parse_set
 from benchmarks.images import (anchor_sequences, luminance, painting_region, read_rgb, srgb_to_linear, to_uint8,
                                warp_label)
-from sidar_torch.effects import linear_to_srgb
+from sidar_torch.sample.effects import linear_to_srgb
 
 SIGMAS = np.round(np.arange(0.0, 2.51, 0.1), 2)
 """Candidate Gaussian sigmas (pixels) of the grid search."""

@@ -1,8 +1,8 @@
-"""Cost of the view effects (``sidar_torch.effects``): draw + apply, per sample, on one core.
+"""Cost of the view effects (``sidar_torch.sample.effects``): draw + apply, per sample, on one core.
 ``python -m benchmarks.effects_cost [--size HxW] [--views V]`` from the repository root.
 
 Renders ``--samples`` sequences of a preset once (``SidarDataset(config, seed=0).scene(i)``), then
-times :func:`~sidar_torch.effects.draw_effects` plus :func:`~sidar_torch.effects.apply_effects`
+times :func:`~sidar_torch.sample.effects.draw_effects` plus :func:`~sidar_torch.sample.effects.apply_effects`
 on them with each effect switched on alone (the pixel filter at the ``paper_*`` presets' sigma) and
 with the four drawn ones together, ``--repeats`` times each, and
 prints the median milliseconds of process CPU time per sample next to the median render time of
@@ -19,7 +19,7 @@ import argparse
 import numpy as np
 
 from sidar_torch import SidarDataset, load_config
-from sidar_torch.effects import apply_effects, draw_effects
+from sidar_torch.sample.effects import apply_effects, draw_effects
 from sidar_torch.render import RenderSettings, shared_renderer
 
 from .common import DEFAULT_PRESET, cpu_seconds, median, one_thread, parse_size, size_label

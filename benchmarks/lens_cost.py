@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 
 from sidar_torch import SidarDataset
-from sidar_torch.lens import distortion_maps, tile_origins
+from sidar_torch.sample.lens_views import distortion_maps, tile_origins
 from sidar_torch.sample import render_arrays
 from sidar_torch.scene import sample_sequence
 

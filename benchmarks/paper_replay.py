@@ -132,6 +132,7 @@ def blender_aim(position: np.ndarray) -> np.ndarray:
 
 def _our_light(light: dict, size: tuple[int, int]) -> Any:
     from sidar_torch.scene import Light
+    from sidar_torch.scene.description import FALLOFFS
     from sidar_torch.scene.kinds import _covering_beam, spread_beam
 
     position = light["position"] / BLENDER_UNITS
@@ -148,7 +149,7 @@ def _our_light(light: dict, size: tuple[int, int]) -> Any:
     cos = position[2] / distance
     inner, outer, centre = spread_beam(math.degrees(light["spread"]),
                                        light["energy"] / (np.pi * BLENDER_UNITS**2) * cos / distance**2)
-    return Light("area", cover.emitters, colour, centre * distance**2 / cos, inner, outer)
+    return Light("area", cover.emitters, colour, centre * distance**2 / cos, inner, outer, FALLOFFS["area_spread"])
 
 
 def paper_sequence(cameras: list[dict], views: list[dict], size: tuple[int, int], config: Any,

@@ -1,4 +1,4 @@
-"""Sequences per second through Ray (``sidar_torch.cluster.ray_dataset``) with 1 and 2 actors on a
+"""Sequences per second through Ray (``sidar_torch.io.cluster.ray_dataset``) with 1 and 2 actors on a
 local Ray cluster of ``--cpus`` CPUs, against ``SidarDataset`` in this process and through a
 DataLoader with as many workers as the cluster has CPUs, in the same run.
 
@@ -58,7 +58,7 @@ def measure(preset: str, size: tuple[int, int], views: int, count: int, repeats:
     down at the end if it started it."""
     import ray
 
-    from sidar_torch.cluster import ray_dataset, torch_batches
+    from sidar_torch.io.cluster import ray_dataset, torch_batches
 
     if count < 4:
         raise ValueError(f"count: expected at least 4 sequences (a start-up and a second half), got {count}")

@@ -91,13 +91,13 @@ def main(argv: list[str] | None = None) -> None:
 def compared_settings(config: Any, field: str, values: list[str] | None) -> tuple[tuple[str, str], list[Any]]:
     """The labels and ``RenderSettings`` of the two ways: ``field`` at ``values`` (:func:`value_settings`),
     or, without values, a boolean ``RenderSettings`` field False and True, or a drawn output
-    (``render_choices.OUTPUTS``) left out of and put in ``RenderSettings.outputs``.
+    (``choices.outputs.OUTPUTS``) left out of and put in ``RenderSettings.outputs``.
 
     Raises:
         ValueError: naming the field: unknown, a value out of its range, or neither a switch nor an output.
     """
     from sidar_torch.render import RenderSettings  # imports the renderer: here, so parsing loads no GL
-    from sidar_torch.render_choices import OUTPUTS
+    from sidar_torch.choices.outputs import OUTPUTS
 
     if values:
         return (values[0], values[1]), [value_settings(config, field, value) for value in values]

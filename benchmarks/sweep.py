@@ -62,9 +62,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from sidar_torch.effects import linear_to_srgb, srgb_to_linear
+from sidar_torch.sample.effects import linear_to_srgb, srgb_to_linear
 from sidar_torch.config import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, load_config
-from sidar_torch.dataset import SidarDataset
+from sidar_torch.data.dataset import SidarDataset
 from .metrics import psnr, speckle_paintings, warp_residuals
 from sidar_torch import render  # render.SceneRenderer loads the renderer at its first use, not at import
 from sidar_torch.render import RenderSettings

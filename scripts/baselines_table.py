@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from sidar_torch import evaluate
-from sidar_torch.baselines import ESTIMATORS
+from sidar_torch.evaluation.baselines import ESTIMATORS
 
 
 def main() -> None:

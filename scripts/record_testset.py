@@ -2,7 +2,7 @@
 
     .venv/bin/python scripts/record_testset.py homography-v1
 
-writes ``sidar_torch/testsets/homography-v1.json`` from the draft below (the full config of each
+writes ``sidar_torch/evaluation/testsets/homography-v1.json`` from the draft below (the full config of each
 category, its seed and count, the digests, the GL renderer and versions that recorded them). A
 published definition is never rewritten (the script refuses): a change is a new name, ``-v2``.
 """
@@ -16,8 +16,8 @@ import platform
 import tempfile
 from pathlib import Path
 
-from sidar_torch.testsets import (Category, TestSet, available_testsets, category_config, export_testset,
-                                  file_digests, rasteriser)
+from sidar_torch.evaluation.testsets import (Category, TestSet, available_testsets, category_config,
+                                                     export_testset, file_digests, rasteriser)
 
 SIZE = {"image_size": (384, 512)}  # the paper's size
 

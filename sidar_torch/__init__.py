@@ -11,14 +11,14 @@ configs, ``homography_pairs`` and ``ExportedDataset`` work on machines without t
 
 from . import render  # noqa: F401  (sets PYOPENGL_PLATFORM, LP_NUM_THREADS before OpenGL's import; loads no GL)
 from .config import SidarConfig, available_presets, load_config
-from .augment import SidarAugment
-from .augment_step import SidarStep
-from .dataset import SidarDataset
-from .correspondence import flow
-from .evaluation import evaluate
+from .data.augment import SidarAugment
+from .data.augment_step import SidarStep
+from .data.dataset import SidarDataset
+from .data.correspondence import flow
+from .evaluation.scoring import evaluate
 from .io import ExportedDataset, export_dataset
-from .lens import undistort
-from .pairs import homography_pairs
+from .sample.lens_views import undistort
+from .data.pairs import homography_pairs
 from .version import __version__  # noqa: F401  (the package's version, recorded in export manifests)
 
 __all__ = [

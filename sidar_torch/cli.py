@@ -22,15 +22,15 @@ from PIL import Image
 
 from .config import SidarConfig, as_int, available_presets, load_config
 from .config.loader import parse_yaml
-from .baselines import ESTIMATORS, resolve_estimator
-from .dataset import SidarDataset
+from .evaluation.baselines import ESTIMATORS, resolve_estimator
+from .data.dataset import SidarDataset
 from .deep_homography.protocol import PATCH, RHO
-from .evaluation import DEFAULT_TIMEOUT, PROTOCOLS, checked_timeout, evaluate, format_table, testset_names
+from .evaluation.scoring import DEFAULT_TIMEOUT, PROTOCOLS, checked_timeout, evaluate, format_table, testset_names
 from .io import LAYOUTS, ExportInterrupted, ExportSummary, export_dataset
 from .io import pixel_entries_text
 from .orphans import process_age
-from .preview import contact_sheet
-from .testsets import available_testsets, export_testset, load_testset
+from .data.preview import contact_sheet
+from .evaluation.testsets import available_testsets, export_testset, load_testset
 from .timing import timed
 
 __all__ = ["main", "parse_overrides"]
@@ -243,7 +243,7 @@ def _run_export(args: argparse.Namespace, dataset: SidarDataset) -> ExportSummar
     """Export ``dataset`` as ``args`` say, here or on Ray."""
     try:
         if args.ray:
-            from .cluster import ray_export
+            from .io.cluster import ray_export
 
             return ray_export(dataset, args.out, args.count, start=args.start, shard_size=args.shard_size,
                               address=args.ray_address, progress=not args.no_progress)

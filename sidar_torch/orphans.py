@@ -1,7 +1,7 @@
 """Processes that render end with the process they work for: the one "exit when it dies" helper.
 
 Every fan-out of rendering into forked children calls :func:`exit_with_parent` first thing in the
-child: the ``SidarAugment`` render pool (:mod:`sidar_torch.augment_pool`) does, and a DataLoader
+child: the ``SidarAugment`` render pool (:mod:`sidar_torch.data.render_pool`) does, and a DataLoader
 ``worker_init_fn`` can (``exit_with_parent(parent_pid)`` with the pid read before the fork, or
 ``os.getppid()`` read at once in the worker). A render child has nothing worth saving when its
 parent is gone (its results would go nowhere), so it ends at once, with ``os._exit``/``SIGKILL``,
@@ -30,7 +30,7 @@ Three mechanisms, because each alone has a gap:
 The parent may die between the fork and these calls; :func:`exit_with_parent` checks ``getppid``
 after arming the signal, so that window is closed too.
 
-Ray's workers are not children of the process that drives an export (``sidar_torch.cluster``): Ray
+Ray's workers are not children of the process that drives an export (``sidar_torch.io.cluster``): Ray
 ends a dead driver's tasks only 2-5 s later, and until then they kept rendering and writing into an
 export folder whose lock died with the driver. :func:`exit_with_process` watches such a process by
 its :class:`ProcessStamp` (pid and start time, which tell it from a later process given the same

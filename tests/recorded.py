@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from sidar_torch.testsets import rasteriser, rasteriser_name, same_rasteriser
+from sidar_torch.evaluation.testsets import rasteriser, rasteriser_name, same_rasteriser
 
 RTOL = 1e-9
 """Tolerance of a recorded geometry array, relative to its largest entry."""

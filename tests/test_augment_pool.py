@@ -13,11 +13,11 @@ import time
 import pytest
 import torch
 
-import sidar_torch.augment_pool
+import sidar_torch.data.render_pool
 from conftest import alive, assert_same_batch, child_pids
 from hang_guard import no_hang
 from sidar_torch import SidarAugment, load_config
-from sidar_torch.augment_pool import RenderPool
+from sidar_torch.data.render_pool import RenderPool
 
 pytestmark = pytest.mark.gl  # renders
 
@@ -77,14 +77,14 @@ def test_pickled_and_copied_modules_start_their_own_pool_and_continue_the_sequen
 
 
 def test_an_error_in_a_worker_is_raised_by_forward_with_the_workers_message(monkeypatch):
-    original = sidar_torch.augment_pool.sample_sequence
+    original = sidar_torch.data.render_pool.sample_sequence
 
     def failing(config, rng):
         if rng.integers(0, 3) == 0:  # some images of the batch
             raise ValueError("scene refused in the worker")
         return original(config, rng)
 
-    monkeypatch.setattr(sidar_torch.augment_pool, "sample_sequence", failing)  # before the fork: workers have it
+    monkeypatch.setattr(sidar_torch.data.render_pool, "sample_sequence", failing)  # before the fork: workers have it
     module = augment(2)
     with module, pytest.raises(ValueError, match="scene refused in the worker") as raised:
         module(torch.rand(8, 3, *TINY))
@@ -206,7 +206,7 @@ def test_a_worker_stopped_before_a_call_with_images_larger_than_the_socket_buffe
 def test_a_worker_stopped_in_the_middle_of_its_reply_times_out(monkeypatch):
     """The old pool's timeout did not cover a worker stopped after the first bytes of its reply (the
     parent's ``recv`` then waited for good): the worker here sends half of its reply, then stops."""
-    parent, send = os.getpid(), sidar_torch.augment_pool._Outgoing.pump
+    parent, send = os.getpid(), sidar_torch.data.render_pool._Outgoing.pump
 
     def half_then_stop(self, sock):
         if os.getpid() == parent or len(self.data) < 1000:  # the parent's tasks, the worker's warm-up reply
@@ -215,7 +215,7 @@ def test_a_worker_stopped_in_the_middle_of_its_reply_times_out(monkeypatch):
         os.kill(os.getpid(), signal.SIGSTOP)
         return send(self, sock)  # never reached: the pool ends the stopped worker
 
-    monkeypatch.setattr(sidar_torch.augment_pool._Outgoing, "pump", half_then_stop)  # before the fork
+    monkeypatch.setattr(sidar_torch.data.render_pool._Outgoing, "pump", half_then_stop)  # before the fork
     module = augment(1, timeout=2.0)
     try:
         with no_hang(cpu_seconds=60, idle_seconds=20), pytest.raises(
@@ -254,7 +254,7 @@ def test_the_warm_up_counts_against_its_own_limit_not_the_calls(monkeypatch):
 ORPHAN_PARENT = """
 import fcntl, struct, termios, time, numpy as np
 from sidar_torch import load_config
-from sidar_torch.augment_pool import RenderPool, _Outgoing
+from sidar_torch.data.render_pool import RenderPool, _Outgoing
 config = load_config("misaligned", image_size=(256, 384), n_views=3)
 pool = RenderPool(config, "center", 2)
 image = np.random.default_rng(0).integers(0, 256, (3, 64, 96), dtype=np.uint8)
@@ -331,7 +331,7 @@ def test_any_finite_timeout_is_waited_for_and_worker_counts_are_bounded():
 THREAD_PARENT = f"""
 import threading, time, numpy as np
 from sidar_torch import load_config
-from sidar_torch.augment_pool import RenderPool
+from sidar_torch.data.render_pool import RenderPool
 pools = []
 thread = threading.Thread(target=lambda: pools.append(
     RenderPool(load_config("misaligned", image_size={TINY}, n_views=2), "center", 1)))

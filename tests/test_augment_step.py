@@ -85,7 +85,7 @@ def test_images_the_batch_cannot_hold_are_refused_naming_the_fix():
 def test_the_module_example_runs():
     import doctest
 
-    import sidar_torch.augment_step
+    import sidar_torch.data.augment_step
 
-    result = doctest.testmod(sidar_torch.augment_step, verbose=False)
+    result = doctest.testmod(sidar_torch.data.augment_step, verbose=False)
     assert result.attempted > 0 and result.failed == 0, result

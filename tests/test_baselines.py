@@ -1,4 +1,4 @@
-"""The baseline estimators (``sidar_torch.baselines``) recover a known homography in our pixel
+"""The baseline estimators (``sidar_torch.evaluation.baselines``) recover a known homography in our pixel
 convention; names resolve, wrong ones and a missing OpenCV are errors naming them."""
 
 import sys
@@ -6,9 +6,9 @@ import sys
 import numpy as np
 import pytest
 
-from sidar_torch import baselines
-from sidar_torch.baselines import ESTIMATORS, resolve_estimator
-from sidar_torch.evaluation import corner_error
+from sidar_torch.evaluation import baselines
+from sidar_torch.evaluation.baselines import ESTIMATORS, resolve_estimator
+from sidar_torch.evaluation.scoring import corner_error
 from sidar_torch.paintings import ProceduralPaintings
 
 cv2 = pytest.importorskip("cv2")
@@ -41,7 +41,7 @@ def test_identity_and_a_failure():
 
 def test_names_resolve_and_wrong_ones_are_errors_naming_them():
     assert resolve_estimator("identity") == ("identity", baselines.identity)
-    assert resolve_estimator("sidar_torch.baselines:ecc") == ("sidar_torch.baselines:ecc", baselines.ecc)
+    assert resolve_estimator("sidar_torch.evaluation.baselines:ecc") == ("sidar_torch.evaluation.baselines:ecc", baselines.ecc)
     with pytest.raises(ValueError, match=r"estimator: expected one of \[.*'sidar-net'.*\] or MODULE:FUNCTION"):
         resolve_estimator("sift2")
     with pytest.raises(ValueError, match=r"module 'math' has no 'nope'"):

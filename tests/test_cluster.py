@@ -1,4 +1,4 @@
-"""Rendering on a Ray cluster (``sidar_torch.cluster``): on a local cluster of 2 CPUs, the rows of
+"""Rendering on a Ray cluster (``sidar_torch.io.cluster``): on a local cluster of 2 CPUs, the rows of
 ``ray_dataset`` are the samples rendered here, and ``ray_export`` writes the files of
 ``export_dataset`` byte for byte, resuming and surviving a killed worker. Without Ray, each entry
 point names the extra to install (those tests need no Ray); the others skip when Ray is absent."""
@@ -23,8 +23,8 @@ from conftest import same_tensor, small_config
 from export_digests import tree_digests
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset
 from sidar_torch.cli import main
-from sidar_torch import cluster as cluster_module
-from sidar_torch.cluster import RAY_REQUIREMENT, ray_dataset, ray_export, torch_batches
+from sidar_torch.io import cluster as cluster_module
+from sidar_torch.io.cluster import RAY_REQUIREMENT, ray_dataset, ray_export, torch_batches
 from sidar_torch.io import export as export_module
 from sidar_torch.io.export import ExportPlan
 from sidar_torch.io.folders import FolderLayout
@@ -271,7 +271,7 @@ DRIVER = textwrap.dedent("""
     import sys
     import ray
     from sidar_torch import SidarDataset, load_config
-    from sidar_torch.cluster import ray_export
+    from sidar_torch.io.cluster import ray_export
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     dataset = SidarDataset(config=load_config("misaligned", image_size=(24, 32), n_views=2, shadow_map_size=256))
     ray_export(dataset, sys.argv[1], count=400, progress=False)

@@ -15,7 +15,7 @@ from PIL import Image
 from torch.utils.data import DataLoader
 
 from sidar_torch import SidarDataset, available_presets
-from sidar_torch import dataset as dataset_module
+from sidar_torch.data import dataset as dataset_module
 from sidar_torch.sample import sequence_homographies
 
 from conftest import sample_digest, small_config

@@ -7,13 +7,13 @@ import doctest
 import pytest
 
 import sidar_torch
-import sidar_torch.augment
-import sidar_torch.augment_step
+import sidar_torch.data.augment
+import sidar_torch.data.augment_step
 
 pytestmark = pytest.mark.gl  # the examples render
 
 
-@pytest.mark.parametrize("module", [sidar_torch, sidar_torch.augment, sidar_torch.augment_step], ids=lambda m: m.__name__)
+@pytest.mark.parametrize("module", [sidar_torch, sidar_torch.data.augment, sidar_torch.data.augment_step], ids=lambda m: m.__name__)
 def test_docstring_examples_run(module):
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS, verbose=False)
     assert result.attempted > 0 and result.failed == 0, result

@@ -12,8 +12,8 @@ import torch
 from PIL import Image
 
 from sidar_torch import SidarAugment, SidarDataset, geometry
-from sidar_torch.effects import (ViewEffects, apply_effects, blur_painting, draw_effects, gaussian_filter,
-                                 linear_to_srgb, srgb_to_linear)
+from sidar_torch.sample.effects import (ViewEffects, apply_effects, blur_painting, draw_effects, gaussian_filter,
+                                        linear_to_srgb, srgb_to_linear)
 from sidar_torch.sample import render_sample
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Material, Occluder, SceneSequence, ViewScene, sample_sequence
@@ -132,7 +132,7 @@ def test_jpeg_output_is_a_pillow_round_trip_of_the_view():
 def painting_pixels(sample, view):
     """``(H, W)`` bool: pixels of ``view`` whose centre the homography to view 0 (the painting's
     own pixel grid) sends into the painting grown by half a painting pixel, and into the painting
-    shrunk by one (independent of ``sidar_torch.effects``, which uses the cameras)."""
+    shrunk by one (independent of ``sidar_torch.sample.effects``, which uses the cameras)."""
     v, u = np.mgrid[0:H, 0:W].astype(float)
     points = np.stack([u, v, np.ones_like(u)]).reshape(3, -1)
     mapped = sample["homographies"][view, 0].double().numpy() @ points

@@ -16,14 +16,15 @@ import pytest
 import torch
 
 from conftest import small_config
-from sidar_torch import evaluate, evaluation
-from sidar_torch.evaluation import corner_error, format_table
+from sidar_torch import evaluate
+from sidar_torch.evaluation import scoring as evaluation
+from sidar_torch.evaluation.scoring import corner_error, format_table
 from sidar_torch.io import WriteUnit
 from sidar_torch.io.folders import FolderLayout
 from sidar_torch.io.manifest import write_manifest
 from sidar_torch.paintings import ProceduralPaintings
 from sidar_torch.sample import SampleArrays
-from sidar_torch.testsets import load_testset
+from sidar_torch.evaluation.testsets import load_testset
 
 ROOT = Path(__file__).resolve().parent.parent
 

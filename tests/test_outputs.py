@@ -1,4 +1,4 @@
-"""The optional outputs' table (``render_choices.OUTPUTS``) and the layers that follow it name the same outputs."""
+"""The optional outputs' table (``choices.outputs.OUTPUTS``) and the layers that follow it name the same outputs."""
 
 import pytest
 
@@ -6,7 +6,7 @@ from sidar_torch import load_config
 from sidar_torch.config import SidarConfig
 from sidar_torch.config.memory import estimated_sample_bytes
 from sidar_torch.render.settings import RenderSettings
-from sidar_torch.render_choices import OUTPUTS
+from sidar_torch.choices.outputs import OUTPUTS
 from sidar_torch.sample import KEYS, LENS_KEYS, SampleArrays
 
 

@@ -1,4 +1,4 @@
-"""The shipped test sets (``sidar_torch.testsets``): published definitions never change, they are
+"""The shipped test sets (``sidar_torch.evaluation.testsets``): published definitions never change, they are
 whole (a digest for every file of every sequence), and rebuilding a set's first sequences on the
 renderer that recorded it reproduces their digests."""
 
@@ -7,8 +7,9 @@ import dataclasses
 import pytest
 
 from sidar_torch import load_config
-from sidar_torch.testsets import (available_testsets, check_digests, definition_digest, export_testset,
-                                  file_digests, load_testset, rasteriser_name, same_rasteriser)
+from sidar_torch.evaluation.testsets import (available_testsets, check_digests, definition_digest,
+                                                     export_testset, file_digests, load_testset, rasteriser_name,
+                                                     same_rasteriser)
 
 from recorded import rasteriser_mismatch
 

@@ -1,10 +1,11 @@
 """What config fields may hold: the choices of the text fields and the limits the renderer imposes (the
-renderer's own choices come from :mod:`sidar_torch.render_choices`, which both layers import)."""
+renderer's own choices come from :mod:`sidar_torch.choices.render`, which both layers import)."""
 
 from __future__ import annotations
 
-from ..distortion import LENS_MODELS as _LENS_ROWS, NO_LENS
-from ..render_choices import ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, MAX_SHADOWED_LIGHTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS
+from ..choices.lenses import LENS_MODELS as _LENS_ROWS, NO_LENS
+from ..choices.render import (ANTIALIAS_SAMPLES, AREA_LIGHT_SHADINGS, MAX_SHADOWED_LIGHTS, SHADOW_FILTERS,
+                              SHADOW_FRUSTA, TEXTURE_FILTERS)
 
 __all__ = [
     "ANTIALIAS_SAMPLES", "AREA_LIGHT_SHADINGS", "BACKGROUNDS", "GEOMETRY_DTYPES", "LENS_MODELS", "LIGHT_TYPES", "MAX_CAMERA_DISTANCE", "MAX_GL_SIZE",
@@ -28,7 +29,7 @@ MESH_DETAILS = ("fixed", "auto")
 SPOT_FALLOFFS = ("quadratic", "blender")
 GEOMETRY_DTYPES = ("float32", "float64")
 LENS_MODELS = (NO_LENS, *_LENS_ROWS)
-"""``lens_model`` values: no lens, then the rows of ``sidar_torch.distortion.LENS_MODELS``."""
+"""``lens_model`` values: no lens, then the rows of ``sidar_torch.choices.lenses.LENS_MODELS``."""
 
 
 MAX_GL_SIZE = 16384

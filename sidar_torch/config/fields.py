@@ -26,7 +26,7 @@ __all__ = ["SidarConfig", "field_meaning"]
 Range = tuple[float, float]
 IntRange = tuple[int, int]
 MapSize = "int | str"
-"""A shadow map's side: a power of two, or ``"auto"`` (``render_choices.shadow_map_side``)."""
+"""A shadow map's side: a power of two, or ``"auto"`` (``choices.render.shadow_map_side``)."""
 
 
 def _field(default: Any, *, meaning: str, bounds: tuple[float, float] | None = None,
@@ -279,7 +279,7 @@ class SidarConfig:
 
     # View effects (beyond the paper; each off by default. Per-pixel effects on the rendered views
     # only, drawn after the scene so switching one on changes no scene, mask, label or homography;
-    # see ``sidar_torch.effects``)
+    # see ``sidar_torch.sample.effects``)
     background: str = _field("black", choices=BACKGROUNDS, meaning=(
         'what the views show where nothing was drawn: ``"black"`` (the paper\'s), ``"view"`` (a random colour '
         'per view) or ``"sequence"`` (one random colour per sample).'))
@@ -315,7 +315,7 @@ class SidarConfig:
     jpeg_quality: IntRange = _field((30, 95), bounds=(1, 100), meaning=(
         "range of a view's JPEG quality (Pillow's scale, 1-100)."))
     # Lens (off by default; drawn from a generator of its own, so switching it on changes no other draw;
-    # see ``sidar_torch.distortion`` and docs/lens.md)
+    # see ``sidar_torch.choices.lenses`` and docs/lens.md)
     lens_model: str = _field("none", choices=LENS_MODELS, meaning=(
         'each view\'s lens: ``"none"`` (a pinhole camera, the default), ``"brown_conrady"`` (OpenCV\'s radial and '
         'tangential ``(k1, k2, p1, p2, k3)``) or ``"division"`` (Fitzgibbon\'s ``lambda``). Every view (view 0 '

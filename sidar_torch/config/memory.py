@@ -10,7 +10,7 @@ up:
   painting's texture and mipmaps, the label): :data:`FRAME_PIXEL_BYTES`;
 * per pixel and sample of a multisampled pass (``antialias`` > 1), 8 bytes (RGBA8 colour and
   24-bit depth, measured 31 bytes per pixel at 4 samples): :data:`MULTISAMPLE_PIXEL_BYTES`;
-* the optional outputs (``render_choices.OUTPUTS``), counted rather than measured: per view and pixel,
+* the optional outputs (``choices.outputs.OUTPUTS``), counted rather than measured: per view and pixel,
   a uint8 array and a float32 tensor of each (``shadow_free`` 3 channels, ``shadow_masks`` 1; opacities are
   in the measured figure above), and per pixel and sample a render target of its own (``shadow_free``'s
   second RGBA8 colour buffer): each row's ``view_pixel_bytes`` and ``target_pixel_bytes``;
@@ -24,7 +24,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from ..render_choices import OUTPUTS, shadow_map_side
+from ..choices.render import shadow_map_side
+from ..choices.outputs import OUTPUTS
 from .allowed import LIGHT_EMITTERS
 
 __all__ = ["estimated_sample_bytes", "output_bytes", "shadowed_emitters"]
@@ -50,9 +51,9 @@ def estimated_sample_bytes(config: Any) -> int:
 
     ``H * W * (V * 32 + 96 + 8 * antialias) + V**2 * 32768 + maps * shadow_map_size**2 * 6`` for
     ``V`` views of ``(H, W)`` pixels (the ``8 * antialias`` term only when ``antialias`` > 1) and
-    ``maps`` shadow maps of side ``shadow_map_size`` (``auto`` resolved: ``render_choices.shadow_map_side``;
+    ``maps`` shadow maps of side ``shadow_map_size`` (``auto`` resolved: ``choices.render.shadow_map_side``;
     at least the one map the renderer always holds), plus, for each optional output switched on (a row of
-    ``render_choices.OUTPUTS``), ``H * W * V * view_pixel_bytes`` and ``H * W * target_pixel_bytes *
+    ``choices.outputs.OUTPUTS``), ``H * W * V * view_pixel_bytes`` and ``H * W * target_pixel_bytes *
     (1 + antialias)`` (``(1)`` without antialiasing): with ``shadow_free_output`` ``H * W * V * 15`` and
     ``H * W * 4 * (1 + antialias)``, with ``shadow_mask_output`` ``H * W * V * 5``; the module docstring says
     how each figure was obtained.
@@ -79,7 +80,7 @@ def output_bytes(image_size: tuple[int, int], n_views: int, outputs: Mapping[str
     Args:
         image_size: ``(H, W)`` pixels, integers.
         n_views: ``V``, an integer.
-        outputs: the switches of ``render_choices.OUTPUTS`` (each row's ``switch``, e.g. ``opacity_output``),
+        outputs: the switches of ``choices.outputs.OUTPUTS`` (each row's ``switch``, e.g. ``opacity_output``),
             true or false; a missing one counts as false.
     """
     h, w = image_size

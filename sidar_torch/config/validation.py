@@ -15,8 +15,9 @@ import itertools
 import math
 from typing import Any, Mapping
 
-from ..distortion import LENS_MODELS, NO_LENS, radial_folds
-from ..render_choices import AUTO_MAP_SIZE, OUTPUTS, shadow_map_side
+from ..choices.lenses import LENS_MODELS, NO_LENS, radial_folds
+from ..choices.render import AUTO_MAP_SIZE, shadow_map_side
+from ..choices.outputs import OUTPUTS
 from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
 from .memory import estimated_sample_bytes, shadowed_emitters
 from .numbers import as_float, as_int, shown
@@ -178,7 +179,7 @@ def validate(config: Any) -> None:
 
 def _check_image_sides(config: Any) -> None:
     """Each optional output switched on needs an image of at least its row's ``min_image_side`` pixels a
-    side (``render_choices.OUTPUTS``)."""
+    side (``choices.outputs.OUTPUTS``)."""
     for row in OUTPUTS.values():
         if getattr(config, row.switch) and min(config.image_size) < row.min_image_side:
             side = row.min_image_side
@@ -190,7 +191,7 @@ def _check_image_sides(config: Any) -> None:
 
 def _check_lens(config: Any) -> None:
     """With a lens, no output a lens may not resample (``OptionalOutput.lens_resample``: depth and flow, of
-    pinhole cameras only), and no end of its ranges may fold the image before its corner (``distortion.radial_folds``):
+    pinhole cameras only), and no end of its ranges may fold the image before its corner (``choices.lenses.radial_folds``):
     each radial coefficient's ends are tried together (the radius is linear in them, so the worst lens
     of the box is one of its corners)."""
     if config.lens_model == NO_LENS:

@@ -12,7 +12,7 @@ a unit, list the sequences, read an entry), one row of the table :data:`.layouts
 the manifest's ``layout`` name; export, the reader and Ray look it up there and ask it. What the
 layouts share: that interface and the top-level names (:mod:`.layout`), a sequence as entries
 (:mod:`.entries`) and their bytes (:mod:`.codecs`), atomic writes, the lock and bounded reads
-(:mod:`.files`), the manifest (:mod:`.manifest`). What Ray's export (``sidar_torch.cluster``) and
+(:mod:`.files`), the manifest (:mod:`.manifest`). What Ray's export (``sidar_torch.io.cluster``) and
 the command line use is public here: :class:`ExportPlan` and :func:`planned_export` (what an export
 into a prepared folder writes), :class:`Progress`, :class:`~.layout.Layout` and its
 :class:`~.layout.WriteUnit`, :data:`LAYOUTS`.

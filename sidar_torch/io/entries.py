@@ -14,8 +14,8 @@ import numpy as np
 
 from ..config import SidarConfig
 from ..config.numbers import shown
-from ..distortion import LENS_MODELS, NO_LENS, corner_coefficients, radial_folds
-from ..lens import distortion_maps
+from ..choices.lenses import LENS_MODELS, NO_LENS, corner_coefficients, radial_folds
+from ..sample.lens_views import distortion_maps
 from ..sample import FLOAT_OUTPUTS, KEYS, SampleArrays, SampleKey, present_keys
 
 __all__ = ["CAMERAS", "CAMERA_KEYS", "HOMOGRAPHIES", "camera_shape", "cameras_entry", "checked_homographies",
@@ -31,7 +31,7 @@ HOMOGRAPHIES = "homographies.npy"
 _NOT_IN_CAMERAS = {
     "homographies": "each layout writes them its own way (H_i_j.mat files, homographies.npy)",
     "index": "the sequence's folder or shard entry names it",
-    "distortion_maps": "recomputed on reading from K and lens, by the function that made them (sidar_torch.lens)",
+    "distortion_maps": "recomputed on reading from K and lens, by the function that made them (sidar_torch.sample.lens_views)",
     "lens_model": "the recorded config's lens_model (export.json) names it",
 }
 """The keys without a file of their own that ``cameras.json`` does not hold, and why."""
@@ -170,9 +170,9 @@ LENS_BOUNDS_SLACK = 1e-9
 def lens_problem(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> str | None:
     """Why ``lens (5,)`` float64 is not a lens of ``model`` that a config allows for a view of ``K (3, 3)``
     and ``image_size (H, W)``, or None: its coefficients must be finite, those at the image's corner
-    (:func:`sidar_torch.distortion.corner_coefficients`) within their config fields' bounds, those the
+    (:func:`sidar_torch.choices.lenses.corner_coefficients`) within their config fields' bounds, those the
     model has none of 0, and the lens must not fold the image before its corner
-    (:func:`sidar_torch.distortion.radial_folds`)."""
+    (:func:`sidar_torch.choices.lenses.radial_folds`)."""
     if not np.isfinite(lens).all():
         return f"expected finite coefficients, got {shown(lens.tolist())}"
     corner = corner_coefficients(model, lens, K, image_size)

@@ -20,7 +20,7 @@ from typing import Any, Callable, Iterator, TextIO
 from torch.utils.data import DataLoader, Dataset
 
 from ..config import MAX_WORKERS, as_int
-from ..dataset import SidarDataset
+from ..data.dataset import SidarDataset
 from ..orphans import exit_with_parent
 from ..sample import SampleArrays
 from .files import locked, remove_stale

@@ -12,10 +12,10 @@ import yaml
 
 from ..config import SidarConfig
 from ..config.allowed import LENS_MODELS as LENS_MODEL_NAMES
-from ..distortion import NO_LENS
+from ..choices.lenses import NO_LENS
 from ..sample import GEOMETRY_DTYPES, KEYS
 from ..paintings import PaintingSource
-from ..render_choices import OUTPUTS
+from ..choices.outputs import OUTPUTS
 from ..version import __version__
 from .codecs import read_json
 from .files import LOCK, is_own_temporary, read_inside, replace_file
@@ -33,7 +33,7 @@ up to about 9 times its bytes in Python objects: :data:`.limits.JSON_BYTES_PER_V
 
 
 OPTIONAL_KEYS = tuple(key for key in KEYS if key.name in OUTPUTS)
-"""The optional outputs' sample keys (:data:`~sidar_torch.sample.KEYS` rows of ``render_choices.OUTPUTS``),
+"""The optional outputs' sample keys (:data:`~sidar_torch.sample.KEYS` rows of ``choices.outputs.OUTPUTS``),
 each turned on by a boolean config switch; ``lens`` (``lens_model``) and ``distortion_maps`` are in
 ``cameras.json`` or recomputed, and have no file of their own."""
 
@@ -60,7 +60,7 @@ def write_manifest(out: Path, seed: int, source: PaintingSource, config: dict[st
                         "pixel at (0, 0)); det = 1; float64",
         "masks": "255 where the painting is not visible (occluder or background), 0 where it is",
     }
-    # What the files of each optional output it holds are (render_choices.OUTPUTS).
+    # What the files of each optional output it holds are (choices.outputs.OUTPUTS).
     manifest.update({key.name: OUTPUTS[key.name].description for key in OPTIONAL_KEYS if config.get(key.switch)})
     if (out / MANIFEST).exists():
         old = read_manifest(out)

@@ -118,7 +118,7 @@ class PaintingTexture:
     Args:
         rgb: ``(H, W, 3)`` uint8 sRGB, row 0 at the top (uploaded flipped: GL's row 0 is the bottom,
             so texture coordinate ``t = 1`` is the image's first row).
-        filters: ``(min filter, mag filter)`` GL enums (``render_choices.TEXTURE_FILTERS`` rows).
+        filters: ``(min filter, mag filter)`` GL enums (``choices.render.TEXTURE_FILTERS`` rows).
 
     The shader decodes sRGB itself; the texture stores the bytes as they are.
     """
@@ -143,6 +143,11 @@ class PaintingTexture:
         for name, value in ((GL.GL_TEXTURE_MAG_FILTER, magnify), (GL.GL_TEXTURE_MIN_FILTER, minify),
                             (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
             GL.glTexParameteri(GL.GL_TEXTURE_2D, name, value)
+        import os  # EXPERIMENT
+        if os.environ.get("SIDAR_ANISO"):
+            GL.glTexParameterf(GL.GL_TEXTURE_2D, 0x84FE, float(os.environ["SIDAR_ANISO"]))
+        if os.environ.get("SIDAR_LODBIAS"):
+            GL.glTexParameterf(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_LOD_BIAS, float(os.environ["SIDAR_LODBIAS"]))
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         return True
 

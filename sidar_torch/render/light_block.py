@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from OpenGL import GL
 
-from ..render_choices import MAX_SHADOWED_LIGHTS
+from ..choices.render import MAX_SHADOWED_LIGHTS
 
 __all__ = ["BINDINGS", "BLOCK_NAME", "LightBlocks", "bind_program_block", "block_size", "struct_layout"]
 
@@ -64,7 +64,7 @@ def struct_layout(shadows: bool) -> tuple[dict[str, tuple[int, str]], int]:
 
 
 def block_size(shadows: bool) -> int:
-    """Bytes of the whole block: :data:`~sidar_torch.render_choices.MAX_SHADOWED_LIGHTS` lights."""
+    """Bytes of the whole block: :data:`~sidar_torch.choices.render.MAX_SHADOWED_LIGHTS` lights."""
     return struct_layout(shadows)[1] * MAX_SHADOWED_LIGHTS
 
 

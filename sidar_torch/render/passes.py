@@ -34,7 +34,7 @@ from typing import Any, Sequence
 import numpy as np
 from OpenGL import GL
 
-from ..render_choices import MAX_SHADOWED_LIGHTS
+from ..choices.render import MAX_SHADOWED_LIGHTS
 from ..timing import timed
 from .draws import SpotEmitter, Surface, ViewDraws
 from .footprints import PaintingPart

@@ -13,7 +13,7 @@ A program is a pair of files and a set of **defines** (``#define NAME value`` li
 ``#version`` line, :func:`program_source`): the vertex attributes a mesh has (``NORMAL_LOC``...),
 the material's texture, and the variants below, each chosen per draw by ``render.passes`` because a
 uniform switch would cost every fragment (quirk 6). :class:`ProgramCache` compiles each (files,
-defines) once per context; warm-up compiles every one a config can meet (``sidar_torch.warm_up``).
+defines) once per context; warm-up compiles every one a config can meet (``sidar_torch.sample.warm_up``).
 
 The quirks the shaders and the cache handle, numbered as the code refers to them:
 

@@ -62,7 +62,7 @@ import numpy as np
 from OpenGL import GL
 
 from ..geometry import is_reference_camera
-from ..render_choices import OUTPUTS
+from ..choices.outputs import OUTPUTS
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
 from .context import GL_PLATFORM, import_platform, open_context
@@ -96,7 +96,7 @@ class RenderedSequence:
             0.06 over the background, whose blended alpha rounds to 0 in 8 bits (refracting glass
             writes alpha 1: it blends with the painting it shows itself, see ``render.mirror``).
         outputs: the optional outputs asked for (``RenderSettings.outputs``), by name: each row of
-            ``render_choices.OUTPUTS`` drawn by its producer (:data:`OUTPUT_PASSES`), ``(V, H, W)`` or
+            ``choices.outputs.OUTPUTS`` drawn by its producer (:data:`OUTPUT_PASSES`), ``(V, H, W)`` or
             ``(V, H, W, C)`` of the row's dtype (uint8 levels, or float32 values), meaning what the row says.
     """
 
@@ -222,7 +222,7 @@ class SceneRenderer:
     def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
         """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
         its draws meet are compiled now rather than in the middle of a later sample
-        (``sidar_torch.warm_up`` builds a sequence that meets every variant of a config).
+        (``sidar_torch.sample.warm_up`` builds a sequence that meets every variant of a config).
 
         Nothing a later render reads is left changed: the GL objects it made (programs, meshes,
         shadow maps) are reused as any earlier sample's are, and the painting's texture and the
@@ -402,14 +402,14 @@ OUTPUT_PASSES: dict[str, OutputPass] = {
                                                                drawn.mask, timings),
     "shadow_fraction": lambda renderer, drawn, timings: renderer._render_shadow_mask(drawn, timings),
 }
-"""The renderer's producers of the drawn outputs, by ``OptionalOutput.producer`` (``render_choices.OUTPUTS``):
+"""The renderer's producers of the drawn outputs, by ``OptionalOutput.producer`` (``choices.outputs.OUTPUTS``):
 each returns one view's array of its output (:class:`RenderedSequence`) after the colour pass and the mask,
 in the order of ``OUTPUTS``. ``unblocked_colour`` is no pass of its own: the colour pass draws it as a second
 output whenever a row of this producer is asked for (:func:`_unblocked_asked`)."""
 
 
 def _unblocked_asked(outputs: frozenset[str]) -> bool:
-    """Whether ``outputs`` (names of ``render_choices.OUTPUTS``) holds one the colour pass draws as its
+    """Whether ``outputs`` (names of ``choices.outputs.OUTPUTS``) holds one the colour pass draws as its
     second output (``unblocked_colour``)."""
     return any(OUTPUTS[name].producer == "unblocked_colour" for name in outputs)
 
@@ -433,7 +433,7 @@ def shared_renderer(settings: RenderSettings) -> SceneRenderer:
     A forked child (a DataLoader worker, a render-pool process) inherits its parent's renderers. On
     OSMesa without llvmpipe threads it takes them over: each is its own copy of the parent's, GL
     state and compiled shader variants included, so the child compiles only variants its parent
-    never drew (``sidar_torch.warm_up`` compiles every one a config needs) and renders the same
+    never drew (``sidar_torch.sample.warm_up`` compiles every one a config needs) and renders the same
     pixels (``tests/test_processes.py``). Elsewhere it disowns them without touching their GL state
     and creates its own.
     """

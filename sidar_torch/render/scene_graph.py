@@ -22,7 +22,7 @@ GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
 
 
-PAINTING_FILTERS = {  # keys: render_choices.TEXTURE_FILTERS; values: (min filter, mag filter)
+PAINTING_FILTERS = {  # keys: choices.render.TEXTURE_FILTERS; values: (min filter, mag filter)
     "trilinear": (GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR),
     "bilinear": (GL.GL_LINEAR, GL.GL_LINEAR),
 }

@@ -14,8 +14,8 @@ import operator
 from dataclasses import dataclass
 from typing import Any
 
-from ..render_choices import (ANTIALIAS_SAMPLES, OUTPUTS, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, drawn_outputs,
-                              shadow_map_side)
+from ..choices.render import ANTIALIAS_SAMPLES, SHADOW_FILTERS, SHADOW_FRUSTA, TEXTURE_FILTERS, shadow_map_side
+from ..choices.outputs import OUTPUTS, drawn_outputs
 
 __all__ = ["RenderSettings"]
 
@@ -44,7 +44,7 @@ class RenderSettings:
         antialias: samples per pixel of each view's lit colour pass (1: none; 2, 4 or 8:
             multisampled, then resolved to one colour per pixel). Masks, opacities and the label are
             drawn single-sampled either way (config ``antialias``).
-        outputs: the optional outputs to render too (names of the ``render_choices.OUTPUTS`` rows the
+        outputs: the optional outputs to render too (names of the ``choices.outputs.OUTPUTS`` rows the
             renderer draws, those without ``computed_from``; ``RenderedSequence.outputs``); the other
             outputs are the same either way (the config fields of the rows' ``switch``).
         highlight_spill: over-exposed light spills into the other channels, a blown-out red turning

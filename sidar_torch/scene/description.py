@@ -151,9 +151,9 @@ class SceneSequence(_Plain):
     Attributes:
         image_size: ``(H, W)`` of every view, in pixels.
         views: ``V`` view scenes; view 0's camera is the fronto-parallel reference.
-        lens_model: ``"none"`` (pinhole cameras) or a row of ``sidar_torch.distortion.LENS_MODELS``.
+        lens_model: ``"none"`` (pinhole cameras) or a row of ``sidar_torch.choices.lenses.LENS_MODELS``.
         lenses: with a lens, ``(V, 5)`` float64, each view's coefficients in normalised camera
-            coordinates (``sidar_torch.distortion``); None without.
+            coordinates (``sidar_torch.choices.lenses``); None without.
 
     How it is drawn (shadows, occluders seen by the cameras, masks) is the renderer's business
     (``sidar_torch.render.RenderSettings``), not the scene's.

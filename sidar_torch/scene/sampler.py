@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from .. import geometry
-from ..distortion import LENS_MODELS, NO_LENS, scaled_lens
+from ..choices.lenses import LENS_MODELS, NO_LENS, scaled_lens
 from ..config import SidarConfig
 from .description import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 from .kinds import LIGHT_KINDS, MATERIAL_KINDS, SHAPES
@@ -42,7 +42,7 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
 
 
 def _sample_lenses(config: SidarConfig, rng: np.random.Generator, cameras: list[Camera]) -> np.ndarray:
-    """Each view's lens ``(V, 5)`` (:func:`sidar_torch.distortion.scaled_lens` of coefficients drawn from
+    """Each view's lens ``(V, 5)`` (:func:`sidar_torch.choices.lenses.scaled_lens` of coefficients drawn from
     the config's ranges at the image's corner), drawn from ``Generator(rng.bit_generator.jumped())``: a
     stream 2**127 steps ahead of ``rng``'s, a pure function of its state that leaves it untouched, so
     the lens changes no draw of the scene or of what ``rng`` draws next (the view effects)."""

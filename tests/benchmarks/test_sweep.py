@@ -13,7 +13,7 @@ from PIL import Image
 from benchmarks import sweep
 from benchmarks.sweep import main
 from sidar_torch import load_config
-from sidar_torch.dataset import SidarDataset
+from sidar_torch.data.dataset import SidarDataset
 from benchmarks.metrics import speckle_paintings
 from sidar_torch.render import RenderSettings, SceneRenderer
 

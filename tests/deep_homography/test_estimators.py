@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from benchmarks.transfer import recorded_offsets
-from sidar_torch.baselines import ESTIMATORS
+from sidar_torch.evaluation.baselines import ESTIMATORS
 from sidar_torch.deep_homography import estimators
 from sidar_torch.deep_homography.network import CornerNet, ITERATIONS, SCALE
 

@@ -1,4 +1,4 @@
-"""Views through a lens (``lens_model``; ``sidar_torch.lens``, ``sidar_torch.distortion``), checked by
+"""Views through a lens (``lens_model``; ``sidar_torch.sample.lens_views``, ``sidar_torch.choices.lenses``), checked by
 rendering and by tools the project did not write: OpenCV's Brown-Conrady model (``cv2.undistort``,
 ``cv2.undistortPoints``) and homlib's radial-distortion homography solvers (division model)."""
 
@@ -13,7 +13,7 @@ from PIL import Image, ImageFilter
 from conftest import assert_same_sample, small_config
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_config, undistort
 from sidar_torch.config.allowed import LENS_MODELS as LENS_CHOICES
-from sidar_torch.distortion import LENS_MODELS, distorted_points, scaled_lens
+from sidar_torch.choices.lenses import LENS_MODELS, distorted_points, scaled_lens
 from sidar_torch.geometry import plane_corners, project
 from sidar_torch.sample import render_arrays, stack_samples
 from sidar_torch.scene import sample_sequence

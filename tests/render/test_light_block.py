@@ -8,7 +8,7 @@ from OpenGL import GL
 from sidar_torch import SidarDataset
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.render.light_block import BLOCK_NAME, struct_layout
-from sidar_torch.render_choices import MAX_SHADOWED_LIGHTS
+from sidar_torch.choices.render import MAX_SHADOWED_LIGHTS
 
 from conftest import small_config
 

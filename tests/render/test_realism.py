@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from sidar_torch import SidarDataset, geometry, load_config
-from sidar_torch.effects import srgb_to_linear
+from sidar_torch.sample.effects import srgb_to_linear
 from sidar_torch.config import OCCLUDER_SHAPES
 from benchmarks.exposure import view_exposure
 from sidar_torch.render import RenderSettings

@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset, geometry
-from sidar_torch.effects import srgb_to_linear
+from sidar_torch.sample.effects import srgb_to_linear
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
 

@@ -12,7 +12,7 @@ from scipy.ndimage import binary_erosion
 
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Light, Material, Occluder
-from sidar_torch.effects import srgb_to_linear
+from sidar_torch.sample.effects import srgb_to_linear
 
 from conftest import SMALL
 from test_realism import render, sphere

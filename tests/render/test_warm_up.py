@@ -1,4 +1,4 @@
-"""The warm-up (``sidar_torch.warm_up``): every program a preset's samples draw is compiled before
+"""The warm-up (``sidar_torch.sample.warm_up``): every program a preset's samples draw is compiled before
 the first sample, and warming up hands out nothing and changes no pixel."""
 
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 from sidar_torch import SidarDataset, available_presets, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.scene import sample_sequence
-from sidar_torch.warm_up import light_group_counts, variant_signature, warm_up_sequence
+from sidar_torch.sample.warm_up import light_group_counts, variant_signature, warm_up_sequence
 
 from conftest import small_config, textured_painting
 

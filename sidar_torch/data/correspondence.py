@@ -16,9 +16,9 @@ from typing import Any, Mapping
 
 import torch
 
-from .config import as_float, as_int
-from .dense import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
-from .sample import KEYS, float_tensor
+from ..config import as_float, as_int
+from ..sample.depth_flow import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
+from ..sample import KEYS, float_tensor
 
 __all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "flow"]
 

@@ -30,11 +30,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from .augment_pool import RenderPool, RenderTask, render_tasks
-from .config import MAX_WORKERS, SidarConfig, as_float, as_int, load_config
-from .sample import stack_arrays
-from .scene import SceneSequence, sample_sequence
-from .paintings import CROP_MODES, array_to_uint8, tensor_to_uint8
+from .render_pool import RenderPool, RenderTask, render_tasks
+from ..config import MAX_WORKERS, SidarConfig, as_float, as_int, load_config
+from ..sample import stack_arrays
+from ..scene import SceneSequence, sample_sequence
+from ..paintings import CROP_MODES, array_to_uint8, tensor_to_uint8
 
 __all__ = ["SidarAugment"]
 
@@ -63,7 +63,7 @@ class SidarAugment(nn.Module):
             stopped or deadlocked needs it). A new pool's warm-up is not counted in it (see
             ``warm_up_timeout``). Attribute ``timeout``, read at each call.
         warm_up_timeout: with a pool, the most seconds a new pool's workers may take to warm up
-            (compile every shader variant of the config, ``sidar_torch.warm_up``), which they do when
+            (compile every shader variant of the config, ``sidar_torch.sample.warm_up``), which they do when
             the pool starts, before the call that starts it sends any image: about 1-2 s each on an
             idle machine (none when this process's renderer was warm at the fork), 48 s was seen on a
             machine at load 15-20. Default 600; ``0``: no limit. Attribute ``warm_up_timeout``.

@@ -1,6 +1,6 @@
 """Views through a lens: the CPU step after read-back that distorts every per-view image of a
 sequence (:func:`render_through_lens`), the maps it resamples with (:func:`distortion_maps`) and the
-way back for users (:func:`undistort`). The models and their conventions: :mod:`sidar_torch.distortion`.
+way back for users (:func:`undistort`). The models and their conventions: :mod:`sidar_torch.choices.lenses`.
 
 How a view is distorted, exactly. Each distorted pixel takes its colour from where the pinhole
 camera sees the same ray, which may lie outside the pinhole view (barrel distortion sees more than
@@ -12,7 +12,7 @@ the lens only pulls pixels inwards; 2 x 2 while the canvas is under twice the vi
 every default range and the ``lens`` preset; up to 3 x 3 for the strongest barrel the bounds allow). The tiles are pasted
 into the canvas and every image is resampled bilinearly into the distorted view (torch's
 ``grid_sample``); masks and the background flag are resampled as fractions and cut at 1/2, so they
-stay binary. The view effects (``sidar_torch.effects``) come after, as a sensor's do.
+stay binary. The view effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from .distortion import LENS_MODELS, NO_LENS, distorted_points, undistorted_points
-from .scene import Camera, SceneSequence
-from .timing import timed
+from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted_points
+from ..scene import Camera, SceneSequence
+from ..timing import timed
 
 __all__ = ["distortion_maps", "render_through_lens", "tile_origins", "undistort"]
 
@@ -44,7 +44,7 @@ def distortion_maps(model: str, lenses: np.ndarray | None, K: np.ndarray, image_
 
     Args:
         model: ``lens_model`` (``"none"``: every pixel from itself).
-        lenses: ``(V, 5)`` float64 coefficients (``sidar_torch.distortion``), None for ``"none"``.
+        lenses: ``(V, 5)`` float64 coefficients (``sidar_torch.choices.lenses``), None for ``"none"``.
         K: ``(V, 3, 3)`` pinhole intrinsics, pixels.
         image_size: ``(H, W)``.
 
@@ -98,7 +98,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
         The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and
         dtypes) and the :func:`distortion_maps` ``(V, H, W, 2)`` float64 it was resampled with.
     """
-    from .render import RenderedSequence  # imports the GL libraries: at the first render, as the renderer's
+    from ..render import RenderedSequence  # imports the GL libraries: at the first render, as the renderer's
 
     size = tuple(sequence.image_size)
     with timed(timings, "lens"):
@@ -161,7 +161,7 @@ def undistort(sample: Mapping[str, Any], lens_model: str | None = None) -> dict[
     ``homographies`` map between and ``K`` projects into.
 
     Each undistorted pixel is sampled bilinearly where the lens sends it
-    (:func:`sidar_torch.distortion.distorted_points`); pixels whose ray falls outside the distorted
+    (:func:`sidar_torch.choices.lenses.distorted_points`); pixels whose ray falls outside the distorted
     view are black and masked (1).
 
     Args:

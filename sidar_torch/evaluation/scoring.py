@@ -71,13 +71,13 @@ import numpy as np
 import torch
 
 from .baselines import Estimator, resolve_estimator
-from .deep_homography.protocol import MIN_VISIBLE, PATCH, RHO, cut_pair, draw_pairs
-from .deep_homography.warps import WARPS_V1_SHA256, WarpTestSet
-from .config import as_float
-from .config.numbers import shown
-from .geometry import corner_pixels
-from .io import ExportedDataset
-from .io.layout import MANIFEST
+from ..deep_homography.protocol import MIN_VISIBLE, PATCH, RHO, cut_pair, draw_pairs
+from ..deep_homography.warps import WARPS_V1_SHA256, WarpTestSet
+from ..config import as_float
+from ..config.numbers import shown
+from ..geometry import corner_pixels
+from ..io import ExportedDataset
+from ..io.layout import MANIFEST
 from .testsets import TestSet, available_testsets, export_testset, load_testset
 
 __all__ = ["DEFAULT_TIMEOUT", "HORIZON_W", "SHADOW_THRESHOLD", "SINGULAR_DET", "SUCCESS_PX", "TOTAL", "Call",
@@ -335,8 +335,8 @@ def evaluate(estimator: str | Estimator, testset: str | Path = "homography-v1", 
 
     Args:
         estimator: a callable (see the module docstring), the name of a shipped baseline
-            (:data:`sidar_torch.baselines.ESTIMATORS`) or ``"module:function"``.
-        testset: a shipped set's name (:func:`sidar_torch.testsets.available_testsets`) or a folder.
+            (:data:`sidar_torch.evaluation.baselines.ESTIMATORS`) or ``"module:function"``.
+        testset: a shipped set's name (:func:`sidar_torch.evaluation.testsets.available_testsets`) or a folder.
         limit: score only ``limit`` pairs (views for shadow removal), taken one from each category in
             turn (round robin: with 5 categories, ``limit=10`` scores 2 of each); for a named set only
             the sequences they need are rendered.

@@ -19,9 +19,9 @@ from typing import Any, Mapping
 import kornia
 import torch
 
-from .config import as_int
+from ..config import as_int
 from .correspondence import flow
-from .sample import KEYS, float_tensor
+from ..sample import KEYS, float_tensor
 
 __all__ = ["homography_pairs"]
 

@@ -39,14 +39,14 @@ from typing import TYPE_CHECKING, Hashable
 
 import numpy as np
 
-from .config import SidarConfig
-from .config.memory import shadowed_emitters
-from .render import shared_renderer
-from .render.settings import RenderSettings
-from .scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
+from ..config import SidarConfig
+from ..config.memory import shadowed_emitters
+from ..render import shared_renderer
+from ..render.settings import RenderSettings
+from ..scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
 
 if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
-    from .render import SceneRenderer
+    from ..render import SceneRenderer
 
 __all__ = ["WARM_UP_SEED", "light_group_counts", "sample_renderer", "variant_signature", "warm_renderer",
            "warm_up_sequence"]
@@ -68,7 +68,7 @@ def variant_signature(material: Material) -> tuple[str | None, bool, bool]:
     """What of an occluder's ``material`` picks its shader variants: its mirror define
     (``render.mirror.mirror_define``), whether it is blended (transparent), and whether its shadow
     goes to the depth maps (opaque, or ``opaque_shadow``) rather than the transmittance maps."""
-    from .render.mirror import mirror_define  # imports pyrender: at the first warm-up, not with the package
+    from ..render.mirror import mirror_define  # imports pyrender: at the first warm-up, not with the package
 
     return mirror_define(material), material.transparent, not material.transparent or material.opaque_shadow
 
@@ -79,7 +79,7 @@ def light_group_counts(config: SidarConfig) -> tuple[int, ...]:
     that a view of ``config`` may have (a program each), then one above if a view may have more (the
     program with the loop). A light is one group with ``area_light_shading: per_light``, each of its
     emitters one with ``per_emitter``."""
-    from .render.passes import UNROLLED_LIGHT_GROUPS  # imports OpenGL: at the first warm-up
+    from ..render.passes import UNROLLED_LIGHT_GROUPS  # imports OpenGL: at the first warm-up
 
     most = config.n_lights[1] if config.area_light_shading == "per_light" else shadowed_emitters(config)
     counts = tuple(range(max(config.n_lights[0], 1), min(most, UNROLLED_LIGHT_GROUPS) + 1))

@@ -38,11 +38,11 @@ from typing import Any, Iterator
 import numpy as np
 import torch
 
-from .config import as_int
-from .dataset import SidarDataset
-from .io import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
-from .orphans import ProcessStamp, exit_with_process
-from .sample import KEYS, SampleArrays, stack_arrays
+from ..config import as_int
+from ..data.dataset import SidarDataset
+from . import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
+from ..orphans import ProcessStamp, exit_with_process
+from ..sample import KEYS, SampleArrays, stack_arrays
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
 
@@ -122,7 +122,7 @@ def ray_dataset(dataset: SidarDataset, count: int, start: int = 0, actors: int =
 
     One row per index, with the :class:`~sidar_torch.sample.SampleArrays` fields as columns
     (``V`` views of ``H x W``): ``images`` ``(V, H, W, 3)`` uint8, ``masks`` ``(V, H, W)`` uint8 (255 where
-    the painting is not visible), each optional output switched on (``render_choices.OUTPUTS``: ``(V, H, W)``
+    the painting is not visible), each optional output switched on (``choices.outputs.OUTPUTS``: ``(V, H, W)``
     or ``(V, H, W, C)`` of its row's dtype, as :class:`~sidar_torch.sample.SampleArrays` holds it), ``label``
     ``(H, W, 3)`` uint8, ``homographies`` ``(V, V, 3, 3)`` float64, ``homography_error``
     float64 (pixels), ``K``, ``R`` ``(V, 3, 3)`` and ``t`` ``(V, 3)`` float64 (OpenCV camera frame),

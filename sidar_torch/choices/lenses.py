@@ -3,7 +3,8 @@ distorted pixel comes from in the undistorted (pinhole) view and back, and the b
 model invertible across a view.
 
 Both the configuration (which checks the lens ranges) and the sample floor (which renders through a
-lens, ``sidar_torch.lens``) need these, so, like ``render_choices``, this module imports only NumPy.
+lens, ``sidar_torch.sample.lens_views``) need these, so, like the rest of ``sidar_torch.choices``, this module
+imports only NumPy.
 
 Conventions. A lens acts on *normalised camera coordinates* ``x = K^-1 (u, v, 1)`` (Kornia pixels:
 pixel (u, v) is column u, row v, the top-left pixel's centre is (0, 0)); ``K`` stays the pinhole

@@ -20,7 +20,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .deep_homography.estimators import network_estimator
+from ..deep_homography.estimators import network_estimator
 
 __all__ = ["ESTIMATORS", "Estimator", "ecc", "identity", "orb_ransac", "resolve_estimator", "sift_magsac",
            "sift_ransac"]

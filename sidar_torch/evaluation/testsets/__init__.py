@@ -27,10 +27,10 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from ..config import SidarConfig, load_config
-from ..dataset import SidarDataset
-from ..io import export_dataset
-from ..io.layout import SEQUENCE_NAME
+from ...config import SidarConfig, load_config
+from ...data.dataset import SidarDataset
+from ...io import export_dataset
+from ...io.layout import SEQUENCE_NAME
 
 __all__ = ["Category", "DigestCheck", "TestSet", "available_testsets", "check_digests", "definition_digest",
            "export_testset", "file_digests", "load_testset"]

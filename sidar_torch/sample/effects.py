@@ -44,7 +44,7 @@ import numpy as np
 import torch
 from PIL import Image
 
-from .config import SidarConfig
+from ..config import SidarConfig
 
 __all__ = ["ViewEffects", "apply_effects", "blur_painting", "draw_effects", "enabled_effects", "gaussian_filter",
            "jpeg_roundtrip", "linear_to_srgb", "srgb_to_linear"]

@@ -9,7 +9,7 @@ gives each sequence the values it gets alone (``sample.batch_homographies``), so
 nor the geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
-parent's, or one created and warmed up when the pool starts, ``sidar_torch.warm_up``; then reused),
+parent's, or one created and warmed up when the pool starts, ``sidar_torch.sample.warm_up``; then reused),
 fed one task at a time through its own socket pair: a process that finishes takes the next task, and
 results are put back in batch order.
 
@@ -20,7 +20,7 @@ descriptor number, where ``select`` fails for one of 1024 or more) that end at t
 or after :data:`LONGEST_WAIT_S`, whichever comes first, so any finite limit works. A worker
 stopped (``SIGSTOP``) or hung while the parent sends it a task larger than the socket buffer, while it
 renders, or in the middle of its reply is thus caught by the same ``timeout``, and named with its pid
-and state. A new pool's workers warm up (``sidar_torch.warm_up``) before the pool takes tasks, under
+and state. A new pool's workers warm up (``sidar_torch.sample.warm_up``) before the pool takes tasks, under
 their own limit, so a call's ``timeout`` counts no shader compilation.
 
 A worker ends with its parent, whatever it is doing (rendering, waiting, blocked sending a reply
@@ -58,14 +58,14 @@ from typing import Any, Callable, Sequence
 import numpy as np
 import torch
 
-from .config import MAX_WORKERS, SidarConfig, as_int
-from .orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
-from .render import preload
-from .render.context import forks_nothing
-from .sample import SampleArrays, batch_homographies, render_arrays
-from .scene import sample_sequence
-from .paintings import TensorPaintings
-from .warm_up import warm_renderer
+from ..config import MAX_WORKERS, SidarConfig, as_int
+from ..orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
+from ..render import preload
+from ..render.context import forks_nothing
+from ..sample import SampleArrays, batch_homographies, render_arrays
+from ..scene import sample_sequence
+from ..paintings import TensorPaintings
+from ..sample.warm_up import warm_renderer
 
 __all__ = ["LONGEST_WAIT_S", "RenderPool", "RenderTask", "render_tasks"]
 
@@ -182,7 +182,7 @@ class RenderPool:
         num_workers: number of processes, from 1 to :data:`sidar_torch.config.MAX_WORKERS` (256:
             each holds its own renderer, about 100 MiB, and renders on one CPU thread).
         warm_up_timeout: the most seconds the constructor waits for every worker to warm up (compile
-            the shader variants of ``config``, :func:`sidar_torch.warm_up.warm_renderer`; at once
+            the shader variants of ``config``, :func:`sidar_torch.sample.warm_up.warm_renderer`; at once
             when the parent's renderer was warm at the fork); ``0``: no limit. Any finite number
             (see :data:`LONGEST_WAIT_S`).
 

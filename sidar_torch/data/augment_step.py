@@ -27,7 +27,7 @@ import torch
 from torch import nn
 
 from .augment import Generator, SidarAugment, _check_images
-from .config import as_float, as_int
+from ..config import as_float, as_int
 
 __all__ = ["SidarStep"]
 

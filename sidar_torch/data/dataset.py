@@ -1,7 +1,7 @@
 """``SidarDataset``: paintings x random scenes x renderer -> samples of tensors, on the fly.
 
 A sample is a pure function of ``(seed, index)``: its scene, then its view effects (if any are
-switched on, see ``sidar_torch.effects``), are drawn with ``numpy.random.default_rng([seed,
+switched on, see ``sidar_torch.sample.effects``), are drawn with ``numpy.random.default_rng([seed,
 index])`` and its painting is ``source[index % len(source)]``,
 so the same sample comes out whatever the number of workers, ranks or the order of iteration.
 """
@@ -16,12 +16,12 @@ import numpy as np
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
-from .config import SidarConfig, as_int, load_config
-from .render import preload
-from .sample import SampleArrays, render_arrays
-from .scene import SceneSequence, sample_sequence
-from .paintings import PaintingSource, make_source
-from .warm_up import warm_renderer
+from ..config import SidarConfig, as_int, load_config
+from ..render import preload
+from ..sample import SampleArrays, render_arrays
+from ..scene import SceneSequence, sample_sequence
+from ..paintings import PaintingSource, make_source
+from ..sample.warm_up import warm_renderer
 
 __all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
@@ -191,7 +191,7 @@ class SidarDataset(IterableDataset):
 
     def warm_up(self) -> None:
         """Compile every shader variant this dataset's samples can need in this process's renderer
-        now (``sidar_torch.warm_up``), which the first sample does otherwise; later calls return at
+        now (``sidar_torch.sample.warm_up``), which the first sample does otherwise; later calls return at
         once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
         too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
         and compile nothing."""

@@ -1,14 +1,13 @@
 """The sample contract: every key of a sample with its shape, dtype, meaning and when it is present
-(:data:`KEYS`), the arrays a sample is made of (:class:`SampleArrays`), and the one path that
-assembles them from the renderer's output (:func:`render_arrays`).
+(:data:`KEYS`), the arrays a sample is made of (:class:`SampleArrays`) and their batching.
 
 Every consumer goes through this module: :class:`sidar_torch.SidarDataset` and
 :class:`sidar_torch.SidarAugment` hand out :meth:`SampleArrays.to_tensors`, export writes a
 :class:`SampleArrays` and :class:`sidar_torch.ExportedDataset` rebuilds one from the files and
 calls the same :meth:`SampleArrays.to_tensors`, so a set read back equals the rendered samples by
-construction. An optional output is a row of ``render_choices.OUTPUTS`` (its switch, channels, file,
+construction. An optional output is a row of ``choices.outputs.OUTPUTS`` (its switch, channels, file,
 memory, values, meaning and producer); its row of :data:`KEYS`, its field of :class:`SampleArrays`, the
-checks, the tensors and :func:`render_arrays` follow the row (and the renderer draws it).
+checks and the tensors follow the row (:mod:`.assembly` makes the arrays).
 
 Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) adds a leading ``B``.
 """
@@ -16,24 +15,17 @@ Shapes: ``V`` views of ``H x W`` pixels; a batch (DataLoader, ``SidarAugment``) 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 import torch
 
-from . import geometry
-from .dense import depth_flow
-from .distortion import LENS_MODELS, NO_LENS
-from .effects import apply_effects, blur_painting, draw_effects
-from .lens import distortion_maps, render_through_lens
-from .config import SidarConfig
-from .render_choices import OUTPUTS
-from .scene import SceneSequence
-from .timing import timed
-from .warm_up import sample_renderer
+from ..choices.lenses import LENS_MODELS, NO_LENS
+from ..choices.outputs import OUTPUTS
+from ..config import SidarConfig
 
-__all__ = ["COMPUTATIONS", "FLOAT_OUTPUTS", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "batch_homographies", "float_tensor", "render_arrays", "render_sample",
-           "sequence_homographies", "stack_arrays", "stack_samples"]
+__all__ = ["FLOAT_OUTPUTS", "GEOMETRY_DTYPES", "KEYS", "LENS_KEYS", "PIXEL_KEYS", "SampleArrays", "SampleKey", "float_tensor",
+           "present_keys", "stack_arrays", "stack_samples"]
 
 
 @dataclass(frozen=True)
@@ -60,7 +52,7 @@ class SampleKey:
 
     @classmethod
     def optional(cls, name: str) -> "SampleKey":
-        """The key of the optional output ``name``: its row of ``render_choices.OUTPUTS`` gives all of it
+        """The key of the optional output ``name``: its row of ``choices.outputs.OUTPUTS`` gives all of it
         (switch, export entry, values, meaning and channels: the shape ``(V, C, H, W)``)."""
         row = OUTPUTS[name]
         return cls(name, f"(V, {row.channels}, H, W)", row.values, row.meaning, switch=row.switch, entry=row.entry)
@@ -92,7 +84,7 @@ KEYS: tuple[SampleKey, ...] = (
     SampleKey("lens", "(V, 5)", "float64",
               "each view's lens in normalised camera coordinates K^-1 (u, v, 1): OpenCV's (k1, k2, p1, p2, k3) for "
               "lens_model brown_conrady (cv2.undistort(view, K, lens)), (lambda, 0, 0, 0, 0) for division "
-              "(x_u = x_d / (1 + lambda |x_d|^2)); see sidar_torch.distortion", switch="lens_model"),
+              "(x_u = x_d / (1 + lambda |x_d|^2)); see sidar_torch.choices.lenses", switch="lens_model"),
     SampleKey("lens_model", "()", "str (Python)",
               "the lens model lens holds the coefficients of: the config's lens_model, 'brown_conrady' or "
               "'division' (sidar_torch.undistort reads it); a batch holds a list of B, as DataLoader collates "
@@ -113,8 +105,8 @@ PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key
 ``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
 LENS_KEYS = ("lens", "lens_model", "distortion_maps")
-"""The keys the lens step makes (:mod:`sidar_torch.lens`, a CPU step after read-back), not the renderer:
-the optional keys besides ``render_choices.OUTPUTS``' rows. ``lens`` and ``lens_model`` are turned on by
+"""The keys the lens step makes (:mod:`sidar_torch.sample.lens_views`, a CPU step after read-back), not the renderer:
+the optional keys besides ``choices.outputs.OUTPUTS``' rows. ``lens`` and ``lens_model`` are turned on by
 ``lens_model`` (not ``"none"``), ``distortion_maps`` by ``distortion_map_output``; none has a file of its
 own (``lens`` is in ``cameras.json``, ``lens_model`` in the export's recorded config, the maps are
 recomputed on reading)."""
@@ -131,7 +123,7 @@ def present_keys(config: SidarConfig | Mapping[str, Any]) -> tuple[SampleKey, ..
 
 
 def _with_output_fields(cls: type) -> type:
-    """``cls`` with one field per optional output (``render_choices.OUTPUTS``, in its order, after the
+    """``cls`` with one field per optional output (``choices.outputs.OUTPUTS``, in its order, after the
     fields of the class body), ``None`` by default (not rendered): applied before ``dataclass``, so a
     new row is a new field without a line here."""
     for name in OUTPUTS:
@@ -154,10 +146,10 @@ class SampleArrays:
         K, R: ``(V, 3, 3)``, t: ``(V, 3)`` float64.
         index: the dataset index.
         lens: ``(V, 5)`` float64, each view's lens (None: no lens).
-        lens_model: the model of ``lens``, a row of :data:`sidar_torch.distortion.LENS_MODELS` (None:
+        lens_model: the model of ``lens``, a row of :data:`sidar_torch.choices.lenses.LENS_MODELS` (None:
             no lens; given exactly when ``lens`` is).
         distortion_maps: ``(V, 2, H, W)`` float32 (None: not asked for).
-        and one field per optional output, named as its row of ``render_choices.OUTPUTS`` (``opacities``,
+        and one field per optional output, named as its row of ``choices.outputs.OUTPUTS`` (``opacities``,
             ``depth``, ...): ``(V, H, W)`` (one channel) or ``(V, H, W, C)`` (``C`` channels) of the row's
             dtype (uint8 or float32), or None (not rendered).
 
@@ -314,133 +306,3 @@ def stack_samples(samples: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
         else:
             batch[key] = torch.tensor(values, dtype=torch.int64 if isinstance(values[0], int) else torch.float64)
     return batch
-
-
-def sequence_homographies(sequence: SceneSequence) -> tuple[torch.Tensor, float]:
-    """Every pairwise homography of a sequence and a bound on its error.
-
-    Four points of the painting's plane in front of every camera (:func:`sidar_torch.geometry.fit_points`)
-    are projected with each camera in float64 and Kornia's DLT fits every ordered pair (see
-    :func:`sidar_torch.geometry.homographies_from_points`).
-
-    Returns:
-        ``(V, V, 3, 3)`` float64 homographies (det = 1), and the largest distance in view-j pixels
-        between where they and the analytic plane-induced homographies send the painting points
-        both views of a pair see (a 17 x 17 lattice, :func:`sidar_torch.geometry.visible_plane_points`):
-        the DLT is exact at its own four points, so the error shows elsewhere.
-    """
-    return batch_homographies([sequence])[0]
-
-
-def batch_homographies(sequences: Sequence[SceneSequence]) -> list[tuple[torch.Tensor, float]]:
-    """:func:`sequence_homographies` of each of ``sequences`` (at least one, all with the same number
-    of views), with one Kornia DLT call for all their pairs: the values each would get alone."""
-    views = {len(sequence.views) for sequence in sequences}
-    if len(views) != 1:
-        raise ValueError(f"sequences: expected at least one, all with the same number of views, got "
-                         f"{[len(sequence.views) for sequence in sequences]} views")
-    cameras = [sequence.cameras() for sequence in sequences]
-    centres = [np.stack([view.camera.position for view in sequence.views]) for sequence in sequences]
-    points = [geometry.project(K, R, t, geometry.fit_points(c)) for (K, R, t), c in zip(cameras, centres)]
-    fits = geometry.homographies_from_points(np.stack(points))
-    results = []
-    for sequence, (K, R, t), H in zip(sequences, cameras, fits):
-        pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
-        truth = geometry.plane_induced_homographies(K, R, t)
-        results.append((H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))))
-    return results
-
-
-def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None,
-                  homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
-    """Render ``sequence`` with ``painting`` and assemble one sample's arrays: the one place a sample is made.
-
-    Args:
-        sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
-        painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer (this process's for its settings, warmed up for it before its
-            first sample: ``sidar_torch.warm_up``) and its settings (image size, shadow-map size and filter,
-            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``), the views' texture
-            (``texture_blur_sigma``) and the view effects (:mod:`sidar_torch.effects`: background,
-            exposure, noise, JPEG; off by default).
-        index: stored as the sample's ``index``.
-        timings: if given, seconds spent are added to its keys: the renderer's steps (see
-            :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on), ``"homographies"`` and each computed output's producer (``"flow"``: ``flow_output``).
-        rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
-            when ``config`` switches an effect on (``ValueError`` otherwise).
-        homographies: ``sequence_homographies(sequence)``, when computed already (with other
-            sequences', :func:`batch_homographies`); default: computed here.
-    """
-    effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
-    texture = None
-    if config.texture_blur_sigma > 0:  # the views see the painting blurred, the label stays exact
-        with timed(timings, "upload"):
-            texture = blur_painting(painting, config.texture_blur_sigma)
-    if sequence.lens_model == NO_LENS:
-        rendered, sources = sample_renderer(config).render(sequence, painting, timings, texture), None
-    else:  # the lens's optics before the sensor's effects
-        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, timings, texture)
-    views, outputs = rendered.views, dict(rendered.outputs)
-    if effects is not None:
-        with timed(timings, "effects"):
-            views = apply_effects(views, rendered.background, effects)
-            for name in [name for name in outputs if OUTPUTS[name].view_effects]:  # the same draws
-                outputs[name] = apply_effects(outputs[name], rendered.background, effects)
-    if homographies is None:
-        with timed(timings, "homographies"):
-            homographies = sequence_homographies(sequence)
-    homographies, homography_error = homographies
-    K, R, t = sequence.cameras()
-    outputs = _with_computed_outputs(outputs, config, K, R, t, timings)
-    if config.distortion_map_output:
-        with timed(timings, "lens"):
-            maps = sources if sources is not None else distortion_maps(NO_LENS, None, K, sequence.image_size)
-            outputs["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
-    return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
-                        homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
-                        index=index, lens=sequence.lenses,
-                        lens_model=None if sequence.lenses is None else sequence.lens_model, **outputs)
-
-
-def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
-                           t: np.ndarray, timings: dict[str, float] | None) -> dict[str, np.ndarray]:
-    """``outputs`` (the renderer's, by name) with the computed outputs the config asks for added
-    (``OptionalOutput.computed_from``, each by its row of :data:`COMPUTATIONS`, timed under its producer's
-    name) and the drawn ones only they needed left out."""
-    asked = {name for name, row in OUTPUTS.items() if getattr(config, row.switch)}
-    for name in sorted(asked):
-        row = OUTPUTS[name]
-        if row.computed_from is not None:
-            with timed(timings, row.producer):
-                outputs[name] = COMPUTATIONS[row.producer](outputs[row.computed_from], K, R, t)
-    return {name: array for name, array in outputs.items() if name in asked}
-
-
-def _reference_flows(depth: np.ndarray, K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``(V, H, W, 2)`` float32: each view's flow to view 0 (:func:`sidar_torch.dense.depth_flow`), NaN where
-    not valid, from ``depth`` ``(V, H, W)`` float32 and the cameras (float64)."""
-    tensors = [torch.from_numpy(np.asarray(a, np.float64))[None] for a in (depth, K, R, t)]
-    flows = []
-    for i in range(len(depth)):
-        flow, valid = depth_flow(*tensors, i, 0)
-        flows.append(torch.where(valid, flow, torch.full_like(flow, float("nan")))[0])
-    return torch.stack(flows).permute(0, 2, 3, 1).float().numpy()
-
-
-COMPUTATIONS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]] = {
-    "flow": _reference_flows,
-}
-"""The CPU steps that compute an output from a drawn one after read-back, by ``OptionalOutput.producer``
-(``render_choices.OUTPUTS`` rows with ``computed_from``): each takes that output's ``(V, H, W[, C])`` array
-and the cameras ``K``, ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` (float64) and returns the computed output's."""
-
-
-def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> dict[str, Any]:
-    """:func:`render_arrays`, then :meth:`SampleArrays.to_tensors` in ``config.geometry_dtype``
-    (timed as ``"tensors"``): the sample dict of :data:`KEYS`."""
-    arrays = render_arrays(sequence, painting, config, index, timings, rng)
-    with timed(timings, "tensors"):
-        return arrays.to_tensors(config.geometry_dtype)
