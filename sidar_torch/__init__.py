@@ -14,7 +14,7 @@ from .config import SidarConfig, available_presets, load_config
 from .data.augment import SidarAugment
 from .data.augment_step import SidarStep
 from .data.dataset import SidarDataset
-from .data.correspondence import flow
+from .sample.correspondence import flow
 from .evaluation.scoring import evaluate
 from .io import ExportedDataset, export_dataset
 from .sample.lens_views import undistort

@@ -20,7 +20,7 @@ import kornia
 import torch
 
 from ..config import as_int
-from .correspondence import flow
+from ..sample.correspondence import FLOW_SOURCE, flow
 from ..sample import KEYS, float_tensor
 
 __all__ = ["homography_pairs"]
@@ -168,7 +168,7 @@ def homography_pairs(batch: Mapping[str, Any], patch_size: int | tuple[int, int]
             values = _per_view_tensor(batch, name, images, single)
             out[f"{name}_a"] = _crop(values[rows, a], u0, v0, (ph, pw))
             out[f"{name}_b"] = _crop(values[rows, b], u0, v0, (ph, pw))
-    if "depth" in batch:
+    if FLOW_SOURCE in batch:
         flows, seen = _flows(batch, single, a, b)
         out["flow_ab"] = _crop(flows, u0, v0, (ph, pw))
         out["flow_valid"] = _crop(seen, u0, v0, (ph, pw)).to(images.dtype)

@@ -1,5 +1,5 @@
 """Dense correspondence from depth: the math of :func:`sidar_torch.flow` and of the ``flow_to_reference``
-output, float64 torch, on plain tensors (no sample keys; ``sidar_torch.data.correspondence`` checks a
+output, float64 torch, on plain tensors (no sample keys; ``sidar_torch.sample.correspondence`` checks a
 sample's and calls :func:`depth_flow`).
 
 Pixels are Kornia's (pixel ``(u, v)`` is column u, row v; the top-left pixel's centre is ``(0, 0)``);

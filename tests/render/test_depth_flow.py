@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from sidar_torch import SidarDataset, flow, geometry
-from sidar_torch.data.correspondence import DEPTH_EDGE
+from sidar_torch.sample.correspondence import DEPTH_EDGE
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene

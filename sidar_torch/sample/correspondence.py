@@ -16,11 +16,16 @@ from typing import Any, Mapping
 
 import torch
 
+from ..choices.outputs import OUTPUTS
 from ..config import as_float, as_int
-from ..sample.depth_flow import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
-from ..sample import KEYS, float_tensor
+from .contract import KEYS, float_tensor
+from .depth_flow import DEPTH_EDGE, DEPTH_TOLERANCE, depth_flow
 
-__all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "flow"]
+__all__ = ["DEPTH_EDGE", "DEPTH_TOLERANCE", "FLOW_SOURCE", "flow"]
+
+FLOW_SOURCE = OUTPUTS["flow_to_reference"].computed_from
+"""The sample key :func:`flow` reads (the output the ``flow_to_reference`` row is computed from: ``depth``);
+a batch that holds it can be given flow (``homography_pairs``)."""
 
 
 def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOLERANCE
@@ -50,8 +55,8 @@ def flow(sample: Mapping[str, Any], i: int, j: int, tolerance: float = DEPTH_TOL
             whose shapes do not fit together, or intrinsics ``K`` of view i or j that are not finite
             and invertible (each named).
     """
-    if "depth" not in sample:
-        raise KeyError("sample: no 'depth' key; render with the config field depth_output: true")
+    if FLOW_SOURCE not in sample:
+        raise KeyError(f"sample: no {FLOW_SOURCE!r} key; render with the config field {OUTPUTS[FLOW_SOURCE].switch}: true")
     depth, K, R, t, batched = _checked(sample)
     i, j = (_view_index(name, view, depth.shape[1]) for name, view in (("i", i), ("j", j)))
     tolerance = as_float("tolerance", tolerance, finite=False)
