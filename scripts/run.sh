@@ -22,8 +22,20 @@ fi
 [ -x .venv/bin/python ] || python3 -m venv .venv
 # torch first, pinned: 2.13.0 is the CPU build on these machines; an unpinned torch pulls CUDA (GBs).
 # Then the package with the versions the suite was last checked with (scripts/constraints.txt).
-.venv/bin/python -m pip install -q torch==2.13.0
-.venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test,ray,bench]"
+# pip runs only when what it installs from changed since the last install that finished (the stamp:
+# this script's pip lines, pyproject.toml, the constraints and the venv's Python), about 10 s saved.
+torch_pin="torch==2.13.0"
+stamp=".venv/sidar-install-stamp"
+wanted="$(cat pyproject.toml scripts/constraints.txt <(grep "pip install" scripts/run.sh) | sha256sum | cut -c1-16) $torch_pin $(.venv/bin/python -V 2>&1)"
+started=$(date +%s.%N)
+if [ "$(cat "$stamp" 2>/dev/null)" != "$wanted" ]; then
+  .venv/bin/python -m pip install -q "$torch_pin"
+  .venv/bin/python -m pip install -q -c scripts/constraints.txt -e ".[test,ray,bench]"
+  echo "$wanted" > "$stamp"
+  echo "run.sh: installed in $(awk "BEGIN { printf \"%.1f\", $(date +%s.%N) - $started }") s" >&2
+else
+  echo "run.sh: installs up to date (pyproject.toml, scripts/constraints.txt unchanged), pip skipped" >&2
+fi
 
 task="${1:-}"; shift || true
 case "$task" in
