@@ -7,11 +7,9 @@ file per ordered pair of views (the paper's own layout, its homographies as text
     000007/            the sequence of dataset index 7 (at least 6 digits)
       0.png .. <V-1>.png   the views, 8-bit RGB; view 0 is the reference camera
       0-m.png ..           the masks, 8-bit grey: 255 where the painting is not visible, else 0
-      0-o.png ..           only with ``opacity_output``: 255 times the fraction of the painting hidden
-      0-s.png ..           only with ``shadow_mask_output``: 255 times the fraction of the direct light blocked
-      0-f.png ..           only with ``shadow_free_output``: the views with no light blocked, 8-bit RGB
-      0-d.npy ..           only with ``depth_output``: the depth, float32 (H, W), painting units, inf where nothing
-      0-flow.npy ..        only with ``flow_output``: the flow to view 0, float32 (H, W, 2), NaN where not valid
+      0-o.png, 0-n.npy ..  the optional outputs switched on (``opacity_output``, ``normals_output``, ...): one
+                           file per view each, named and described by its row of ``choices.outputs.OUTPUTS``
+                           (``entry``, ``description``; ``export.json`` lists those of the set)
       gt.png               the label (the painting in view 0's frame, unlit, unoccluded)
       H_<i>_<j>.mat        homographies[i, j] for every ordered pair i != j: variable ``H``, 3 x 3 float64
       cameras.json         index, image_size [H, W], K, R, t per view (float64), homography_error

@@ -14,7 +14,7 @@ paper's folders.
                            convention, det = 1 (see :func:`paper_from_kornia`)
       homographies.npy     ours, exact: (V, V, 3, 3) float64 in Kornia pixels (the reader's source)
       cameras.json         ours: index, image size, K, R, t, homography error
-      0-o.png, 0-s.png, 0-f.png ... the optional outputs, when rendered (as the folder layout)
+      0-o.png .. 0-n.npy   the optional outputs switched on, as the folder layout (``choices.outputs.OUTPUTS``)
 
 The paper's pixel convention puts the image's outer edges at ``0`` and ``W - 1`` (``x = (W - 1)
 (ndc_x + 1) / 2``); Kornia's puts them at ``-0.5`` and ``W - 0.5`` (pixel centres at integers).
