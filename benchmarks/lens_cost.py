@@ -19,6 +19,7 @@ from sidar_torch import SidarDataset
 from sidar_torch.sample.lens_views import distortion_maps, tile_origins
 from sidar_torch.sample import render_arrays
 from sidar_torch.scene import sample_sequence
+from sidar_torch.timing import collect_timings
 
 from .common import machine, machine_line, median, one_thread
 from .paired import CLOCKS, WARMUP, paired_config, paired_parser
@@ -26,13 +27,14 @@ from .paired import CLOCKS, WARMUP, paired_config, paired_parser
 MODELS = ("none", "brown_conrady", "division")
 
 
-def _sample_ms(dataset: SidarDataset, index: int, timings: dict[str, float]) -> dict[str, float]:
-    """Make sample ``index`` of ``dataset``; ms per view by clock (``CLOCKS``); ``timings`` gets its steps."""
+def _sample_ms(dataset: SidarDataset, index: int) -> dict[str, float]:
+    """Make sample ``index`` of ``dataset``; ms per view by clock (``CLOCKS``); its steps go to the open
+    ``sidar_torch.timing.collect_timings``."""
     rng = dataset.generator(index)
     sequence = sample_sequence(dataset.config, rng)
     painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
     start = {clock: read() for clock, read in CLOCKS.items()}
-    render_arrays(sequence, painting, dataset.config, index, timings, rng)
+    render_arrays(sequence, painting, dataset.config, index, rng=rng)
     return {clock: 1e3 * (read() - start[clock]) / len(sequence.views) for clock, read in CLOCKS.items()}
 
 
@@ -52,8 +54,8 @@ def main(argv: list[str] | None = None) -> None:
         for index in [10_000 + k for k in range(WARMUP)] + list(range(args.samples)):
             order = MODELS if index % 2 else MODELS[::-1]
             for model in order:
-                timings: dict[str, float] = {}
-                times = _sample_ms(datasets[model], index, timings)
+                with collect_timings() as timings:
+                    times = _sample_ms(datasets[model], index)
                 if index >= 10_000:
                     continue
                 for clock, value in times.items():

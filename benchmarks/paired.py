@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from sidar_torch import SidarConfig, SidarDataset, load_config
+from sidar_torch.timing import collect_timings
 
 from .common import DEFAULT_PRESET, parse_set, parse_size
 
@@ -75,9 +76,9 @@ def paired_settings_times(config: Any, off: Any, on: Any, samples: int,
         pair: dict[bool, dict[str, float]] = {}
         views: dict[bool, np.ndarray] = {}
         for on in ((False, True) if index % 2 else (True, False)):
-            pair[on] = {}
             start = {clock: read() for clock, read in CLOCKS.items()}
-            views[on] = renderers[on].render(sequence, painting, pair[on]).views
+            with collect_timings() as pair[on]:
+                views[on] = renderers[on].render(sequence, painting).views
             if index in warmup:
                 continue
             for clock, read in CLOCKS.items():

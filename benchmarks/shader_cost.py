@@ -25,6 +25,7 @@ import statistics
 from typing import Iterator
 
 from sidar_torch import SidarDataset, load_config
+from sidar_torch.timing import collect_timings
 
 from .common import DEFAULT_PRESET, machine, machine_line, parse_set, parse_size, size_label
 
@@ -129,8 +130,8 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
         for _ in range(args.rounds):
             for k, (sequence, painting) in enumerate(work):
                 for name, (renderer, _) in renderers.items():
-                    timings: dict[str, float] = {}
-                    renderer.render(sequence, painting, timings)
+                    with collect_timings() as timings:
+                        renderer.render(sequence, painting)
                     colour_ms[name][k] = min(colour_ms[name][k], 1e3 * timings["colour"] / len(sequence.views))
         for name, (renderer, programs) in renderers.items():
             if renderer.program_count != programs:  # a program compiled after its cut was removed

@@ -31,7 +31,7 @@ from .io import pixel_entries_text
 from .orphans import process_age
 from .data.preview import contact_sheet
 from .evaluation.testsets import available_testsets, export_testset, load_testset
-from .timing import timed
+from .timing import stopwatch
 
 __all__ = ["main", "parse_overrides"]
 
@@ -60,7 +60,7 @@ def counted(count: int, noun: str) -> str:
 
 class WallClock:
     """The command's wall time, in parts: ``parts[name]`` holds the seconds spent in each
-    ``with clock.part(name):`` block (:func:`sidar_torch.timing.timed`).
+    ``with clock.part(name):`` block (:func:`sidar_torch.timing.stopwatch`).
 
     Args:
         age: seconds between the process's start and now (:func:`sidar_torch.orphans.process_age`):
@@ -74,7 +74,7 @@ class WallClock:
 
     def part(self, name: str) -> ContextManager[None]:
         """A context manager adding its block's seconds to ``parts[name]``."""
-        return timed(self.parts, name)
+        return stopwatch(self.parts, name)
 
     def line(self) -> str:
         """``wall time 82.0 s since the process started: start-up 10.1 s, warm-up 48.0 s, export 19.5 s,

@@ -65,18 +65,18 @@ def textured_painting(size, seed=0):
 
 
 def render_flat_painting(occluders=(), lights=(), plane=WHITE, ambient=0.0, painting=200, size=SMALL, camera=None,
-                         renderer=None, timings=None, **settings):
+                         renderer=None, **settings):
     """One view of a flat painting through the reference camera (height 0.9 unless ``camera`` is
     given): ``painting`` a grey level, an RGB triple or an ``(H, W, 3)`` uint8 array. Rendered by
     ``renderer``, else by this process's shared renderer for ``RenderSettings(size, **settings)``
-    (``timings``: see ``SceneRenderer.render``); returns its ``RenderedSequence``."""
+    returns its ``RenderedSequence``."""
     from sidar_torch.render import RenderSettings, shared_renderer
 
     camera = camera or Camera(*geometry.reference_camera(size, 0.9))
     view = ViewScene(camera, tuple(lights), tuple(occluders), plane, ambient)
     texture = np.broadcast_to(np.asarray(painting, np.uint8), (*size, 3)).copy()
     renderer = renderer or shared_renderer(RenderSettings(size, **settings))
-    return renderer.render(SceneSequence(size, (view,)), texture, timings)
+    return renderer.render(SceneSequence(size, (view,)), texture)
 
 
 def same_tensor(a, b):

@@ -1,5 +1,8 @@
-"""The library's timing hook (``sidar_torch.timing.timed``, the ``timings`` argument of the
-renderer and ``render_sample``): it adds seconds only when asked and never changes a pixel."""
+"""The library's timing hook (``sidar_torch.timing``: ``timed`` steps, added to the collector a caller opens
+with ``collect_timings``): it adds seconds only inside a collection, never mixes two collections, and
+never changes a pixel."""
+
+import threading
 
 import numpy as np
 import pytest
@@ -7,29 +10,73 @@ import torch
 
 from sidar_torch.sample import render_sample
 from sidar_torch.scene import sample_sequence
-from sidar_torch.timing import timed
+from sidar_torch.timing import collect_timings, stopwatch, timed
 
 from conftest import small_config, textured_painting
 
-pytestmark = pytest.mark.gl  # renders
 
-
-def test_timed_adds_seconds_only_when_asked():
+def test_timed_adds_seconds_only_inside_a_collection():
     calls = []
-    with timed(None, "x", sync=lambda: calls.append(1)):
+    with timed("x", sync=lambda: calls.append(1)):
         pass
-    assert calls == []
-    timings = {}
-    for _ in range(2):
-        with timed(timings, "x", sync=lambda: calls.append(1)):
+    assert calls == []  # no collector: not synced, nothing kept
+    with collect_timings() as timings:
+        for _ in range(2):
+            with timed("x", sync=lambda: calls.append(1)):
+                pass
+        with pytest.raises(KeyError):
+            with timed("y", sync=lambda: calls.append(1)):
+                raise KeyError("boom")
+    assert calls == [1, 1] and set(timings) == {"x", "y"} and timings["x"] > 0
+    assert timings["y"] > 0  # failed block: timed, not synced
+    with timed("z"):
+        pass
+    assert "z" not in timings  # closed: later steps go nowhere
+
+
+def test_a_nested_collection_takes_its_own_block_and_the_outer_one_resumes():
+    with collect_timings() as outer:
+        with timed("a"):
             pass
-    assert calls == [1, 1] and set(timings) == {"x"} and timings["x"] > 0
-    with pytest.raises(KeyError):
-        with timed(timings, "y", sync=lambda: calls.append(1)):
-            raise KeyError("boom")
-    assert calls == [1, 1] and timings["y"] > 0  # failed block: timed, not synced
+        with collect_timings() as inner:
+            with timed("b"):
+                pass
+        with timed("c"):
+            pass
+    assert set(outer) == {"a", "c"} and set(inner) == {"b"}
 
 
+def test_collections_of_two_threads_do_not_mix():
+    started, results = threading.Barrier(2), {}
+
+    def work(name):
+        with collect_timings() as timings:
+            started.wait()  # both collectors open at once
+            for _ in range(50):
+                with timed(name):
+                    pass
+            started.wait()
+        results[name] = timings
+
+    threads = [threading.Thread(target=work, args=(name,)) for name in ("first", "second")]
+    with collect_timings() as main:  # a thread does not inherit this one either
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    assert set(results["first"]) == {"first"} and set(results["second"]) == {"second"}
+    assert main == {}
+
+
+def test_a_stopwatch_adds_to_the_dict_it_is_given():
+    parts = {}
+    for _ in range(2):
+        with stopwatch(parts, "x"):
+            pass
+    assert set(parts) == {"x"} and parts["x"] > 0
+
+
+@pytest.mark.gl  # renders
 def test_timings_do_not_change_pixels():
     config = small_config()
     index = next(i for i in range(100)
@@ -37,8 +84,8 @@ def test_timings_do_not_change_pixels():
     sequence = sample_sequence(config, np.random.default_rng([0, index]))
     painting = textured_painting(config.image_size)
     plain = render_sample(sequence, painting, config, index)
-    timings = {}
-    measured = render_sample(sequence, painting, config, index, timings)
+    with collect_timings() as timings:
+        measured = render_sample(sequence, painting, config, index)
     for key in ("images", "masks", "label", "homographies", "K", "R", "t"):
         assert torch.equal(plain[key], measured[key]), key
     assert set(timings) == {"upload", "graph", "shadow", "colour", "mask", "label", "readback",

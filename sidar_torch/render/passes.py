@@ -209,8 +209,7 @@ class Passes:
              transmitting: Sequence[Surface] = (), shadowed: Sequence[SpotEmitter] = (),
              stale: Sequence[SpotEmitter] | None = None, grey: dict[int, float] | None = None,
              painting_parts: Sequence[PaintingPart] | None = None, shadow_fraction: bool = False,
-             shadow_free: bool = False, stencil: bool = False, timings: dict[str, float] | None = None,
-             step: str = "colour") -> np.ndarray:
+             shadow_free: bool = False, stencil: bool = False, step: str = "colour") -> np.ndarray:
         """Draw ``view``'s ``seen`` surfaces and read the result back: ``(H, W, 4)`` uint8 (with
         ``shadow_free``, ``(2, H, W, 4)``: the colour, then the colour with no light blocked).
 
@@ -235,8 +234,8 @@ class Passes:
             stencil: also leave in the stencil buffer, per pixel, 1 where the fragment that kept the
                 pixel's depth is the painting's and 0 elsewhere (``Framebuffer.read_stencil``): a
                 single-sampled pass only.
-            timings: seconds are added to ``"upload"``, ``"shadow"``, ``step`` and ``"readback"``.
-            step: the name the forward pass is timed under.
+            step: the name the forward pass is timed under (``sidar_torch.timing``), beside ``"upload"``,
+                ``"shadow"`` and ``"readback"``.
         """
         if kind not in KINDS:
             raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
@@ -245,7 +244,7 @@ class Passes:
                              f"{self.target.samples} samples per pixel (antialias)")
         if stencil and painting_parts is None:
             raise ValueError("stencil: needs painting_parts (the painting's draw marks the stencil)")
-        with timed(timings, "upload", GL.glFinish):
+        with timed("upload", GL.glFinish):
             for surface in [*seen, *casters]:
                 surface.mesh.upload()
                 if surface.material.texture is not None:
@@ -253,15 +252,15 @@ class Passes:
         shadows = kind == "lit" and bool(shadowed)
         tinted = [s for s in casters if any(s is t for t in transmitting)] if shadows else []
         if shadows and not shadow_fraction:  # else the colour pass of this view drew them
-            with timed(timings, "shadow", GL.glFinish):
+            with timed("shadow", GL.glFinish):
                 self._shadow_maps(view, [s for s in casters if not any(s is t for t in tinted)], tinted,
                                   shadowed, shadowed if stale is None else stale)
         lit = _LitDraw(shadows, bool(tinted), len(shadowed), shadow_fraction, shadow_free and shadows,
                        painting_parts if painting_parts is not None and shadows else None,
                        self._light_groups(view, painting_parts))
-        with timed(timings, step, GL.glFinish):
+        with timed(step, GL.glFinish):
             self._surfaces(view, kind, view.ordered(list(seen)), lit, grey or {}, stencil)
-        with timed(timings, "readback"):
+        with timed("readback"):
             images = self.target.end_drawing()
         return images if lit.shadow_free else images[0]
 
@@ -272,8 +271,7 @@ class Passes:
         groups = light_group_count(view.lights)
         return groups if groups <= self.unrolled_light_groups else None
 
-    def camera_frame(self, view: ViewDraws, surfaces: Sequence[Surface], quantity: str,
-                     timings: dict[str, float] | None = None) -> np.ndarray:
+    def camera_frame(self, view: ViewDraws, surfaces: Sequence[Surface], quantity: str) -> np.ndarray:
         """A quantity of the camera's frame at each pixel centre, from the nearest of ``surfaces``: a row of
         :data:`CAMERA_QUANTITIES` (depth: ``(H, W)`` float32; normals: ``(H, W, 3)`` float32),
         its ``empty`` value where none is hit.
@@ -286,14 +284,14 @@ class Passes:
         distance). Timed under the quantity's name (``"upload"``, ``"readback"``).
         """
         row = CAMERA_QUANTITIES[quantity]
-        with timed(timings, "upload", GL.glFinish):
+        with timed("upload", GL.glFinish):
             for surface in surfaces:
                 surface.mesh.upload()
         if row.channels not in self._float_targets:
             self._float_targets[row.channels] = FloatFramebuffer(self.width, self.height, row.channels)
         target = self._float_targets[row.channels]
         camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
-        with timed(timings, quantity, GL.glFinish):
+        with timed(quantity, GL.glFinish):
             GL.glViewport(0, 0, self.width, self.height)
             GL.glEnable(GL.GL_DEPTH_TEST)
             GL.glDepthMask(GL.GL_TRUE)
@@ -311,7 +309,7 @@ class Passes:
                 self._draw_plain(surface, program)
             GL.glUseProgram(0)
             GL.glFlush()
-        with timed(timings, "readback"):
+        with timed("readback"):
             values = target.end_drawing()
         drawn = values.any(-1) if values.ndim == 3 else values != 0
         values[~drawn] = row.empty

@@ -31,9 +31,9 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 and once per sequence the **label**: the painting through view 0's camera, unlit and without
 occluders (the texture as the reference camera samples it).
 
-``SceneRenderer.render(..., timings=dict)`` adds the seconds spent in each step to the dict
-(``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``normals``, ``opacity``, ``label``, ``readback``; see
-``render.passes`` for how GL time is attributed).
+Inside ``sidar_torch.timing.collect_timings()``, ``SceneRenderer.render`` adds the seconds spent in each step
+to the collector (``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``normals``, ``opacity``,
+``shadow_mask``, ``label``, ``readback``; see ``render.passes`` for how GL time is attributed).
 
 Lights are spot lights (``scene`` explains how point and area lights map to them). The
 painting is left out of shadow maps: a plane lit from its front cannot shadow itself, and
@@ -169,8 +169,8 @@ class SceneRenderer:
         emitters one view has used, then stays."""
         return self._shadows.layers
 
-    def render(self, sequence: SceneSequence, painting: np.ndarray,
-               timings: dict[str, float] | None = None, texture: np.ndarray | None = None) -> RenderedSequence:
+    def render(self, sequence: SceneSequence, painting: np.ndarray, *,
+               texture: np.ndarray | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
@@ -179,10 +179,10 @@ class SceneRenderer:
             texture: ``(H, W, 3)`` uint8 sRGB, the texture the views (and the painting's reflections)
                 see instead, e.g. the painting blurred (config ``texture_blur_sigma``); the label
                 is drawn from ``painting`` either way. Default: ``painting``.
-            timings: if given, seconds spent are added to its keys ``"upload"`` (painting
-                texture and meshes), ``"graph"`` (building the draw lists), ``"shadow"``,
-                ``"colour"``, ``"mask"``, ``"opacity"`` and ``"label"`` (draw passes) and
-                ``"readback"``; the pixels are the same either way.
+
+        Timed steps (``sidar_torch.timing``): ``"upload"`` (painting texture and meshes), ``"graph"``
+        (building the draw lists), ``"shadow"``, ``"colour"``, ``"mask"``, ``"label"`` and each
+        drawn output's (draw passes) and ``"readback"``; the pixels are the same timed or not.
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
@@ -192,14 +192,14 @@ class SceneRenderer:
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
         self._platform.make_current()
-        with timed(timings, "upload"):  # the texture object; its GL upload is timed in draw
+        with timed("upload"):  # the texture object; its GL upload is timed in draw
             label_texture = self._painting_texture(painting, 0)
             texture = label_texture if texture is None else self._painting_texture(texture, 1)
-        with timed(timings, "graph"):
+        with timed("graph"):
             plans = plan_views(sequence, self.settings)
         views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
         for view, plan in zip(sequence.views, plans):
-            image, mask, extra = self._render_view(view, plan, sequence, texture, timings)
+            image, mask, extra = self._render_view(view, plan, sequence, texture)
             views.append(image)
             masks.append(mask)
             for name, array in extra.items():
@@ -210,10 +210,10 @@ class SceneRenderer:
             # The reference camera sees texel (u, v) at pixel (u, v)'s centre: the label is the
             # painting, which the draw reproduces byte for byte (tests/render/test_skips.py).
             self.skipped["label_from_painting"] += 1
-            with timed(timings, "label"):
+            with timed("label"):
                 label = painting.copy()
         else:
-            label = render_label(self._passes, reference, self._plane, label_texture, self.image_size, timings)
+            label = render_label(self._passes, reference, self._plane, label_texture, self.image_size)
         views = np.stack(views)
         self.renders += 1
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
@@ -270,12 +270,11 @@ class SceneRenderer:
             self._textures[slot] = PaintingTexture(painting.copy(), PAINTING_FILTERS[self.settings.texture_filter])
         return self._textures[slot]
 
-    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
-                     timings: dict[str, float] | None = None
+    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture
                      ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and its
         optional outputs (``settings.outputs``, see :class:`RenderedSequence`), drawing what ``plan`` says."""
-        with timed(timings, "graph"):
+        with timed("graph"):
             draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size)
             self._passes.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
                                      if self.settings.mirrors else None)
@@ -309,7 +308,7 @@ class SceneRenderer:
         with self._passes.target.multisampled():  # settings.antialias samples; the other passes single-sampled
             image = self._passes.draw(draws, "lit", [draws.painting, *drawn], casters=casters, transmitting=transmitting,
                                       shadowed=shadowed, stale=stale, painting_parts=plan.painting_parts,
-                                      shadow_free=both, stencil=stencil, timings=timings, step="colour")
+                                      shadow_free=both, stencil=stencil, step="colour")
         image, unblocked = (image[0], image[1, ..., :3]) if both else (image, image[..., :3])
         self._shadows.drawn(map_keys)
         masked = [draws.occluders[i] for i in sorted(plan.drawn)
@@ -318,26 +317,25 @@ class SceneRenderer:
             # Only the painting would be drawn: its pixels are those whose centre sees it, which is
             # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
             self.skipped["masks_from_outline"] += 1
-            with timed(timings, "mask"):
+            with timed("mask"):
                 mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
         elif stencil and len(masked) == len(drawn):
             # The mask's draw would draw what the colour pass drew, in the same order with the same
             # depth test: the painting is visible where its fragment kept the depth, which the colour
             # pass marked in the stencil.
             self.skipped["masks_from_stencil"] += 1
-            with timed(timings, "mask"):
+            with timed("mask"):
                 mask = self._passes.target.read_stencil() != 1
         else:
             grey = {id(draws.painting): 255, **{id(s): 0 for s in masked}}
-            seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey,
-                                    timings=timings, step="mask")
+            seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey, step="mask")
             mask = seg[..., 0] < 128
         drawn_view = DrawnView(draws, plan, drawn, masked, casters, transmitting, shadowed, mask, unblocked)
-        extra = {name: OUTPUT_PASSES[row.producer](self, drawn_view, timings)
+        extra = {name: OUTPUT_PASSES[row.producer](self, drawn_view)
                  for name, row in OUTPUTS.items() if name in outputs}
         return image, mask, extra
 
-    def _render_shadow_mask(self, drawn: "DrawnView", timings: dict[str, float] | None) -> np.ndarray:
+    def _render_shadow_mask(self, drawn: "DrawnView") -> np.ndarray:
         """``(H, W)`` uint8: 255 times the fraction of the direct light on the visible painting that
         occluders block, 0 where ``drawn.mask`` (painting not visible) is true.
 
@@ -353,7 +351,7 @@ class SceneRenderer:
             return np.zeros(self.image_size, np.uint8)
         fraction = self._passes.draw(draws, "lit", [draws.painting], casters=drawn.casters,
                                      transmitting=drawn.transmitting, shadowed=drawn.shadowed, painting_parts=parts,
-                                     shadow_fraction=True, timings=timings, step="shadow_mask")
+                                     shadow_fraction=True, step="shadow_mask")
         return np.where(drawn.mask, 0, fraction[..., 0]).astype(np.uint8)
 
 
@@ -384,23 +382,22 @@ class DrawnView:
     unblocked: np.ndarray
 
 
-OutputPass = Callable[[SceneRenderer, DrawnView, "dict[str, float] | None"], np.ndarray]
+OutputPass = Callable[[SceneRenderer, DrawnView], np.ndarray]
 
 
 def _camera_pass(quantity: str) -> OutputPass:
     """The producer of a quantity of the camera pass (``passes.CAMERA_QUANTITIES``), drawn from the
     surfaces the mask counts: the painting and the masked occluders."""
-    return lambda renderer, drawn, timings: renderer._passes.camera_frame(
-        drawn.draws, [drawn.draws.painting, *drawn.masked], quantity, timings)
+    return lambda renderer, drawn: renderer._passes.camera_frame(
+        drawn.draws, [drawn.draws.painting, *drawn.masked], quantity)
 
 
 OUTPUT_PASSES: dict[str, OutputPass] = {
-    "unblocked_colour": lambda renderer, drawn, timings: drawn.unblocked,
+    "unblocked_colour": lambda renderer, drawn: drawn.unblocked,
     "camera_depth": _camera_pass("depth"),
     "camera_normals": _camera_pass("normals"),
-    "opacity": lambda renderer, drawn, timings: render_opacity(renderer._passes, drawn.draws, drawn.drawn,
-                                                               drawn.mask, timings),
-    "shadow_fraction": lambda renderer, drawn, timings: renderer._render_shadow_mask(drawn, timings),
+    "opacity": lambda renderer, drawn: render_opacity(renderer._passes, drawn.draws, drawn.drawn, drawn.mask),
+    "shadow_fraction": lambda renderer, drawn: renderer._render_shadow_mask(drawn),
 }
 """The renderer's producers of the drawn outputs, by ``OptionalOutput.producer`` (``choices.outputs.OUTPUTS``):
 each returns one view's array of its output (:class:`RenderedSequence`) after the colour pass and the mask,

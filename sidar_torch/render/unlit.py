@@ -18,17 +18,16 @@ __all__ = ["render_label", "render_opacity"]
 
 
 def render_label(passes: Passes, camera: Camera, painting: GpuMesh, texture: PaintingTexture,
-                 image_size: tuple[int, int], timings: dict[str, float] | None = None) -> np.ndarray:
+                 image_size: tuple[int, int]) -> np.ndarray:
     """The label: ``(H, W, 3)`` uint8, the ``painting`` mesh with its ``texture`` as ``camera`` sees
     it, unlit (white, opaque), with nothing else in the scene."""
     plain = Material(np.ones(4), 0.0, 1.0)
-    with timed(timings, "graph"):
+    with timed("graph"):
         draws = view_draws(camera, 1.0, painting, plain, texture, image_size)
-    return passes.draw(draws, "unlit", [draws.painting], timings=timings, step="label")[..., :3]
+    return passes.draw(draws, "unlit", [draws.painting], step="label")[..., :3]
 
 
-def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mask: np.ndarray,
-                   timings: dict[str, float] | None = None) -> np.ndarray:
+def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mask: np.ndarray) -> np.ndarray:
     """The view's opacity: ``(H, W)`` uint8, 255 times the fraction of the painting hidden.
 
     That is 255 outside the painting (background) and behind opaque occluders, 0 where the
@@ -52,9 +51,9 @@ def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mas
     """
     if not visible:
         return mask.astype(np.uint8) * 255
-    with timed(timings, "graph"):
+    with timed("graph"):
         white = Surface(draws.painting.mesh, draws.painting.pose, gl_material(Material(np.ones(4), 0.0, 1.0)))
         black = [Surface(s.mesh, s.pose, gl_material(Material(np.array([0.0, 0.0, 0.0, s.material.base_color[3]]), 0.0, 1.0)))
                  for s in visible]
-    shown = passes.draw(draws, "unlit", [white, *black], timings=timings, step="opacity")
+    shown = passes.draw(draws, "unlit", [white, *black], step="opacity")
     return 255 - shown[..., 0]

@@ -62,9 +62,8 @@ def batch_homographies(sequences: Sequence[SceneSequence]) -> list[tuple[torch.T
     return results
 
 
-def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None,
-                  homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
+def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int, *,
+                  rng: np.random.Generator | None = None, homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
     """Render ``sequence`` with ``painting`` and assemble one sample's arrays: the one place a sample is made.
 
     Args:
@@ -76,37 +75,39 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
             (``texture_blur_sigma``) and the view effects (:mod:`sidar_torch.sample.effects`: background,
             exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
-        timings: if given, seconds spent are added to its keys: the renderer's steps (see
-            :meth:`sidar_torch.render.SceneRenderer.render`), ``"effects"`` (the view effects, when
-            any is on), ``"homographies"`` and each computed output's producer (``"flow"``: ``flow_output``).
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
         homographies: ``sequence_homographies(sequence)``, when computed already (with other
             sequences', :func:`batch_homographies`); default: computed here.
+
+    Timed steps (``sidar_torch.timing``): the renderer's (:meth:`sidar_torch.render.SceneRenderer.render`),
+    ``"upload"`` (the blurred texture), ``"lens"`` (:func:`~.lens_views.render_through_lens`), ``"effects"``
+    (the view effects, when any is on), ``"homographies"`` and each computed output's producer (``"flow"``:
+    ``flow_output``).
     """
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     texture = None
     if config.texture_blur_sigma > 0:  # the views see the painting blurred, the label stays exact
-        with timed(timings, "upload"):
+        with timed("upload"):
             texture = blur_painting(painting, config.texture_blur_sigma)
     if sequence.lens_model == NO_LENS:
-        rendered, sources = sample_renderer(config).render(sequence, painting, timings, texture), None
+        rendered, sources = sample_renderer(config).render(sequence, painting, texture=texture), None
     else:  # the lens's optics before the sensor's effects
-        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, timings, texture)
+        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, texture)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
-        with timed(timings, "effects"):
+        with timed("effects"):
             views = apply_effects(views, rendered.background, effects)
             for name in [name for name in outputs if OUTPUTS[name].view_effects]:  # the same draws
                 outputs[name] = apply_effects(outputs[name], rendered.background, effects)
     if homographies is None:
-        with timed(timings, "homographies"):
+        with timed("homographies"):
             homographies = sequence_homographies(sequence)
     homographies, homography_error = homographies
     K, R, t = sequence.cameras()
-    outputs = _with_computed_outputs(outputs, config, K, R, t, timings)
+    outputs = _with_computed_outputs(outputs, config, K, R, t)
     if config.distortion_map_output:
-        with timed(timings, "lens"):
+        with timed("lens"):
             maps = sources if sources is not None else distortion_maps(NO_LENS, None, K, sequence.image_size)
             outputs["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
@@ -116,7 +117,7 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
 
 
 def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
-                           t: np.ndarray, timings: dict[str, float] | None) -> dict[str, np.ndarray]:
+                           t: np.ndarray) -> dict[str, np.ndarray]:
     """``outputs`` (the renderer's, by name) with the computed outputs the config asks for added
     (``OptionalOutput.computed_from``, each by its row of :data:`COMPUTATIONS`, timed under its producer's
     name) and the drawn ones only they needed left out."""
@@ -124,7 +125,7 @@ def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, 
     for name in sorted(asked):
         row = OUTPUTS[name]
         if row.computed_from is not None:
-            with timed(timings, row.producer):
+            with timed(row.producer):
                 outputs[name] = COMPUTATIONS[row.producer](outputs[row.computed_from], K, R, t)
     return {name: array for name, array in outputs.items() if name in asked}
 
@@ -148,10 +149,10 @@ COMPUTATIONS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray
 and the cameras ``K``, ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` (float64) and returns the computed output's."""
 
 
-def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int,
-                  timings: dict[str, float] | None = None, rng: np.random.Generator | None = None) -> dict[str, Any]:
+def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int, *,
+                  rng: np.random.Generator | None = None) -> dict[str, Any]:
     """:func:`render_arrays`, then :meth:`SampleArrays.to_tensors` in ``config.geometry_dtype``
     (timed as ``"tensors"``): the sample dict of :data:`KEYS`."""
-    arrays = render_arrays(sequence, painting, config, index, timings, rng)
-    with timed(timings, "tensors"):
+    arrays = render_arrays(sequence, painting, config, index, rng=rng)
+    with timed("tensors"):
         return arrays.to_tensors(config.geometry_dtype)

@@ -84,15 +84,15 @@ def _tile(view: Any, ox: int, oy: int) -> Any:
 
 
 def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.ndarray,
-                        timings: dict[str, float] | None = None, texture: np.ndarray | None = None
-                        ) -> tuple[Any, np.ndarray]:
+                        texture: np.ndarray | None = None) -> tuple[Any, np.ndarray]:
     """Render ``sequence`` (with a lens) through its lenses: every per-view image distorted, the label not.
 
     Args:
         renderer: a ``SceneRenderer`` of ``sequence.image_size``.
         sequence: the scenes, ``sequence.lens_model`` not ``"none"``.
         painting, texture: ``(H, W, 3)`` uint8, as for ``SceneRenderer.render``.
-        timings: if given, the renderer's steps and ``"lens"`` (maps, tiles, resampling), seconds.
+
+    Timed steps (``sidar_torch.timing``): the renderer's and ``"lens"`` (maps, tiles, resampling).
 
     Returns:
         The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and
@@ -101,7 +101,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
     from ..render import RenderedSequence  # imports the GL libraries: at the first render, as the renderer's
 
     size = tuple(sequence.image_size)
-    with timed(timings, "lens"):
+    with timed("lens"):
         K = sequence.cameras()[0]
         sources = distortion_maps(sequence.lens_model, sequence.lenses, K, size)
         origins = [tile_origins(s, size) for s in sources]
@@ -109,8 +109,8 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
         first = [] if (0, 0) in origins[0] else [sequence.views[0]]
         origins[0].sort(key=lambda o: o != (0, 0))
         tiles = [_tile(view, ox, oy) for view, view_origins in zip(sequence.views, origins) for ox, oy in view_origins]
-    rendered = renderer.render(SceneSequence(size, (*first, *tiles)), painting, timings, texture)
-    with timed(timings, "lens"):
+    rendered = renderer.render(SceneSequence(size, (*first, *tiles)), painting, texture=texture)
+    with timed("lens"):
         names = sorted(rendered.outputs)
         planes = [rendered.views, rendered.masks[..., None], rendered.background[..., None],
                   *(rendered.outputs[name].reshape(*rendered.masks.shape, -1) for name in names)]

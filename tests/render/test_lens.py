@@ -17,6 +17,7 @@ from sidar_torch.choices.lenses import LENS_MODELS, distorted_points, scaled_len
 from sidar_torch.geometry import plane_corners, project
 from sidar_torch.sample import render_arrays, stack_samples
 from sidar_torch.scene import sample_sequence
+from sidar_torch.timing import collect_timings
 
 ZERO_LENS = dict(lens_k1=(0, 0), lens_k2=(0, 0), lens_k3=(0, 0), lens_p1=(0, 0), lens_p2=(0, 0))
 EVERYTHING = dict(opacity_output=True, shadow_mask_output=True, shadow_free_output=True, background="view",
@@ -70,13 +71,14 @@ def test_nothing_is_paid_without_a_lens():
     config = small_config()
     dataset = SidarDataset(None, config, seed=1)
     rng = dataset.generator(0)
-    timings = {}
     painting = dataset.source.painting(0, config.image_size)
-    render_arrays(sample_sequence(config, rng), painting, config, 0, timings, rng)
-    assert "lens" not in timings
+    with collect_timings() as timings:
+        render_arrays(sample_sequence(config, rng), painting, config, 0, rng=rng)
+    assert "lens" not in timings and timings["colour"] > 0
     with_lens = config.replace(lens_model="division")
     rng = dataset.generator(0)
-    render_arrays(sample_sequence(with_lens, rng), painting, with_lens, 0, timings, rng)
+    with collect_timings() as timings:
+        render_arrays(sample_sequence(with_lens, rng), painting, with_lens, 0, rng=rng)
     assert timings["lens"] > 0
 
 

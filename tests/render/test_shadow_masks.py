@@ -14,6 +14,7 @@ from sidar_torch import ExportedDataset, SidarDataset, export_dataset, geometry
 from sidar_torch.sample.effects import srgb_to_linear
 from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.scene import Camera, Light, Material, Occluder, SceneSequence, ViewScene
+from sidar_torch.timing import collect_timings
 
 from conftest import SMALL, small_config, LAMBERTIAN, render_flat_painting
 
@@ -34,9 +35,9 @@ def ball(at, rgba, radius=0.12, height=0.3):
 
 def render(occluders, lights, shadows=True):
     """A white painting through the reference camera: the rendered sequence (one view)."""
-    timings = {}
-    out = render_flat_painting(occluders, lights, LAMBERTIAN, painting=255, timings=timings, shadows=shadows,
-                               outputs=frozenset({"shadow_masks", "shadow_free"}))
+    with collect_timings() as timings:
+        out = render_flat_painting(occluders, lights, LAMBERTIAN, painting=255, shadows=shadows,
+                                   outputs=frozenset({"shadow_masks", "shadow_free"}))
     return out, timings
 
 
