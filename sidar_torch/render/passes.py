@@ -3,15 +3,16 @@
 :class:`Passes` owns what a context's passes share (programs, the framebuffer, the shadow-map array,
 the transmittance maps, the lights' uniform blocks, two sampler objects) and draws:
 
-* :meth:`Passes.draw` with ``kind="lit"``: the **shadow passes** (:meth:`Passes._shadow_maps`: each
+* :meth:`Passes.draw` with a :class:`LitPass`: the **shadow passes** (:meth:`Passes._shadow_maps`: each
   stale map of a shadowed emitter, then the transmittance tiles of transparent casters), then the
   **colour pass** (:meth:`Passes._surfaces`): the seen surfaces in draw order, each with the surface
   program of its variant (``programs``), the pass's lighting, its material and, for the painting,
   its screen parts with their shadow-lookup ranges (``render.footprints``); optionally the
-  shadow-free colour as a second output, the painting's stencil for the mask, or the shadow
-  fraction instead of a colour;
-* ``kind="segmentation"``: the mask draw (a grey level per surface, depth-tested);
-* ``kind="unlit"``: the label and opacity draws (``unlit.frag``);
+  shadow-free colour as a second output and the painting's stencil for the mask;
+* with a :class:`ShadowFractionPass`: the same programs' shadow-fraction variant, reading the maps the
+  colour pass just drew;
+* with a :class:`SegmentationPass`: the mask draw (a grey level per surface, depth-tested);
+* with an :class:`UnlitPass`: the label and opacity draws (``unlit.frag``);
 
 and :meth:`Passes.camera_frame`: a quantity of the camera's frame at each pixel (its distance along the
 camera's axis, its surface normal), float32 (``camera_frame.*``, :data:`CAMERA_QUANTITIES`).
@@ -29,7 +30,7 @@ from __future__ import annotations
 
 from collections import defaultdict
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from OpenGL import GL
@@ -46,16 +47,15 @@ from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps
 from .visibility import map_texel_box
 
-__all__ = ["CAMERA_QUANTITIES", "UNROLLED_LIGHT_GROUPS", "CameraQuantity", "Passes", "frustum_projection", "light_group_count", "light_matrices",
-           "shadow_depth_range"]
+__all__ = ["CAMERA_QUANTITIES", "UNROLLED_LIGHT_GROUPS", "CameraQuantity", "ForwardPass", "LitPass", "Passes",
+           "SegmentationPass", "ShadowFractionPass", "UnlitPass", "frustum_projection", "light_group_count",
+           "light_matrices", "shadow_depth_range"]
 
 UNROLLED_LIGHT_GROUPS = 4
 """The most light groups the painting's program without lookups adds written out rather than in a loop
 (``#elif defined(LIGHT_GROUPS)`` in ``shaders/surface.frag``); a view with more gets the loop. A
 :class:`Passes` takes it as ``unrolled_light_groups``."""
 
-KINDS = ("lit", "segmentation", "unlit")
-"""The kinds of forward pass :meth:`Passes.draw` draws."""
 
 
 def frustum_projection(frustum: np.ndarray) -> np.ndarray:
@@ -146,6 +146,128 @@ CAMERA_QUANTITIES = {
 camera (back faces are culled)."""
 
 
+def _among(part: Sequence, whole: Sequence) -> bool:
+    """Whether every item of ``part`` is one of ``whole`` (the same object)."""
+    return all(any(item is other for other in whole) for item in part)
+
+
+@dataclass(frozen=True)
+class _Shadowing:
+    """What a lit pass's shadows come from (the fields :class:`LitPass` and :class:`ShadowFractionPass` share).
+
+    Attributes:
+        casters: surfaces that cast shadows: those in ``transmitting`` go into the transmittance
+            maps (drawn and looked up only when there is one), the others into the depth maps.
+        transmitting: blended casters whose shadows let light through, tinted (some of ``casters``).
+        shadowed: the emitters that get a shadow map and lookup; the first of the view's lights.
+            None shadowed: the draw has no lookup at all.
+        painting_parts: the painting's screen parts (``render.footprints``): with a shadowed emitter,
+            the painting is drawn once per part, each with only its lookups; with them the painting
+            also gets the light-group variant (``LIGHT_GROUPS``). None: drawn whole.
+    """
+
+    casters: Sequence[Surface] = ()
+    transmitting: Sequence[Surface] = ()
+    shadowed: Sequence[SpotEmitter] = ()
+    painting_parts: Sequence[PaintingPart] | None = None
+
+    def __post_init__(self) -> None:
+        if not _among(self.transmitting, self.casters):
+            raise ValueError("transmitting: expected some of casters, got a surface that casts no shadow")
+
+    def tinted(self) -> list[Surface]:
+        """The casters whose shadows go to the transmittance maps (those of ``transmitting``)."""
+        return [s for s in self.casters if any(s is t for t in self.transmitting)]
+
+
+@dataclass(frozen=True)
+class LitPass(_Shadowing):
+    """The colour pass: the seen surfaces under the view's ambient level and lights (``surface.frag``),
+    after the shadow passes of the shadowed emitters (see :class:`_Shadowing` for the shared fields).
+
+    Attributes:
+        stale: the emitters of ``shadowed`` whose maps are drawn (default: all); the others' maps
+            must already hold what this view would draw into them.
+        shadow_free: also output the colour with every light unblocked (quirk 10); the framebuffer
+            must have two outputs.
+        stencil: also leave in the stencil buffer, per pixel, 1 where the fragment that kept the
+            pixel's depth is the painting's and 0 elsewhere (``Framebuffer.read_stencil``): a
+            single-sampled pass only.
+        step: the name the pass is timed under (``sidar_torch.timing``).
+
+    Raises:
+        ValueError: ``transmitting`` not among ``casters``, ``stale`` not among ``shadowed``,
+            ``shadow_free`` without a shadowed emitter, ``stencil`` without ``painting_parts`` (the
+            painting's draw marks the stencil).
+    """
+
+    stale: Sequence[SpotEmitter] | None = None
+    shadow_free: bool = False
+    stencil: bool = False
+    step: str = "colour"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.stale is not None and not _among(self.stale, self.shadowed):
+            raise ValueError("stale: expected some of shadowed, got an emitter that gets no shadow map")
+        if self.shadow_free and not self.shadowed:
+            raise ValueError("shadow_free: needs a shadowed emitter (without one the view is its own "
+                             "shadow-free colour)")
+        if self.stencil and self.painting_parts is None:
+            raise ValueError("stencil: needs painting_parts (the painting's draw marks the stencil)")
+
+
+@dataclass(frozen=True)
+class ShadowFractionPass(_Shadowing):
+    """The shadow mask's pass: the lit programs' ``SHADOW_FRACTION`` variant (quirk 9), which outputs in
+    every colour channel the fraction of the direct light the occluders block, reading the maps the
+    colour pass of the same view just drew with the same casters and emitters (none is drawn again).
+
+    Attributes:
+        step: the name the pass is timed under (``sidar_torch.timing``).
+
+    Raises:
+        ValueError: ``transmitting`` not among ``casters``; no shadowed emitter (then no light is blocked:
+            no draw is needed).
+    """
+
+    step: str = "shadow_mask"
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not self.shadowed:
+            raise ValueError("shadowed: expected at least one emitter (without one no light is blocked)")
+
+
+@dataclass(frozen=True)
+class SegmentationPass:
+    """The mask draw: each surface in one grey level, depth-tested, unlit, single-sampled.
+
+    Attributes:
+        grey: the level (0-255) of each seen surface, keyed by ``id(surface)``.
+        step: the name the pass is timed under (``sidar_torch.timing``).
+    """
+
+    grey: Mapping[int, float]
+    step: str = "mask"
+
+
+@dataclass(frozen=True)
+class UnlitPass:
+    """The unlit draw (``unlit.frag``): each surface's base colour with the lit draw's Fresnel opacity
+    (quirk 5), blended as the colour pass blends it; no light, no shadow (``render.unlit``).
+
+    Attributes:
+        step: the name the pass is timed under (``sidar_torch.timing``): ``"label"``, ``"opacity"``.
+    """
+
+    step: str
+
+
+ForwardPass = LitPass | ShadowFractionPass | SegmentationPass | UnlitPass
+"""The passes :meth:`Passes.draw` draws, each a frozen record that checks its own combination."""
+
+
 class Passes:
     """The passes of one GL context (current whenever a method is called).
 
@@ -205,64 +327,45 @@ class Passes:
 
     # -- the draw --------------------------------------------------------------------------------
 
-    def draw(self, view: ViewDraws, kind: str, seen: Sequence[Surface], *, casters: Sequence[Surface] = (),
-             transmitting: Sequence[Surface] = (), shadowed: Sequence[SpotEmitter] = (),
-             stale: Sequence[SpotEmitter] | None = None, grey: dict[int, float] | None = None,
-             painting_parts: Sequence[PaintingPart] | None = None, shadow_fraction: bool = False,
-             shadow_free: bool = False, stencil: bool = False, step: str = "colour") -> np.ndarray:
-        """Draw ``view``'s ``seen`` surfaces and read the result back: ``(H, W, 4)`` uint8 (with
-        ``shadow_free``, ``(2, H, W, 4)``: the colour, then the colour with no light blocked).
+    def draw(self, view: ViewDraws, pass_: ForwardPass, seen: Sequence[Surface]) -> np.ndarray:
+        """Draw ``view``'s ``seen`` surfaces in one forward pass and read the result back: ``(H, W, 4)``
+        uint8 (with a :class:`LitPass`'s ``shadow_free``, ``(2, H, W, 4)``: the colour, then the colour
+        with no light blocked).
 
-        Args:
-            kind: ``"lit"`` (the colour pass), ``"segmentation"`` (each surface in the grey level of
-                ``grey``, keyed by ``id``) or ``"unlit"`` (base colour and Fresnel opacity).
-            casters: surfaces that cast shadows: those in ``transmitting`` go into the transmittance
-                maps (drawn and looked up only when there is one), the others into the depth maps.
-            transmitting: blended casters whose shadows let light through, tinted.
-            shadowed: the emitters that get a shadow map and lookup; the first of ``view.lights``.
-                None shadowed: the lit draw has no lookup at all.
-            stale: the emitters of ``shadowed`` whose maps are drawn (default: all); the others'
-                maps must already hold what this view would draw into them.
-            painting_parts: the painting's screen parts (``render.footprints``): with a shadowed
-                emitter, the painting is drawn once per part, each with only its lookups; the
-                painting marks the stencil (``stencil``) and gets the light-group variant.
-            shadow_fraction: lit draws output, in every colour channel, the fraction of the direct
-                light the occluders block (quirk 9), reading the maps the colour pass of the same view
-                just drew (none is drawn again).
-            shadow_free: with a shadowed emitter, lit draws also output the colour with every light
-                unblocked (quirk 10); the framebuffer must have two outputs.
-            stencil: also leave in the stencil buffer, per pixel, 1 where the fragment that kept the
-                pixel's depth is the painting's and 0 elsewhere (``Framebuffer.read_stencil``): a
-                single-sampled pass only.
-            step: the name the forward pass is timed under (``sidar_torch.timing``), beside ``"upload"``,
-                ``"shadow"`` and ``"readback"``.
+        A :class:`LitPass` with shadowed emitters first draws their stale shadow maps (and, with
+        transparent casters, the transmittance tiles). Timed (``sidar_torch.timing``) as ``"upload"``,
+        ``"shadow"``, the pass's ``step`` and ``"readback"``.
+
+        Raises:
+            ValueError: a :class:`LitPass` with ``stencil`` on a multisampled framebuffer (antialias).
         """
-        if kind not in KINDS:
-            raise ValueError(f"kind: expected one of {KINDS}, got {kind!r}")
+        stencil = isinstance(pass_, LitPass) and pass_.stencil
         if stencil and self.target.samples > 1:
             raise ValueError("stencil: needs a single-sampled colour pass; this renderer draws it with "
                              f"{self.target.samples} samples per pixel (antialias)")
-        if stencil and painting_parts is None:
-            raise ValueError("stencil: needs painting_parts (the painting's draw marks the stencil)")
+        shadowing = pass_ if isinstance(pass_, (LitPass, ShadowFractionPass)) else None
         with timed("upload", GL.glFinish):
-            for surface in [*seen, *casters]:
+            for surface in [*seen, *(shadowing.casters if shadowing is not None else ())]:
                 surface.mesh.upload()
                 if surface.material.texture is not None:
                     surface.material.texture.upload()
-        shadows = kind == "lit" and bool(shadowed)
-        tinted = [s for s in casters if any(s is t for t in transmitting)] if shadows else []
-        if shadows and not shadow_fraction:  # else the colour pass of this view drew them
-            with timed("shadow", GL.glFinish):
-                self._shadow_maps(view, [s for s in casters if not any(s is t for t in tinted)], tinted,
-                                  shadowed, shadowed if stale is None else stale)
-        lit = _LitDraw(shadows, bool(tinted), len(shadowed), shadow_fraction, shadow_free and shadows,
-                       painting_parts if painting_parts is not None and shadows else None,
-                       self._light_groups(view, painting_parts))
-        with timed(step, GL.glFinish):
-            self._surfaces(view, kind, view.ordered(list(seen)), lit, grey or {}, stencil)
+        lit = None
+        if shadowing is not None:
+            shadows = bool(shadowing.shadowed)
+            tinted = shadowing.tinted() if shadows else []
+            if shadows and isinstance(pass_, LitPass):  # a shadow fraction reads the maps its colour pass drew
+                with timed("shadow", GL.glFinish):
+                    self._shadow_maps(view, [s for s in pass_.casters if not any(s is t for t in tinted)], tinted,
+                                      pass_.shadowed, pass_.shadowed if pass_.stale is None else pass_.stale)
+            parts = shadowing.painting_parts
+            shadow_free = isinstance(pass_, LitPass) and pass_.shadow_free
+            lit = _LitDraw(shadows, bool(tinted), len(shadowing.shadowed), isinstance(pass_, ShadowFractionPass),
+                           shadow_free, parts if parts is not None and shadows else None, self._light_groups(view, parts))
+        with timed(pass_.step, GL.glFinish):
+            self._surfaces(view, pass_, view.ordered(list(seen)), lit, stencil)
         with timed("readback"):
             images = self.target.end_drawing()
-        return images if lit.shadow_free else images[0]
+        return images if lit is not None and lit.shadow_free else images[0]
 
     def _light_groups(self, view: ViewDraws, painting_parts: Sequence[PaintingPart] | None) -> int | None:
         """The painting's written-out light groups (``LIGHT_GROUPS``), or None (the loop)."""
@@ -388,37 +491,39 @@ class Passes:
 
     # -- forward passes --------------------------------------------------------------------------
 
-    def _surfaces(self, view: ViewDraws, kind: str, ordered: list[Surface], lit: "_LitDraw",
-                  grey: dict[int, float], stencil: bool) -> None:
-        """One forward pass: clear, then draw ``ordered`` (see :meth:`draw`)."""
+    def _surfaces(self, view: ViewDraws, pass_: ForwardPass, ordered: list[Surface], lit: "_LitDraw | None",
+                  stencil: bool) -> None:
+        """One forward pass: clear, then draw ``ordered`` (see :meth:`draw`); ``lit``: what a lit pass's
+        programs need, None for the others."""
         GL.glViewport(0, 0, self.width, self.height)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthMask(GL.GL_TRUE)
         GL.glDepthFunc(GL.GL_LESS)
         GL.glDepthRange(0.0, 1.0)
-        self.target.begin_drawing(2 if lit.shadow_free else 1)
+        self.target.begin_drawing(2 if lit is not None and lit.shadow_free else 1)
         if stencil:  # cleared to 0; each fragment that passes the depth test writes its draw's value
             GL.glStencilMask(0xFF)
             GL.glClearStencil(0)
             GL.glClear(GL.GL_STENCIL_BUFFER_BIT)
             GL.glEnable(GL.GL_STENCIL_TEST)
             GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
-        segmentation = kind == "segmentation"
-        GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if segmentation else (0.0, 0.0, 0.0, 0.0)))  # alpha 0: background
+        segmentation = pass_.grey if isinstance(pass_, SegmentationPass) else None
+        # Alpha 0: background (the segmentation draw clears to opaque black).
+        GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if segmentation is not None else (0.0, 0.0, 0.0, 0.0)))
         GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
-        (GL.glDisable if segmentation else GL.glEnable)(GL.GL_MULTISAMPLE)
+        (GL.glDisable if segmentation is not None else GL.glEnable)(GL.GL_MULTISAMPLE)
         camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
-        lighting = _PassLighting(self, view, lit) if kind == "lit" else None
+        lighting = _PassLighting(self, view, lit) if lit is not None else None
         try:
             for surface in ordered:
                 if stencil:
                     GL.glStencilFunc(GL.GL_ALWAYS, int(surface is view.painting), 0xFF)
-                if segmentation:
+                if segmentation is not None:
                     program = self._program(("depth.vert", "segmentation.frag"),
                                             {"INST_M_LOC": surface.mesh.defines["INST_M_LOC"]})
                     program.use()
                     camera.set(program)
-                    program.set_uniform("color", np.repeat(grey[id(surface)], 3) / 255.0)
+                    program.set_uniform("color", np.repeat(segmentation[id(surface)], 3) / 255.0)
                     self._draw_plain(surface, program)
                 elif lighting is None:
                     program = self._program(("surface.vert", "unlit.frag"), self._material_defines(surface))

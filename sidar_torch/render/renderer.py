@@ -71,7 +71,7 @@ from .framebuffer import size_limits
 from .gpu import PaintingTexture
 from .meshes import MeshPool, mesh_level, plane_mesh
 from .mirror import PaintingMirror
-from .passes import Passes
+from .passes import LitPass, Passes, SegmentationPass, ShadowFractionPass
 from .plan import ViewPlan, plan_views
 from .scene_graph import PAINTING_FILTERS, gl_material, view_draws
 from .settings import RenderSettings
@@ -305,10 +305,10 @@ class SceneRenderer:
         # The colour pass leaves the mask's answer in the stencil whenever it can (single-sampled):
         # always, so that its programs meet the same GL state in every view (one llvmpipe variant each).
         stencil = self.settings.masks_from_stencil and self.settings.antialias == 1
+        colour = LitPass(casters, transmitting, shadowed, plan.painting_parts, stale=stale, shadow_free=both,
+                         stencil=stencil)
         with self._passes.target.multisampled():  # settings.antialias samples; the other passes single-sampled
-            image = self._passes.draw(draws, "lit", [draws.painting, *drawn], casters=casters, transmitting=transmitting,
-                                      shadowed=shadowed, stale=stale, painting_parts=plan.painting_parts,
-                                      shadow_free=both, stencil=stencil, step="colour")
+            image = self._passes.draw(draws, colour, [draws.painting, *drawn])
         image, unblocked = (image[0], image[1, ..., :3]) if both else (image, image[..., :3])
         self._shadows.drawn(map_keys)
         masked = [draws.occluders[i] for i in sorted(plan.drawn)
@@ -328,9 +328,9 @@ class SceneRenderer:
                 mask = self._passes.target.read_stencil() != 1
         else:
             grey = {id(draws.painting): 255, **{id(s): 0 for s in masked}}
-            seg = self._passes.draw(draws, "segmentation", [draws.painting, *masked], grey=grey, step="mask")
+            seg = self._passes.draw(draws, SegmentationPass(grey), [draws.painting, *masked])
             mask = seg[..., 0] < 128
-        drawn_view = DrawnView(draws, plan, drawn, masked, casters, transmitting, shadowed, mask, unblocked)
+        drawn_view = DrawnView(draws, plan, drawn, masked, colour, mask, unblocked)
         extra = {name: OUTPUT_PASSES[row.producer](self, drawn_view)
                  for name, row in OUTPUTS.items() if name in outputs}
         return image, mask, extra
@@ -347,12 +347,12 @@ class SceneRenderer:
         """
         draws, plan = drawn.draws, drawn.plan
         parts = [part for part in plan.painting_parts if part.begin < part.end]
-        if not drawn.shadowed or (plan.painting_parts and not parts):
+        colour = drawn.colour
+        if not colour.shadowed or (plan.painting_parts and not parts):
             return np.zeros(self.image_size, np.uint8)
-        fraction = self._passes.draw(draws, "lit", [draws.painting], casters=drawn.casters,
-                                     transmitting=drawn.transmitting, shadowed=drawn.shadowed, painting_parts=parts,
-                                     shadow_fraction=True, step="shadow_mask")
-        return np.where(drawn.mask, 0, fraction[..., 0]).astype(np.uint8)
+        fraction = ShadowFractionPass(colour.casters, colour.transmitting, colour.shadowed, parts)
+        blocked = self._passes.draw(draws, fraction, [draws.painting])
+        return np.where(drawn.mask, 0, blocked[..., 0]).astype(np.uint8)
 
 
 @dataclass(frozen=True)
@@ -364,8 +364,8 @@ class DrawnView:
         plan: its plan (``render.plan``).
         drawn: the occluders the colour pass drew; masked: those of them the mask counts (at least
             ``mask_min_opacity`` opaque).
-        casters, transmitting, shadowed: the colour pass's shadow casters, its transparent casters
-            and its shadowed emitters (their maps hold this view's shadows).
+        colour: the colour pass (``passes.LitPass``): its shadow casters, transparent casters and
+            shadowed emitters (whose maps hold this view's shadows).
         mask: ``(H, W)`` bool, True where the painting is not visible.
         unblocked: ``(H, W, 3)`` uint8 sRGB, the colour pass's view with no light blocked (its second
             output with a shadowed emitter; else the view itself).
@@ -375,9 +375,7 @@ class DrawnView:
     plan: ViewPlan
     drawn: list[Surface]
     masked: list[Surface]
-    casters: list[Surface]
-    transmitting: list[Surface]
-    shadowed: list
+    colour: LitPass
     mask: np.ndarray
     unblocked: np.ndarray
 

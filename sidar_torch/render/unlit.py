@@ -1,6 +1,6 @@
 """The unlit draws: the label (the painting as the reference camera sees it) and each view's
-opacity (the fraction of the painting hidden at each pixel). Both are the ``"unlit"`` pass of
-``render.passes``, whose ``shaders/unlit.frag`` outputs the lit draw's Fresnel opacity (``programs`` quirk 5).
+opacity (the fraction of the painting hidden at each pixel). Both are the unlit pass of
+``render.passes`` (``UnlitPass``), whose ``shaders/unlit.frag`` outputs the lit draw's Fresnel opacity (``programs`` quirk 5).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from ..scene import Camera, Material
 from ..timing import timed
 from .draws import Surface, ViewDraws
 from .gpu import GpuMesh, PaintingTexture
-from .passes import Passes
+from .passes import Passes, UnlitPass
 from .scene_graph import gl_material, view_draws
 
 __all__ = ["render_label", "render_opacity"]
@@ -24,7 +24,7 @@ def render_label(passes: Passes, camera: Camera, painting: GpuMesh, texture: Pai
     plain = Material(np.ones(4), 0.0, 1.0)
     with timed("graph"):
         draws = view_draws(camera, 1.0, painting, plain, texture, image_size)
-    return passes.draw(draws, "unlit", [draws.painting], step="label")[..., :3]
+    return passes.draw(draws, UnlitPass("label"), [draws.painting])[..., :3]
 
 
 def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mask: np.ndarray) -> np.ndarray:
@@ -55,5 +55,5 @@ def render_opacity(passes: Passes, draws: ViewDraws, visible: list[Surface], mas
         white = Surface(draws.painting.mesh, draws.painting.pose, gl_material(Material(np.ones(4), 0.0, 1.0)))
         black = [Surface(s.mesh, s.pose, gl_material(Material(np.array([0.0, 0.0, 0.0, s.material.base_color[3]]), 0.0, 1.0)))
                  for s in visible]
-    shown = passes.draw(draws, "unlit", [white, *black], step="opacity")
+    shown = passes.draw(draws, UnlitPass("opacity"), [white, *black])
     return 255 - shown[..., 0]

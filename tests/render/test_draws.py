@@ -6,11 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pyrender
+import pytest
 import trimesh
 
 from sidar_torch import geometry
 from sidar_torch.render.draws import Surface, ViewDraws, world_pose
 from sidar_torch.render.gpu import GpuMesh
+from sidar_torch.render.passes import LitPass, ShadowFractionPass
 from sidar_torch.render.scene_graph import camera_draws, clip_range, gl_material, gl_pose
 from sidar_torch.scene import Camera, Material
 
@@ -65,6 +67,25 @@ def test_the_view_scale_is_pyrenders_scene_scale():
                                 gl_material(Material(np.ones(4), 0.0, 1.0))))
     view = ViewDraws(np.eye(4), np.eye(4), np.zeros(3, np.float32), surfaces[0], surfaces[1:])
     assert view.scale == scene.scale
+
+
+def test_each_pass_checks_its_own_combination():
+    solid, glass, light = object(), object(), object()  # surfaces and an emitter: only their identity is read
+    colour = LitPass((solid, glass), (glass,), (light,), [], stale=(light,), shadow_free=True, stencil=True)
+    assert colour.tinted() == [glass]
+    with pytest.raises(ValueError, match="transmitting: expected some of casters"):
+        LitPass((solid,), (glass,), (light,))
+    with pytest.raises(ValueError, match="stale: expected some of shadowed"):
+        LitPass(shadowed=(light,), stale=(object(),))
+    with pytest.raises(ValueError, match="shadow_free: needs a shadowed emitter"):
+        LitPass((solid,), shadow_free=True)
+    with pytest.raises(ValueError, match="stencil: needs painting_parts"):
+        LitPass(stencil=True)
+    assert ShadowFractionPass((solid,), (), (light,), []).step == "shadow_mask"
+    with pytest.raises(ValueError, match="shadowed: expected at least one emitter"):
+        ShadowFractionPass((solid,))
+    with pytest.raises(ValueError, match="transmitting: expected some of casters"):
+        ShadowFractionPass((solid,), (glass,), (light,))
 
 
 def test_the_package_uses_no_private_pyrender_name_and_subclasses_nothing_of_it():

@@ -308,11 +308,13 @@ def test_masks_from_the_colour_pass_stencil_are_the_drawn_masks(preset, override
 
 
 def test_a_stencil_mask_needs_a_single_sampled_pass_and_the_painting():
+    from sidar_torch.render.passes import LitPass
+
     renderer = shared_renderer(RenderSettings(SMALL, antialias=4))
     with pytest.raises(ValueError, match="stencil: needs a single-sampled colour pass; .* 4 samples per pixel"):
-        renderer._passes.draw(None, "lit", [], stencil=True)
+        renderer._passes.draw(None, LitPass(painting_parts=(), stencil=True), [])
     with pytest.raises(ValueError, match="stencil: needs painting_parts"):
-        shared_renderer(RenderSettings(SMALL))._passes.draw(None, "lit", [], stencil=True)
+        LitPass(stencil=True)
 
 
 def test_shadow_maps_shared_by_the_views_are_drawn_once():
