@@ -21,7 +21,7 @@ SHADOW_FILTERS = ("tent", "bilinear")
 SHADOW_FRUSTA = ("cone", "fitted")
 """What a spot light's shadow map covers (``SidarConfig.shadow_frustum``)."""
 
-TEXTURE_FILTERS = ("trilinear", "bilinear")
+TEXTURE_FILTERS = ("trilinear", "bilinear", "supersampled")
 """How the painting's texture is filtered (``SidarConfig.texture_filter``)."""
 
 AUTO_MAP_SIZE = "auto"

@@ -351,8 +351,11 @@ class SidarConfig:
         "Mesa's llvmpipe offers only 4). Masks stay binary (drawn single-sampled, by the paper's rule); "
         "opacities and the label are drawn single-sampled too. Cost and gain: docs/rendering.md, \"Edges\"."))
     texture_filter: str = _field("trilinear", choices=TEXTURE_FILTERS, meaning=(
-        'the painting texture\'s filter, ``"trilinear"`` (mipmapped) or ``"bilinear"`` (full-size texture only; '
-        "aliases where a view shrinks the painting)."))
+        'the painting texture\'s filter, ``"trilinear"`` (mipmapped), ``"bilinear"`` (full-size texture only; '
+        'aliases where a view shrinks the painting) or ``"supersampled"`` (the mean of 2 x 2 trilinear lookups spread '
+        "over the pixel's footprint where a view shrinks the painting, each at a finer mipmap level: oblique and "
+        "distant views as sharp as a path tracer's, as in the paper's Blender renders, without aliasing; the same "
+        "as trilinear where the view does not shrink it, and the label exact; docs/realism.md)."))
 
     # Input
     on_bad_image: str = _field("raise", choices=ON_BAD_IMAGE, meaning=(

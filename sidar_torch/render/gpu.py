@@ -118,14 +118,20 @@ class PaintingTexture:
     Args:
         rgb: ``(H, W, 3)`` uint8 sRGB, row 0 at the top (uploaded flipped: GL's row 0 is the bottom,
             so texture coordinate ``t = 1`` is the image's first row).
-        filters: ``(min filter, mag filter)`` GL enums (``choices.render.TEXTURE_FILTERS`` rows).
+        filters: ``(min filter, mag filter, taps)``: GL enums and the lookups per pixel side of the lit
+            shader (``scene_graph.PAINTING_FILTERS``, keyed by ``choices.render.TEXTURE_FILTERS``).
+
+    Attributes:
+        defines: the defines of the programs that draw it: ``SIDAR_TEXTURE_TAPS`` with ``taps > 1``
+            (``programs`` quirk 15), else none.
 
     The shader decodes sRGB itself; the texture stores the bytes as they are.
     """
 
-    def __init__(self, rgb: np.ndarray, filters: tuple[int, int]):
+    def __init__(self, rgb: np.ndarray, filters: tuple[int, int, int]):
         self.rgb = rgb
         self.filters = filters
+        self.defines = {"SIDAR_TEXTURE_TAPS": filters[2]} if filters[2] > 1 else {}
         self.id: int | None = None
 
     def upload(self) -> bool:
@@ -139,15 +145,10 @@ class PaintingTexture:
         GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA, w, h, 0, GL.GL_RGBA, GL.GL_UNSIGNED_BYTE,
                         np.ascontiguousarray(rgba[::-1]).ravel())
         GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
-        minify, magnify = self.filters
+        minify, magnify, _ = self.filters
         for name, value in ((GL.GL_TEXTURE_MAG_FILTER, magnify), (GL.GL_TEXTURE_MIN_FILTER, minify),
                             (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
             GL.glTexParameteri(GL.GL_TEXTURE_2D, name, value)
-        import os  # EXPERIMENT
-        if os.environ.get("SIDAR_ANISO"):
-            GL.glTexParameterf(GL.GL_TEXTURE_2D, 0x84FE, float(os.environ["SIDAR_ANISO"]))
-        if os.environ.get("SIDAR_LODBIAS"):
-            GL.glTexParameterf(GL.GL_TEXTURE_2D, GL.GL_TEXTURE_LOD_BIAS, float(os.environ["SIDAR_LODBIAS"]))
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         return True
 

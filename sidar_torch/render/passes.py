@@ -550,6 +550,7 @@ class Passes:
         defines = dict(surface.mesh.defines)
         if surface.material.texture is not None:
             defines["HAS_BASE_COLOR_TEX"] = 1
+            defines.update(surface.material.texture.defines)  # its filter's (programs quirk 15)
         return defines
 
     def _next_unit(self) -> int:

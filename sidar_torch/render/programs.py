@@ -106,9 +106,10 @@ The quirks the shaders and the cache handle, numbered as the code refers to them
     same loops and order, every light's contribution before its lookup darkens it, and writes that
     to a second colour output (``layout(location = 1)``): it equals the scene drawn with
     ``shadows: false`` bit for bit (tested).
-11. **Blender's spot blend.** Each spot light has a ``smooth_falloff`` member; at 1 its falloff is
-    ``smoothstep`` of pyrender's linear ramp in cos (``cone_ramp`` in ``shaders/spot_light.glsl``),
-    at 0 pyrender's ramp exactly. A uniform, not a variant.
+11. **Blender's spot blend and Cycles' area spread.** Each spot light has a ``smooth_falloff`` member
+    (``scene.description.FALLOFFS``): at 1 its falloff is ``smoothstep`` of pyrender's linear ramp in cos
+    (``cone_ramp`` in ``shaders/spot_light.glsl``), at 0 pyrender's ramp exactly, at 2 Cycles' spread
+    area light, ``cos a (1 - tan a / tan outer)``. A uniform, not a variant.
 12. **Soft shadows.** With ``RenderSettings.light_radius`` above 0, ``SIDAR_SHADOW_TAPS`` is 0 and
     ``spot_shadow`` is a percentage-closer soft shadow: 12 raw depth reads of the light's map
     (``spot_shadow_depths``) within ``soft_reach`` of the fragment give the casters' mean depth,
@@ -123,6 +124,16 @@ The quirks the shaders and the cache handle, numbered as the code refers to them
 14. **The lights as one uniform block.** The ``spot_lights`` array is a std140 uniform block
     (``SpotLights``) that a pass fills once per layout and every program reads through its binding
     point (``render.light_block``), instead of about 90 uniform calls per program.
+15. **The painting supersampled over the pixel's footprint.** With ``SIDAR_TEXTURE_TAPS`` N (the
+    texture's define, ``texture_filter: supersampled``: ``gpu.PaintingTexture.defines``), the lit shader
+    reads the painting (``painting_texel`` in ``shaders/painting_texel.glsl``) as the mean of N x N
+    trilinear lookups on a grid over the pixel's footprint (its texture-space derivatives), each with
+    N-times smaller derivatives, so each picks a finer mipmap level: a path tracer's rays through one
+    pixel, not one lookup filtered by the footprint's longer side, which blurs an oblique view's
+    shorter side. Along each screen axis the grid spans ``clamp(f - 1, 0, 1)`` of the pixel, ``f`` the
+    texels per pixel along it: where the view does not shrink the painting (``f <= 1``, view 0) the N x N
+    lookups fall on one point and give the one bilinear lookup's value; the label's unlit draw
+    reads the texture once, as before.
 """
 
 from __future__ import annotations

@@ -22,12 +22,15 @@ GL_FROM_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 """Converts camera axes between the OpenCV frame (y down, z forward) and OpenGL's (y up, z back)."""
 
 
-PAINTING_FILTERS = {  # keys: choices.render.TEXTURE_FILTERS; values: (min filter, mag filter)
-    "trilinear": (GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR),
-    "bilinear": (GL.GL_LINEAR, GL.GL_LINEAR),
+PAINTING_FILTERS = {  # keys: choices.render.TEXTURE_FILTERS; values: (min filter, mag filter, taps per pixel side)
+    "trilinear": (GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR, 1),
+    "bilinear": (GL.GL_LINEAR, GL.GL_LINEAR, 1),
+    "supersampled": (GL.GL_LINEAR_MIPMAP_LINEAR, GL.GL_LINEAR, 2),
 }
 """The painting's texture filters (``RenderSettings.texture_filter``): trilinear blends mipmap levels
-where a view shrinks the painting; bilinear reads the full-size texture only (aliases there).
+where a view shrinks the painting; bilinear reads the full-size texture only (aliases there);
+supersampled averages 2 x 2 trilinear lookups spread over the pixel's footprint where a view shrinks
+the painting, each at a finer level (``programs`` quirk 15: sharper oblique views, as a path tracer's).
 The texture is clamped at its edges, which keeps texels of the opposite edge out of the border pixels."""
 
 

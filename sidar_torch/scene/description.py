@@ -18,7 +18,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Camera", "Light", "Material", "Occluder", "SceneSequence", "ViewScene"]
+__all__ = ["FALLOFFS", "Camera", "Light", "Material", "Occluder", "SceneSequence", "ViewScene"]
+
+FALLOFFS = {"quadratic": 0.0, "spot_blend": 1.0, "area_spread": 2.0}
+"""A light's falloff profile between its cones (:attr:`Light.smooth_falloff`) -> the number the shader
+reads (``cone_ramp`` in ``render/shaders/spot_light.glsl``, ``render.programs`` quirk 11), at angle ``a``
+from the light's axis: ``quadratic``, pyrender's ``r**2`` with ``r = (cos a - cos outer) / (cos inner -
+cos outer)`` clipped to [0, 1]; ``spot_blend``, Blender's spot blend ``smoothstep(r) = r**2 (3 - 2 r)``;
+``area_spread``, Cycles' spread area light (``area_light_spread_attenuation``, a Lambertian soft box):
+``cos a (1 - tan a / tan outer)`` inside the outer cone, the inner cone unused (0)."""
 
 
 class _Plain:
@@ -99,8 +107,9 @@ class Light(_Plain):
             ``intensity * cos(theta) / d**2`` inside its inner cone.
         inner_cone, outer_cone: half-angles (rad). Between them the light falls off as ``r**2``
             (pyrender's), ``r = (cos a - cos outer) / (cos inner - cos outer)`` at angle ``a`` from
-            the axis, or as ``smoothstep(r) = r**2 (3 - 2 r)`` with ``smooth_falloff`` (Blender's spot blend).
-        smooth_falloff: Blender's smoothstep falloff between the cones.
+            the axis, or as ``smooth_falloff`` says.
+        smooth_falloff: the falloff profile, a value of :data:`FALLOFFS` (``False``/``True`` read as
+            ``quadratic``/``spot_blend``).
     """
 
     kind: str
@@ -109,7 +118,7 @@ class Light(_Plain):
     intensity: float
     inner_cone: float
     outer_cone: float
-    smooth_falloff: bool = False
+    smooth_falloff: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import geometry
 from ..config import SidarConfig
-from .description import Material, Occluder
+from .description import FALLOFFS, Material, Occluder
 
 __all__ = ["CONE_MARGIN", "LIGHT_KINDS", "MATERIAL_KINDS", "MAX_EMITTER_CONE", "PAPER_TORUS_SCALE", "ROUGHNESS_RANGES",
            "SHAPES",
@@ -45,7 +45,7 @@ class Beam:
         emitters: ``(S, 3)`` emitter positions.
         inner_cone, outer_cone: half-angles (rad).
         irradiance: each emitter's irradiance at the painting's centre.
-        smooth_falloff: Blender's spot blend between the cones (see ``Light``), else pyrender's.
+        smooth_falloff: the falloff between the cones, a value of ``description.FALLOFFS``.
     """
 
     position: np.ndarray
@@ -53,7 +53,7 @@ class Beam:
     inner_cone: float
     outer_cone: float
     irradiance: float
-    smooth_falloff: bool = False
+    smooth_falloff: float = FALLOFFS["quadratic"]
 
 
 @dataclass(frozen=True)
@@ -80,7 +80,7 @@ def _spot_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarr
     blend = rng.uniform()
     if config.spot_falloff == "blender":
         inner = math.acos(math.cos(outer) + (1.0 - math.cos(outer)) * blend)
-        return Beam(position, position[None], inner, outer, irradiance, smooth_falloff=True)
+        return Beam(position, position[None], inner, outer, irradiance, FALLOFFS["spot_blend"])
     return Beam(position, position[None], outer * (1.0 - blend), outer, irradiance)
 
 
@@ -100,7 +100,7 @@ def _area_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarr
     beam = _covering_beam(position, offsets, irradiance, size)
     if config.area_spread_deg != (180.0, 180.0):
         inner, outer, centre = spread_beam(rng.uniform(*config.area_spread_deg), irradiance)
-        beam = Beam(beam.position, beam.emitters, inner, outer, centre / n)
+        beam = Beam(beam.position, beam.emitters, inner, outer, centre / n, FALLOFFS["area_spread"])
     return beam
 
 
@@ -122,17 +122,18 @@ LIGHT_KINDS: dict[str, LightKind] = {
 
 def spread_beam(spread_deg: float, irradiance: float) -> tuple[float, float, float]:
     """Inner and outer cone (rad) and centre irradiance of an area light narrowed by Blender's
-    ``spread`` (full angle, degrees) whose unnarrowed centre irradiance is ``irradiance``.
+    ``spread`` (full angle, degrees) whose unnarrowed centre irradiance is ``irradiance``; the beam's
+    falloff is ``FALLOFFS["area_spread"]``.
 
-    Cycles keeps a spread light's power and concentrates it within ``a = spread / 2`` of its axis,
-    with a profile falling linearly in ``tan`` to 0 at ``a`` (peak ``tan a / (tan a - a)`` times the
-    unnarrowed light). Here the beam is a spot with no inner cone (the renderer's quadratic falloff
-    ``((cos t - cos a) / (1 - cos a))**2``), the same power: the centre irradiance times
-    ``3 / (2 (1 - cos a))`` (within 10 % of Cycles' peak for spreads of 10-90 degrees). ``a`` is capped
-    at :data:`MAX_EMITTER_CONE`.
+    Cycles (``area_light_spread_attenuation``) keeps a spread light's power and scales its radiance by
+    ``(tan a - tan t) / (tan a - a)`` at angle ``t`` from its axis, ``a = spread / 2``: with the
+    emitter's Lambertian ``cos t``, an intensity ``cos t (1 - tan t / tan a)`` times its peak, which is
+    ``tan a / (tan a - a)`` times the unnarrowed light's (the integral of ``cos t (tan a - tan t)`` over
+    the cone is ``pi (tan a - a)``, the unnarrowed emitter's ``pi`` over ``tan a - a``). Here the beam is a
+    spot with no inner cone and that profile. ``a`` is capped at :data:`MAX_EMITTER_CONE`.
     """
     outer = min(math.radians(spread_deg) / 2, MAX_EMITTER_CONE)
-    return 0.0, outer, irradiance * 3.0 / (2.0 * (1.0 - math.cos(outer)))
+    return 0.0, outer, irradiance * math.tan(outer) / (math.tan(outer) - outer)
 
 
 def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:

@@ -8,6 +8,7 @@ import pytest
 from sidar_torch import geometry, load_config
 
 from benchmarks import paper_replay
+from sidar_torch.scene.description import FALLOFFS
 from benchmarks.realism import paper_to_kornia
 
 SIZE = (384, 512)
@@ -47,7 +48,9 @@ def test_replayed_lights_are_the_generators_powers_cones_and_spreads():
     assert point.intensity == pytest.approx(1.0) and point.inner_cone > math.atan(math.hypot(2 / 3, 0.5) / 2)
     area = paper_replay._our_light(dict(light, type="AREA", energy=np.pi * 49, spread=math.radians(40)), SIZE)
     assert area.outer_cone == pytest.approx(math.radians(20))
-    assert area.intensity == pytest.approx(3 / (2 * (1 - math.cos(math.radians(20)))))  # spread_beam's centre
+    a = math.radians(20)
+    assert area.intensity == pytest.approx(math.tan(a) / (math.tan(a) - a))  # spread_beam's centre: Cycles' peak
+    assert area.smooth_falloff == FALLOFFS["area_spread"] and spot.smooth_falloff == FALLOFFS["spot_blend"]
 
 
 def test_blender_aim_looks_at_the_origin_from_above():

@@ -14,6 +14,7 @@ import pytest
 from sidar_torch.render.meshes import unit_primitive
 from sidar_torch.render.scene_graph import transmission_factors
 from sidar_torch.scene import PAPER_TORUS_SCALE, Light, Material, spread_beam, sample_sequence
+from sidar_torch.scene.description import FALLOFFS
 
 from conftest import LAMBERTIAN, SMALL, render_flat_painting, small_config
 from test_realism import render
@@ -98,15 +99,14 @@ def test_paper_torus_has_the_paper_size_and_other_shapes_keep_their_draw():
 
 
 @pytest.mark.parametrize("spread", [10.0, 30.0, 60.0, 90.0])
-def testspread_beam_keeps_the_power_and_nearly_cycles_peak(spread):
+def test_spread_beam_keeps_the_power_and_cycles_peak(spread):
     inner, outer, irradiance = spread_beam(spread, 1.0)
     assert inner == 0.0 and outer == pytest.approx(math.radians(spread) / 2)
-    theta = np.linspace(0.0, outer, 20001)
-    falloff = ((np.cos(theta) - math.cos(outer)) / (1 - math.cos(outer))) ** 2  # the renderer's spot profile
+    theta = np.linspace(0.0, outer, 200001)
+    falloff = np.cos(theta) * (1 - np.tan(theta) / math.tan(outer))  # the renderer's area_spread profile
     power = 2 * math.pi * np.trapezoid(irradiance * falloff * np.sin(theta), theta)
     assert power == pytest.approx(math.pi, rel=1e-6)  # a unit Lambertian emitter's: pi
-    cycles_peak = math.tan(outer) / (math.tan(outer) - outer)  # Cycles' area_light_spread_attenuation at 0
-    assert abs(irradiance / cycles_peak - 1) < 0.1
+    assert irradiance == pytest.approx(math.tan(outer) / (math.tan(outer) - outer))  # Cycles' peak
 
 
 def test_area_spread_makes_area_lights_beams_and_180_keeps_them_covering():
@@ -118,24 +118,28 @@ def test_area_spread_makes_area_lights_beams_and_180_keeps_them_covering():
     assert all(light.inner_cone > math.radians(20) for light in covering)  # the painting's corners inside
 
 
-@pytest.mark.parametrize("smooth", [False, True])
-def test_a_spot_light_fades_between_its_cones_as_its_falloff_says(smooth):
-    # A spot light 1 unit straight above a white Lambertian painting, cones of 10 and 25 degrees: the
-    # painting's linear light at each pixel of the middle row, over the centre's, is cos^3 of the angle
-    # from the axis times the falloff, r^2 (pyrender's) or smoothstep(r) = r^2 (3 - 2 r) (Blender's spot
-    # blend), r the linear ramp in cos from the outer cone (0) to the inner one (1).
-    inner, outer = math.radians(10), math.radians(25)
-    light = Light("spot", np.array([[0.0, 0.0, 1.0]]), np.ones(3), 0.5, inner, outer, smooth_falloff=smooth)
+@pytest.mark.parametrize("falloff", sorted(FALLOFFS))
+def test_a_spot_light_fades_between_its_cones_as_its_falloff_says(falloff):
+    # A spot light 1 unit straight above a white Lambertian painting, cones of 10 and 25 degrees (0 and 25
+    # for an area light's spread): the painting's linear light at each pixel of the middle row, over the
+    # centre's, is cos^3 of the angle a from the axis times the falloff, r^2 (pyrender's) or smoothstep(r) =
+    # r^2 (3 - 2 r) (Blender's spot blend), r the linear ramp in cos from the outer cone (0) to the inner one
+    # (1), or cos a (1 - tan a / tan 25 degrees) (Cycles' spread area light).
+    spread = falloff == "area_spread"
+    inner, outer = (0.0 if spread else math.radians(10)), math.radians(25)
+    light = Light("spot", np.array([[0.0, 0.0, 1.0]]), np.ones(3), 0.5, inner, outer, FALLOFFS[falloff])
     green = linear(render_flat_painting(lights=[light], plane=LAMBERTIAN, painting=255).views[0])[..., 1]
     h, w = SMALL
     row = h // 2
     x, y = (np.arange(w) - (w - 1) / 2) / h, (row - (h - 1) / 2) / h  # world units: the painting is 1 high
     cos = 1.0 / np.sqrt(1.0 + x**2 + y**2)
     r = np.clip((cos - math.cos(outer)) / (math.cos(inner) - math.cos(outer)), 0.0, 1.0)
-    falloff = r**2 * (3 - 2 * r) if smooth else r**2
-    centre = green[row, w // 2] / cos[w // 2] ** 3
+    tan = np.sqrt(1 - cos**2) / cos
+    expected = {"quadratic": r**2, "spot_blend": r**2 * (3 - 2 * r),
+                "area_spread": cos * np.clip(1 - tan / math.tan(outer), 0.0, None)}[falloff]
+    centre = green[row, w // 2] / cos[w // 2] ** 3 / expected[w // 2]
     assert 0.05 < centre < 0.5 and ((0 < r) & (r < 1)).sum() > 10  # lit, unclipped, the ramp crossed
-    np.testing.assert_allclose(green[row], centre * cos**3 * falloff, atol=2e-3)
+    np.testing.assert_allclose(green[row], centre * cos**3 * expected, atol=2e-3)
 
 
 @pytest.mark.parametrize("spill", [True, False])

@@ -1,10 +1,16 @@
-
 float cone_ramp(int i, float cd)
 {
-    // Quirk 11: the square root of light i's cone falloff at cos(angle from its axis) cd. pyrender's
-    // falloff is the square of a linear ramp in cos from the outer cone (0) to the inner one (1);
-    // with smooth_falloff 1 it is Blender's spot blend, smoothstep of that ramp: r^2 (3 - 2 r).
-    // (Exactly pyrender's ramp at smooth_falloff 0: mix gives 1.0.)
+    // Quirk 11: the square root of light i's cone falloff at cos(angle from its axis) cd, by its profile
+    // (smooth_falloff). pyrender's falloff (0) is the square of a linear ramp r in cos from the outer cone (0)
+    // to the inner one (1); Blender's spot blend (1) is smoothstep of that ramp, r^2 (3 - 2 r) (exactly
+    // pyrender's ramp at 0: mix gives 1.0); Cycles' area-light spread (2), a Lambertian soft box, is
+    // cd (1 - tan / tan a), a the outer cone (cos a = -offset / scale: the inner cone is 0), 1 on the axis.
+    if (spot_lights[i].smooth_falloff > 1.5) {
+        float cos_a = -spot_lights[i].light_angle_offset / spot_lights[i].light_angle_scale;
+        float tan_ratio = sqrt(max(1.0 - cd * cd, 0.0)) * cos_a
+                        / (max(cd, 1e-6) * sqrt(max(1.0 - cos_a * cos_a, 1e-12)));  // tan / tan a
+        return cd > cos_a ? sqrt(cd * max(1.0 - tan_ratio, 0.0)) : 0.0;
+    }
     float r = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
     return r * mix(1.0, sqrt(3.0 - 2.0 * r), spot_lights[i].smooth_falloff);
 }

@@ -176,6 +176,7 @@ vec3 compute_brdf(vec3 n, vec3 v, vec3 l,
 ///////////////////////////////////////////////////////////////////////////////
 // MAIN
 ///////////////////////////////////////////////////////////////////////////////
+#include "painting_texel.glsl"
 #include "spot_shadow.glsl"
 #include "spot_light.glsl"
 #include "surface_output.glsl"
@@ -194,7 +195,7 @@ void main()
     // Compute albedo
     vec4 base_color = material.base_color_factor;
 #ifdef HAS_BASE_COLOR_TEX
-    base_color = base_color * srgb_to_linear(texture(material.base_color_texture, uv_0));
+    base_color = base_color * srgb_to_linear(painting_texel(material.base_color_texture, uv_0));
 #endif
 
     // Compute specular and diffuse colors
