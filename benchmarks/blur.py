@@ -175,7 +175,7 @@ def our_view0_blurs(config: Any, sources: list[Path], samples: int, seed: int,
         rng = dataset.generator(index)
         scene = sample_sequence(dataset.config, rng)
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
-        sample = render_sample(scene, painting, dataset.config, index, rng=rng)
+        sample = render_sample(dataset.renderer(), scene, painting, dataset.config, index, rng=rng)
         view = to_uint8(sample["images"][:1])[0]
         if post_sigma > 0:
             view = blur_linear(view, post_sigma)

@@ -34,7 +34,7 @@ def _sample_ms(dataset: SidarDataset, index: int) -> dict[str, float]:
     sequence = sample_sequence(dataset.config, rng)
     painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
     start = {clock: read() for clock, read in CLOCKS.items()}
-    render_arrays(sequence, painting, dataset.config, index, rng=rng)
+    render_arrays(dataset.renderer(), sequence, painting, dataset.config, index, rng=rng)
     return {clock: 1e3 * (read() - start[clock]) / len(sequence.views) for clock, read in CLOCKS.items()}
 
 

@@ -245,11 +245,12 @@ def main(argv: list[str] | None = None) -> None:
 
     def replayed(seed: int, painting: np.ndarray) -> dict:
         scene = paper_sequence(*paper_draws(seed), size, config, np.random.default_rng(seed))
-        return render_sample(scene, painting, config, seed, rng=np.random.default_rng(seed))
+        return render_sample(dataset.renderer(), scene, painting, config, seed, rng=np.random.default_rng(seed))
 
     def ours(index: int) -> dict:
         rng = dataset.generator(index)
-        return render_sample(sample_sequence(config, rng), paintings[index % len(paintings)], config, index, rng=rng)
+        painting = paintings[index % len(paintings)]
+        return render_sample(dataset.renderer(), sample_sequence(config, rng), painting, config, index, rng=rng)
 
     if args.population == 0:
         mine, theirs, drawn = [], [], []

@@ -588,6 +588,7 @@ def our_stats(config: Any, sources: list[Path], samples: int,
 
     dataset = SidarDataset(source=[str(p) for p in sources], config=config, seed=seed)
     free_config = dataset.config.replace(shadows=False)
+    free_dataset = SidarDataset(source=[str(p) for p in sources], config=free_config, seed=seed)  # for its renderer
     parts, sequences, start = [], [], time.perf_counter()
     for index in range(samples):
         rng = dataset.generator(index)
@@ -596,8 +597,9 @@ def our_stats(config: Any, sources: list[Path], samples: int,
         if free_scene != scene:
             raise RuntimeError(f"sample {index}: shadows=False drew a different scene")
         painting = dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
-        lit = render_sample(scene, painting, dataset.config, index, rng=rng)
-        free = render_sample(free_scene, painting, free_config, index, rng=dataset.generator(index))
+        lit = render_sample(dataset.renderer(), scene, painting, dataset.config, index, rng=rng)
+        free = render_sample(free_dataset.renderer(), free_scene, painting, free_config, index,
+                             rng=dataset.generator(index))
         # ``mesh_detail: auto`` may pick a finer mesh for an occluder whose shadow is drawn, which moves
         # its silhouette by less than ``mesh_error_px``: a few edge pixels, never a different scene.
         changed = float((lit["masks"] != free["masks"]).float().mean())

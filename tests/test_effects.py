@@ -61,9 +61,9 @@ def test_effects_are_off_by_default_and_leave_the_views_bit_identical():
     rng = dataset.generator(0)
     sequence = sample_sequence(config, rng)
     painting = dataset.source.painting(0, SMALL)
-    raw = shared_renderer(RenderSettings.from_config(config)).render(sequence, painting).views
+    raw = dataset.renderer().render(sequence, painting).views
     state = rng.bit_generator.state
-    sample = render_sample(sequence, painting, config, 0, rng=rng)
+    sample = render_sample(dataset.renderer(), sequence, painting, config, 0, rng=rng)
     assert rng.bit_generator.state == state  # effects off draw nothing
     assert torch.equal(sample["images"], torch.from_numpy(raw).permute(0, 3, 1, 2).float() / 255)
     assert torch.equal(sample["images"], dataset.sample(0)["images"])
@@ -208,7 +208,7 @@ def test_render_sample_without_a_generator_refuses_effects():
     config = small_config(jpeg=True)
     dataset = SidarDataset(None, config, seed=0)
     with pytest.raises(ValueError, match="rng.*jpeg"):
-        render_sample(dataset.scene(0), dataset.source.painting(0, SMALL), config, 0)
+        render_sample(dataset.renderer(), dataset.scene(0), dataset.source.painting(0, SMALL), config, 0)
 
 
 @pytest.mark.parametrize("field, value", [

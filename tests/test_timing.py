@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from sidar_torch.render import RenderSettings, shared_renderer
 from sidar_torch.sample import render_sample
 from sidar_torch.scene import sample_sequence
 from sidar_torch.timing import collect_timings, stopwatch, timed
@@ -83,9 +84,10 @@ def test_timings_do_not_change_pixels():
                  if any(v.occluders for v in sample_sequence(config, np.random.default_rng([0, i])).views))
     sequence = sample_sequence(config, np.random.default_rng([0, index]))
     painting = textured_painting(config.image_size)
-    plain = render_sample(sequence, painting, config, index)
+    renderer = shared_renderer(RenderSettings.from_config(config))
+    plain = render_sample(renderer, sequence, painting, config, index)
     with collect_timings() as timings:
-        measured = render_sample(sequence, painting, config, index)
+        measured = render_sample(renderer, sequence, painting, config, index)
     for key in ("images", "masks", "label", "homographies", "K", "R", "t"):
         assert torch.equal(plain[key], measured[key]), key
     assert set(timings) == {"upload", "graph", "shadow", "colour", "mask", "label", "readback",

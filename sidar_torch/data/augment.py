@@ -32,7 +32,9 @@ from torch import nn
 
 from .render_pool import RenderPool, RenderTask, render_tasks
 from ..config import MAX_WORKERS, SidarConfig, as_float, as_int, load_config
+from ..render import RenderSettings, shared_renderer
 from ..sample import stack_arrays
+from ..sample.warm_up import warm_up_renderer
 from ..scene import SceneSequence, sample_sequence
 from ..paintings import CROP_MODES, array_to_uint8, tensor_to_uint8
 
@@ -230,8 +232,10 @@ class SidarAugment(nn.Module):
         return {key: _to_device(value, key, device) for key, value in batch.items()}
 
     def _render(self, tasks: list[RenderTask]):
-        if self.num_workers == 0:
-            return render_tasks(self.config, self.crop, tasks)
+        if self.num_workers == 0:  # this process's renderer, warm before its first batch (as a pool's workers)
+            renderer = shared_renderer(RenderSettings.from_config(self.config))
+            warm_up_renderer(renderer, self.config)
+            return render_tasks(renderer, self.config, self.crop, tasks)
         if self._pool is None or not self._pool.usable:
             self._pool = RenderPool(self.config, self.crop, self.num_workers, self.warm_up_timeout)
         return self._pool.run(tasks, self.timeout)

@@ -10,18 +10,21 @@ from __future__ import annotations
 
 import itertools
 import os
-from typing import Any, Iterator
+from typing import TYPE_CHECKING, Any, Iterator
 
 import numpy as np
 import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
 from ..config import SidarConfig, as_int, load_config
-from ..render import preload
+from ..render import RenderSettings, preload, shared_renderer
 from ..sample import SampleArrays, render_arrays
 from ..scene import SceneSequence, sample_sequence
 from ..paintings import PaintingSource, make_source
-from ..sample.warm_up import warm_renderer
+from ..sample.warm_up import warm_up_renderer
+
+if TYPE_CHECKING:  # the renderer's module imports pyrender: loaded at the first render
+    from ..render import SceneRenderer
 
 __all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
@@ -58,9 +61,9 @@ class SidarDataset(IterableDataset):
     every pairwise homography and the cameras. Its keys, with their shapes, dtypes, meanings and
     when each is present, are the table :data:`sidar_torch.sample.KEYS`.
 
-    Rendering uses this process's shared renderer (``sidar_torch.render.shared_renderer``),
-    created (every shader variant compiled, :meth:`warm_up`) at the first sample: each
-    DataLoader worker makes its own, or takes over its copy of the parent's, and reuses it.
+    Rendering uses this process's renderer for the config (:meth:`renderer`), created at the first
+    sample and warmed up (every shader variant compiled) by :meth:`warm_up` or before the second
+    sample: each DataLoader worker makes its own, or takes over its copy of the parent's, and reuses it.
 
     Sharding: the ``num_workers`` DataLoader workers of each of the ``world_size`` ranks split
     the indices into ``n = world_size * num_workers`` shards; worker ``w`` of rank ``r`` draws shard
@@ -142,7 +145,26 @@ class SidarDataset(IterableDataset):
         rng = self.generator(index)
         sequence = sample_sequence(self.config, rng)
         painting = self.source.painting(index % len(self.source), self.config.image_size)
-        return render_arrays(sequence, painting, self.config, index, rng=rng)
+        return render_arrays(self.renderer(), sequence, painting, self.config, index, rng=rng)
+
+    def renderer(self) -> SceneRenderer:
+        """This process's renderer for the config (``sidar_torch.render.shared_renderer`` of
+        ``RenderSettings.from_config(config)``), made at the first call, as each sample gets it: warm
+        (every shader variant the config can need compiled, ``sidar_torch.sample.warm_up``) after
+        :meth:`warm_up`, or else once it has rendered a sample.
+
+        A fresh renderer (a DataLoader worker whose parent never rendered) thus hands its first sample
+        out after compiling only the variants that sample draws, and warms up before its second, so its
+        later samples still meet no compile mid-stream. Compiling in another order changes no pixel
+        (``tests/render/test_warm_up.py``).
+
+        Raises:
+            RuntimeError: no GL context can be opened (the message names the package to install).
+        """
+        renderer = shared_renderer(RenderSettings.from_config(self.config))
+        if renderer.renders:
+            warm_up_renderer(renderer, self.config)
+        return renderer
 
     def indices(self) -> Iterator[int]:
         """The indices this process draws: ``o + k, o + k + n, o + k + 2n, ...`` (``k + ...`` below
@@ -194,8 +216,12 @@ class SidarDataset(IterableDataset):
         now (``sidar_torch.sample.warm_up``), which the first sample does otherwise; later calls return at
         once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
         too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
-        and compile nothing."""
-        warm_renderer(self.config)
+        and compile nothing.
+
+        Raises:
+            RuntimeError: no GL context can be opened (the message names the package to install).
+        """
+        warm_up_renderer(self.renderer(), self.config)
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
         # indices() runs now, not at the first next(): the epoch is the one set before iter().

@@ -2,11 +2,12 @@
 
 A *task* is everything image ``b`` of a call needs: its position, the entropy of its generator
 (``numpy.random.default_rng(entropy)`` draws the scene, then the view effects) and its pixels,
-``(3, h, w)`` uint8. :func:`render_tasks` turns tasks into :class:`~sidar_torch.sample.SampleArrays`;
-it is the only rendering path, whichever process runs it: all of a batch without a pool, one task at
-a time in a pool worker. It fits the homographies of the tasks it is given in one Kornia call, which
-gives each sequence the values it gets alone (``sample.batch_homographies``), so neither the pixels
-nor the geometry depend on the pool.
+``(3, h, w)`` uint8. :func:`render_tasks` turns tasks into :class:`~sidar_torch.sample.SampleArrays`
+with the renderer it is handed; it is the only rendering path, whichever process runs it: all of a
+batch without a pool (with ``SidarAugment``'s renderer), one task at a time in a pool worker (with the
+worker's). It fits the homographies of the tasks it is given in one Kornia call, which gives each
+sequence the values it gets alone (``sample.batch_homographies``), so neither the pixels nor the
+geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
 parent's, or one created and warmed up when the pool starts, ``sidar_torch.sample.warm_up``; then reused),
@@ -53,19 +54,22 @@ import threading
 import time
 import traceback
 import weakref
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 import torch
 
 from ..config import MAX_WORKERS, SidarConfig, as_int
 from ..orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
-from ..render import preload
+from ..render import RenderSettings, preload, shared_renderer
 from ..render.context import forks_nothing
 from ..sample import SampleArrays, batch_homographies, render_arrays
 from ..scene import sample_sequence
 from ..paintings import TensorPaintings
-from ..sample.warm_up import warm_renderer
+from ..sample.warm_up import warm_up_renderer
+
+if TYPE_CHECKING:  # the renderer's module imports pyrender: loaded at the first render
+    from ..render import SceneRenderer
 
 __all__ = ["LONGEST_WAIT_S", "RenderPool", "RenderTask", "render_tasks"]
 
@@ -80,15 +84,16 @@ RenderTask = tuple[int, Sequence[int], np.ndarray]
 (a list of non-negative integers) and its pixels ``(3, h, w)`` uint8."""
 
 
-def render_tasks(config: SidarConfig, crop: str, tasks: Sequence[RenderTask]) -> list[SampleArrays]:
+def render_tasks(renderer: SceneRenderer, config: SidarConfig, crop: str,
+                 tasks: Sequence[RenderTask]) -> list[SampleArrays]:
     """Draw the scene of each task, fit all their homographies in one call, and render each scene
-    with its task's image fitted to ``config.image_size``."""
+    with its task's image fitted to ``config.image_size``, with ``renderer`` (made for ``config``)."""
     rngs = [np.random.default_rng(list(entropy)) for _, entropy, _ in tasks]
     sequences = [sample_sequence(config, rng) for rng in rngs]
     arrays = []
     for (position, _, image), rng, sequence, homographies in zip(tasks, rngs, sequences, batch_homographies(sequences)):
         painting = TensorPaintings(torch.from_numpy(image), crop=crop).painting(0, config.image_size)
-        arrays.append(render_arrays(sequence, painting, config, position, rng=rng, homographies=homographies))
+        arrays.append(render_arrays(renderer, sequence, painting, config, position, rng=rng, homographies=homographies))
     return arrays
 
 
@@ -182,7 +187,7 @@ class RenderPool:
         num_workers: number of processes, from 1 to :data:`sidar_torch.config.MAX_WORKERS` (256:
             each holds its own renderer, about 100 MiB, and renders on one CPU thread).
         warm_up_timeout: the most seconds the constructor waits for every worker to warm up (compile
-            the shader variants of ``config``, :func:`sidar_torch.sample.warm_up.warm_renderer`; at once
+            the shader variants of ``config``, :func:`sidar_torch.sample.warm_up.warm_up_renderer`; at once
             when the parent's renderer was warm at the fork); ``0``: no limit. Any finite number
             (see :data:`LONGEST_WAIT_S`).
 
@@ -374,8 +379,12 @@ def _worker_main(sock: socket.socket, config: SidarConfig, crop: str, parent_pid
     torch.set_num_threads(1)
     forks_nothing()  # a worker forks nothing: Mesa's disk cache may serve its shader variants
 
+    renderer = None
+
     def warm_up() -> None:
-        warm_renderer(config)
+        nonlocal renderer
+        renderer = shared_renderer(RenderSettings.from_config(config))  # this worker's, for its life
+        warm_up_renderer(renderer, config)
 
     reply = _attempt(warm_up)
     while True:
@@ -385,7 +394,7 @@ def _worker_main(sock: socket.socket, config: SidarConfig, crop: str, parent_pid
             incoming.pump(sock)
         except (EOFError, OSError):  # the pool closed this socket, or the parent died
             return
-        reply = _attempt(lambda: render_tasks(config, crop, [incoming.message()])[0])
+        reply = _attempt(lambda: render_tasks(renderer, config, crop, [incoming.message()])[0])
 
 
 def _attempt(work: Callable[[], Any]) -> tuple[str, Any]:

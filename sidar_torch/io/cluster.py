@@ -97,7 +97,7 @@ def _columns(samples: list[SampleArrays]) -> dict[str, np.ndarray]:
 
 class _Renderer:
     """``map_batches`` class: one instance per Ray actor, for the actor's life; the renderer it uses
-    is the actor process's shared one, made at its first sample and reused."""
+    is the actor process's own (``SidarDataset.renderer``), made at its first sample and reused."""
 
     def __init__(self, dataset: SidarDataset):
         self.dataset = dataset

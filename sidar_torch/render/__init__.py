@@ -66,7 +66,9 @@ def preload() -> None:
 def shared_renderer(settings):
     """:func:`.renderer.shared_renderer` (this process's renderer for ``settings``, a
     :class:`RenderSettings`), importing the renderer at the first call; defined here so that
-    ``from .render import shared_renderer`` loads no GL."""
+    ``from .render import shared_renderer`` loads no GL. Called by the owners of a renderer
+    (``SidarDataset.renderer``, ``SidarAugment``, the render pool's workers, tests and benchmarks), which
+    hand it to what renders (``sidar_torch.sample.render_arrays``)."""
     return _renderer().shared_renderer(settings)
 
 

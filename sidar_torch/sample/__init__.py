@@ -2,7 +2,7 @@
 one path that assembles a sample from the renderer's output (:mod:`.assembly`: ``render_arrays``), and the
 steps it runs after read-back: the view effects (:mod:`.effects`), a lens's resampling (:mod:`.lens_views`),
 flow from depth (:mod:`.depth_flow`, and
-:mod:`.correspondence` for a sample's views); the per-process renderer and its warm-up (:mod:`.warm_up`)."""
+:mod:`.correspondence` for a sample's views); a renderer's warm-up (:mod:`.warm_up`)."""
 
 from .assembly import COMPUTATIONS, batch_homographies, render_arrays, render_sample, sequence_homographies
 from .contract import (FLOAT_OUTPUTS, GEOMETRY_DTYPES, KEYS, LENS_KEYS, PIXEL_KEYS, SampleArrays, SampleKey, float_tensor,

@@ -7,7 +7,8 @@ Shapes: ``V`` views of ``H x W`` pixels.
 
 from __future__ import annotations
 
-from typing import Any, Callable, Sequence
+from dataclasses import fields
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 import torch
@@ -16,13 +17,16 @@ from .. import geometry
 from ..choices.lenses import NO_LENS
 from ..choices.outputs import OUTPUTS
 from ..config import SidarConfig
+from ..render.settings import RenderSettings
 from ..scene import SceneSequence
 from ..timing import timed
 from .contract import SampleArrays
 from .depth_flow import depth_flow
 from .effects import apply_effects, blur_painting, draw_effects
 from .lens_views import distortion_maps, render_through_lens
-from .warm_up import sample_renderer
+
+if TYPE_CHECKING:  # the renderer's module imports pyrender; the caller made the renderer
+    from ..render import SceneRenderer
 
 __all__ = ["COMPUTATIONS", "batch_homographies", "render_arrays", "render_sample", "sequence_homographies"]
 
@@ -62,18 +66,21 @@ def batch_homographies(sequences: Sequence[SceneSequence]) -> list[tuple[torch.T
     return results
 
 
-def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int, *,
-                  rng: np.random.Generator | None = None, homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
+def render_arrays(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray, config: SidarConfig,
+                  index: int, *, rng: np.random.Generator | None = None,
+                  homographies: tuple[torch.Tensor, float] | None = None) -> SampleArrays:
     """Render ``sequence`` with ``painting`` and assemble one sample's arrays: the one place a sample is made.
 
     Args:
+        renderer: the :class:`~sidar_torch.render.SceneRenderer` to draw with, made for ``config``
+            (``RenderSettings.from_config(config)``) by the caller that owns it: ``SidarDataset.renderer``,
+            a render-pool worker (``sidar_torch.data.render_pool``), a test or a benchmark. Warming it up is
+            the owner's business (``sidar_torch.sample.warm_up``); nothing here compiles ahead.
         sequence: the scenes (``sequence.image_size`` must be ``config.image_size``).
         painting: ``(H, W, 3)`` uint8 RGB, the texture, already fitted to ``config.image_size``.
-        config: gives the renderer (this process's for its settings, warmed up for it before its
-            first sample: ``sidar_torch.sample.warm_up``) and its settings (image size, shadow-map size and filter,
-            ``opacity_output``, ``shadow_mask_output``, ``shadow_free_output``), the views' texture
-            (``texture_blur_sigma``) and the view effects (:mod:`sidar_torch.sample.effects`: background,
-            exposure, noise, JPEG; off by default).
+        config: the renderer's settings (image size, shadow-map size and filter, the drawn outputs, ...),
+            the views' texture (``texture_blur_sigma``), the computed outputs and the view effects
+            (:mod:`sidar_torch.sample.effects`: background, exposure, noise, JPEG; off by default).
         index: stored as the sample's ``index``.
         rng: the generator that drew ``sequence``; the view effects draw from it next. Needed only
             when ``config`` switches an effect on (``ValueError`` otherwise).
@@ -84,16 +91,20 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
     ``"upload"`` (the blurred texture), ``"lens"`` (:func:`~.lens_views.render_through_lens`), ``"effects"``
     (the view effects, when any is on), ``"homographies"`` and each computed output's producer (``"flow"``:
     ``flow_output``).
+
+    Raises:
+        ValueError: ``renderer``'s settings are not ``config``'s (naming the fields that differ).
     """
+    _check_renderer(renderer, config)
     effects = draw_effects(config, len(sequence.views), sequence.image_size, rng)
     texture = None
     if config.texture_blur_sigma > 0:  # the views see the painting blurred, the label stays exact
         with timed("upload"):
             texture = blur_painting(painting, config.texture_blur_sigma)
     if sequence.lens_model == NO_LENS:
-        rendered, sources = sample_renderer(config).render(sequence, painting, texture=texture), None
+        rendered, sources = renderer.render(sequence, painting, texture=texture), None
     else:  # the lens's optics before the sensor's effects
-        rendered, sources = render_through_lens(sample_renderer(config), sequence, painting, texture)
+        rendered, sources = render_through_lens(renderer, sequence, painting, texture)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed("effects"):
@@ -114,6 +125,15 @@ def render_arrays(sequence: SceneSequence, painting: np.ndarray, config: SidarCo
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,
                         index=index, lens=sequence.lenses,
                         lens_model=None if sequence.lenses is None else sequence.lens_model, **outputs)
+
+
+def _check_renderer(renderer: SceneRenderer, config: SidarConfig) -> None:
+    """Raise unless ``renderer`` was made for ``config``'s :class:`~sidar_torch.render.RenderSettings`."""
+    expected = RenderSettings.from_config(config)
+    if renderer.settings != expected:
+        differ = [f.name for f in fields(expected) if getattr(renderer.settings, f.name) != getattr(expected, f.name)]
+        raise ValueError(f"renderer: expected one made for config's settings (RenderSettings.from_config(config)), "
+                         f"got one whose {', '.join(differ)} differ")
 
 
 def _with_computed_outputs(outputs: dict[str, np.ndarray], config: SidarConfig, K: np.ndarray, R: np.ndarray,
@@ -149,10 +169,10 @@ COMPUTATIONS: dict[str, Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray
 and the cameras ``K``, ``R`` ``(V, 3, 3)``, ``t`` ``(V, 3)`` (float64) and returns the computed output's."""
 
 
-def render_sample(sequence: SceneSequence, painting: np.ndarray, config: SidarConfig, index: int, *,
-                  rng: np.random.Generator | None = None) -> dict[str, Any]:
+def render_sample(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray, config: SidarConfig,
+                  index: int, *, rng: np.random.Generator | None = None) -> dict[str, Any]:
     """:func:`render_arrays`, then :meth:`SampleArrays.to_tensors` in ``config.geometry_dtype``
     (timed as ``"tensors"``): the sample dict of :data:`KEYS`."""
-    arrays = render_arrays(sequence, painting, config, index, rng=rng)
+    arrays = render_arrays(renderer, sequence, painting, config, index, rng=rng)
     with timed("tensors"):
         return arrays.to_tensors(config.geometry_dtype)

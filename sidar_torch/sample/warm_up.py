@@ -21,13 +21,15 @@ its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
    first view with that many lights, once with every occluder and once without (the painting's
    program for that count, drawn beside the shadow maps and without them).
 
-A renderer renders it once (``SceneRenderer.warm_up``): it hands out no sample and changes no pixel of
-later samples (``tests/render/test_warm_up.py``). :func:`sample_renderer`, which every sample is
-rendered through (``sample.render_arrays``), does it after the renderer's first sample (which compiles
-only what it draws) and before its second; :func:`warm_renderer` (``SidarDataset.warm_up``, the
-render pool's workers) before the first. A forked DataLoader worker or render-pool process takes over
-its parent's renderer (``render.renderer.shared_renderer``): if the parent rendered, or called
-``SidarDataset.warm_up``, the worker compiles nothing at all.
+A renderer renders it once (``SceneRenderer.warm_up``, through :func:`warm_up_renderer`): it hands out
+no sample and changes no pixel of later samples (``tests/render/test_warm_up.py``). Who owns a renderer
+warms it up; the path that makes a sample (``sample.render_arrays``) takes a renderer and compiles
+nothing ahead. The owners: ``SidarDataset`` (``SidarDataset.warm_up`` before the first sample; else
+``SidarDataset.renderer`` after the renderer's first sample, which compiles only what it draws, and
+before its second), and ``SidarAugment`` and its render pool's workers (before their first batch or
+task). A forked DataLoader worker or render-pool process takes over its parent's renderer
+(``render.renderer.shared_renderer``): if the parent rendered, or called ``SidarDataset.warm_up``, the
+worker compiles nothing at all.
 """
 
 from __future__ import annotations
@@ -41,15 +43,12 @@ import numpy as np
 
 from ..config import SidarConfig
 from ..config.memory import shadowed_emitters
-from ..render import shared_renderer
-from ..render.settings import RenderSettings
 from ..scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
 
 if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
     from ..render import SceneRenderer
 
-__all__ = ["WARM_UP_SEED", "light_group_counts", "sample_renderer", "variant_signature", "warm_renderer",
-           "warm_up_sequence"]
+__all__ = ["WARM_UP_SEED", "light_group_counts", "variant_signature", "warm_up_renderer", "warm_up_sequence"]
 
 WARM_UP_SEED = 0x5EED
 """Seed of the generator that draws the warm-up scene (any fixed value: the scene is never handed out)."""
@@ -134,30 +133,17 @@ def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
     return sequence, (lit, light_group_counts(config) if lit else (), *signatures)
 
 
-def sample_renderer(config: SidarConfig) -> SceneRenderer:
-    """The renderer a sample of ``config`` is rendered with (``sample.render_arrays``): :func:`warm_renderer`'s,
-    except that a renderer that has rendered nothing yet renders its first sample before its warm-up.
+def warm_up_renderer(renderer: SceneRenderer, config: SidarConfig) -> bool:
+    """Compile in ``renderer`` every shader variant ``config``'s samples can need: the first call for a
+    renderer and what the config warms up renders :func:`warm_up_sequence` (``SceneRenderer.warm_up``),
+    later ones return at once; a forked worker's renderer, taken over from its parent, comes warm if the
+    parent's was.
 
-    A fresh process (a DataLoader worker whose parent never rendered) then hands its first sample out
-    after compiling only the variants that sample draws, and warms up before its second, so its later
-    samples still meet no compile mid-stream. Compiling in another order changes no pixel
-    (``tests/render/test_warm_up.py``).
+    Args:
+        renderer: a ``SceneRenderer`` made for ``config`` (``RenderSettings.from_config(config)``).
+        config: what the samples will be drawn from.
+
+    Returns:
+        Whether it rendered (False: warm for ``config`` already).
     """
-    renderer = shared_renderer(RenderSettings.from_config(config))
-    if renderer.renders:
-        renderer.warm_up(*_scenes_and_key(config))
-    return renderer
-
-
-def warm_renderer(config: SidarConfig) -> SceneRenderer:
-    """This process's renderer for ``config`` (``render.shared_renderer``), with every shader variant
-    ``config``'s samples can need compiled: the first call for a renderer and config renders
-    :func:`warm_up_sequence` (``SceneRenderer.warm_up``), later ones return at once; a forked
-    worker's renderer, taken over from its parent, comes warm if the parent's was.
-
-    Raises:
-        RuntimeError: no GL context can be opened (the message names the package to install).
-    """
-    renderer = shared_renderer(RenderSettings.from_config(config))
-    renderer.warm_up(*_scenes_and_key(config))
-    return renderer
+    return renderer.warm_up(*_scenes_and_key(config))

@@ -73,12 +73,12 @@ def test_nothing_is_paid_without_a_lens():
     rng = dataset.generator(0)
     painting = dataset.source.painting(0, config.image_size)
     with collect_timings() as timings:
-        render_arrays(sample_sequence(config, rng), painting, config, 0, rng=rng)
+        render_arrays(dataset.renderer(), sample_sequence(config, rng), painting, config, 0, rng=rng)
     assert "lens" not in timings and timings["colour"] > 0
     with_lens = config.replace(lens_model="division")
     rng = dataset.generator(0)
     with collect_timings() as timings:
-        render_arrays(sample_sequence(with_lens, rng), painting, with_lens, 0, rng=rng)
+        render_arrays(dataset.renderer(), sample_sequence(with_lens, rng), painting, with_lens, 0, rng=rng)
     assert timings["lens"] > 0
 
 

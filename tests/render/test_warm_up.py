@@ -7,7 +7,7 @@ import pytest
 from sidar_torch import SidarDataset, available_presets, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.scene import sample_sequence
-from sidar_torch.sample.warm_up import light_group_counts, variant_signature, warm_up_sequence
+from sidar_torch.sample.warm_up import light_group_counts, variant_signature, warm_up_renderer, warm_up_sequence
 
 from conftest import small_config, textured_painting
 
@@ -81,10 +81,10 @@ def test_the_warm_up_hands_out_nothing_and_changes_no_pixel():
 
 def test_a_fresh_renderer_hands_its_first_sample_out_before_its_warm_up():
     """A process that never rendered (a DataLoader worker of a parent that never did) compiles only what
-    its first sample draws, then warms up before the second: the first sample comes sooner, the stream
-    after it meets no compile, and the pixels are those of a warm renderer."""
+    its first sample draws, then warms up before the second (``SidarDataset.renderer``, the edge that owns
+    the renderer): the first sample comes sooner, the stream after it meets no compile, and the pixels are
+    those of a warm renderer."""
     from sidar_torch.render import shared_renderer
-    from sidar_torch.sample import render_arrays
 
     config = small_config("misaligned", image_size=(40, 56))  # a size no other test renders: a fresh renderer
     settings = RenderSettings.from_config(config)
@@ -94,10 +94,30 @@ def test_a_fresh_renderer_hands_its_first_sample_out_before_its_warm_up():
     warm = SceneRenderer(settings)
     try:
         warm.warm_up(warm_up_sequence(config), "all variants")
-        first = render_arrays(dataset.scene(0), painting_of(dataset, 0), config, 0)
+        first = dataset.sample_arrays(0)
         assert 0 < fresh.program_count < warm.program_count  # the first sample's variants only
-        render_arrays(dataset.scene(1), painting_of(dataset, 1), config, 1)
+        dataset.sample_arrays(1)
         assert fresh.program_count == warm.program_count  # warmed up before the second
         assert np.array_equal(first.images, warm.render(dataset.scene(0), painting_of(dataset, 0)).views)
     finally:
         warm.close()
+
+
+def test_the_sample_path_compiles_nothing_ahead_and_takes_only_its_configs_renderer():
+    """``render_arrays`` draws with the renderer it is handed and never warms it up (its owner does);
+    a renderer made for other settings is refused, naming the fields that differ."""
+    from sidar_torch.sample import render_arrays
+
+    config = small_config("misaligned", image_size=(40, 56))
+    dataset = SidarDataset(config=config, seed=0)
+    renderer = SceneRenderer(RenderSettings.from_config(config))
+    try:
+        for index in range(2):
+            render_arrays(renderer, dataset.scene(index), painting_of(dataset, index), config, index)
+        assert renderer.renders == 2
+        assert warm_up_renderer(renderer, config)  # nothing warmed it up before
+        assert not warm_up_renderer(renderer, config)
+        with pytest.raises(ValueError, match="renderer: expected one made for config's settings .* shadow_map_size"):
+            render_arrays(renderer, dataset.scene(0), painting_of(dataset, 0), config.replace(shadow_map_size=64), 0)
+    finally:
+        renderer.close()
