@@ -45,8 +45,8 @@ from sidar_torch.deep_homography.training import SidarPairs, TrainSettings, Warp
 from sidar_torch.deep_homography.warps import WarpTestSet
 from sidar_torch.paintings import ProceduralPaintings
 
-PRESET = "misaligned"
-"""The sidar arm's preset (see docs/benchmarks.md for why not ``paper_misaligned``)."""
+PRESETS = ("misaligned",)
+"""The sidar arm's presets, the same number of sequences of each (see docs/benchmarks.md for the choice)."""
 IMAGE_SIZE = (384, 512)
 TRAIN_FIRST = 1000
 HELD_OUT_FIRST = 5000
@@ -72,7 +72,7 @@ class _Sequences(Dataset):
 def render(preset: str, first: int, count: int, path: Path) -> dict[str, torch.Tensor]:
     """The sequences (see :class:`_Sequences`), rendered by 2 DataLoader workers once and kept at ``path``."""
     if path.is_file():
-        return torch.load(path, weights_only=True)
+        return torch.load(path, weights_only=True, mmap=True)
     start = time.perf_counter()
     parts: dict[str, list[torch.Tensor]] = {"images": [], "masks": [], "homographies": []}
     for k, batch in enumerate(DataLoader(_Sequences(preset, first, count), batch_size=8, num_workers=2)):
@@ -110,17 +110,21 @@ def _train(args: argparse.Namespace) -> None:
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(args.threads)
     wall, cpu = time.perf_counter(), time.process_time()
-    print(f"rendering {args.sequences} training and 24 held-out sequences ({args.preset}, "
-          f"{IMAGE_SIZE[0]}x{IMAGE_SIZE[1]})", flush=True)
-    sequences = render(args.preset, TRAIN_FIRST, args.sequences, out / f"sequences-{args.preset}-{args.sequences}.pt")
-    held_out = _Indexed(render(args.preset, HELD_OUT_FIRST, 24, out / f"held-out-{args.preset}.pt"))
+    print(f"rendering {args.sequences} training and 24 held-out sequences of each of {', '.join(args.presets)} "
+          f"({IMAGE_SIZE[0]}x{IMAGE_SIZE[1]})", flush=True)
+    parts = [render(preset, TRAIN_FIRST, args.sequences, out / f"sequences-{preset}-{args.sequences}.pt")
+             for preset in args.presets]
+    sequences = {key: torch.cat([part[key] for part in parts]) if len(parts) > 1 else parts[0][key] for key in parts[0]}
+    held_out = {f"{preset} held-out": _Indexed(render(preset, HELD_OUT_FIRST, 24, out / f"held-out-{preset}.pt"))
+                for preset in args.presets}
     print(f"rendered in {time.perf_counter() - wall:.0f} s wall (this process's CPU {time.process_time() - cpu:.0f} s; "
           f"the workers' is not counted)", flush=True)
     settings = TrainSettings(steps=args.steps, batch=args.batch, seed=args.seed)
     arms = {"sidar-net": SidarPairs(sequences["images"], sequences["masks"], sequences["homographies"]),
             "warp-net": WarpPairs(paintings(TRAIN_FIRST, args.sequences))}
     warps = WarpTestSet(count=24)
-    identity = {"sidar held-out": protocol_errors(None, held_out), "warps-v1 (24)": protocol_errors(None, warps)}
+    scored = {**held_out, "warps-v1 (24)": warps}
+    identity = {label: protocol_errors(None, data) for label, data in scored.items()}
     for name in args.arms:
         wall, cpu = time.perf_counter(), time.process_time()
 
@@ -132,7 +136,7 @@ def _train(args: argparse.Namespace) -> None:
         print(f"training {name}: {settings}", flush=True)
         network = train(arms[name], settings, out / f"{name}.ckpt", report)
         torch.save(network.state_dict(), out / f"{name}.pt")
-        for label, data in (("sidar held-out", held_out), ("warps-v1 (24)", warps)):
+        for label, data in scored.items():
             errors = protocol_errors(network, data)
             print(f"  {name} on {label}: MACE {errors.mean():.2f} px (identity {identity[label].mean():.2f}), "
                   f"median {np.median(errors):.2f}, {len(errors)} pairs", flush=True)
@@ -232,7 +236,8 @@ def build_parser() -> argparse.ArgumentParser:
     training.add_argument("--steps", type=int, default=1500)
     training.add_argument("--batch", type=int, default=32)
     training.add_argument("--sequences", type=int, default=400)
-    training.add_argument("--preset", default=PRESET, help=f"the sidar arm's preset (default {PRESET})")
+    training.add_argument("--presets", nargs="+", default=list(PRESETS),
+                          help=f"the sidar arm's presets, --sequences of each (default {' '.join(PRESETS)})")
     training.add_argument("--seed", type=int, default=0)
     training.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     training.add_argument("--arms", nargs="+", default=["sidar-net", "warp-net"], choices=["sidar-net", "warp-net"])

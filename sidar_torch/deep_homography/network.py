@@ -6,7 +6,10 @@ and needs millions of pairs; on a 2-core CPU budget of tens of thousands of pair
 the identity. Matching is easier to learn from a cost volume, as IHN (Cao et al. 2022) and RAFT do:
 
 1. both patches (``(N, 3, 128, 128)`` RGB in [0, 1]) become grey, are area-resized to 64 x 64 and
-   standardised (mean 0, std 1 per patch, so brightness and contrast changes do not reach the net);
+   locally contrast-normalised (:func:`local_contrast`: minus the Gaussian-weighted mean of a
+   neighbourhood, over its standard deviation), so that the smooth brightness ramps of spot lights,
+   shadows and highlights and any change of brightness or contrast reach the net as little as they
+   can (a whole-patch standardisation, the first version's, leaves a light's ramp in);
 2. one shared encoder (five 3 x 3 conv-BN-ReLU layers, two of stride 2) maps each to ``(N, 64, 16,
    16)`` features, one cell per 8 x 8 pixels of the 128 patch;
 3. ``ITERATIONS`` rounds: the target's features are warped by the current estimate, the local
@@ -26,7 +29,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["CornerNet", "ITERATIONS", "RADIUS"]
+__all__ = ["CornerNet", "ITERATIONS", "RADIUS", "local_contrast"]
 
 RADIUS = 4
 """Correlation reach, feature cells (8 patch pixels each): 4 cells cover a 32 px perturbation."""
@@ -45,12 +48,25 @@ def _block(inputs: int, outputs: int, stride: int = 1) -> list[nn.Module]:
     return [nn.Conv2d(inputs, outputs, 3, stride, 1, bias=False), nn.BatchNorm2d(outputs), nn.ReLU(inplace=True)]
 
 
-def standardised_grey(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
-    """``(N, 3, P, P)`` RGB in [0, 1] -> ``(N, 1, size, size)`` grey, area-resized, mean 0 and std 1 each."""
+SIGMA = 4.0
+"""Standard deviation (input pixels, 2 patch pixels each at 128 px) of the Gaussian neighbourhood of
+:func:`local_contrast`."""
+
+EPSILON = 0.02
+"""Added to the local standard deviation (grey levels in [0, 1]): flat areas (a blown-out highlight, a black
+pool) come out near 0 instead of as amplified noise."""
+
+
+def local_contrast(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
+    """``(N, 3, P, P)`` RGB in [0, 1] -> ``(N, 1, size, size)``: grey, area-resized to ``size``, minus its
+    local mean, over its local standard deviation plus :data:`EPSILON` (both Gaussian-weighted,
+    :data:`SIGMA`, reflected at the border)."""
     grey = kornia.color.rgb_to_grayscale(patches.float())
     grey = F.interpolate(grey, (size, size), mode="area") if grey.shape[-1] != size else grey
-    mean, std = grey.mean((2, 3), keepdim=True), grey.std((2, 3), keepdim=True)
-    return (grey - mean) / (std + 1e-3)
+    kernel, sigma = 2 * int(3 * SIGMA) + 1, (SIGMA, SIGMA)
+    detail = grey - kornia.filters.gaussian_blur2d(grey, (kernel, kernel), sigma, border_type="reflect")
+    spread = kornia.filters.gaussian_blur2d(detail * detail, (kernel, kernel), sigma, border_type="reflect")
+    return detail / (spread.clamp_min(0).sqrt() + EPSILON)
 
 
 class CornerNet(nn.Module):
@@ -74,8 +90,8 @@ class CornerNet(nn.Module):
         nn.init.zeros_(self.update[-1].bias)
 
     def forward(self, source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        a = self.encoder(standardised_grey(source, self.input))
-        b = self.encoder(standardised_grey(target, self.input))
+        a = self.encoder(local_contrast(source, self.input))
+        b = self.encoder(local_contrast(target, self.input))
         n, _, h, w = a.shape
         cell = self.patch / w  # patch pixels per feature cell
         # Feature-cell centres in patch pixels: cell (x, y) covers pixels [x cell, (x + 1) cell).
