@@ -2,7 +2,7 @@
 
 Both are :class:`.network.CornerNet` with the same settings and budget, trained by
 ``python -m benchmarks.transfer train``: ``sidar-net`` on protocol pairs of rendered
-``paper_misaligned`` sequences, ``warp-net`` on the classic 2-D recipe on the same paintings
+``misaligned`` sequences, ``warp-net`` on the classic 2-D recipe on the same paintings
 (docs/benchmarks.md says with which command, commit and SHA-256). Their weights ship in
 ``weights/`` beside this module.
 

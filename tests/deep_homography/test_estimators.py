@@ -12,6 +12,8 @@ from benchmarks.transfer import recorded_offsets
 from sidar_torch.evaluation.baselines import ESTIMATORS
 from sidar_torch.deep_homography import estimators
 from sidar_torch.deep_homography.network import CornerNet, ITERATIONS, SCALE
+from sidar_torch.deep_homography.protocol import draw_pairs
+from sidar_torch.deep_homography.warps import WarpTestSet
 
 RECORD = json.loads((resources.files("sidar_torch.deep_homography") / "weights" / "scores.json").read_text())
 
@@ -41,3 +43,17 @@ def test_a_view_of_any_size_is_mapped_to_the_networks_pixels_and_back(monkeypatc
 def test_an_unknown_network_is_an_error_naming_the_choices():
     with pytest.raises(ValueError, match=r"network: expected one of \['sidar-net', 'warp-net'\], got 'x-net'"):
         estimators.weights_sha256("x-net")
+
+
+@pytest.mark.parametrize("name", sorted(estimators.NETWORKS))
+def test_the_shipped_networks_recorded_answers_beat_the_identity_on_their_pairs(name):
+    """The recorded offsets are those of trained networks: on the first protocol pairs of ``warps-v1`` their
+    mean corner error is under half the identity's (the perturbation's own size)."""
+    data, truths = WarpTestSet(), []
+    for k in range(len(data)):
+        truths += [pair.offsets for pair in draw_pairs(data[k], k)]
+        if len(truths) >= RECORD["recorded_pairs"]:
+            break
+    truth = np.array(truths[:RECORD["recorded_pairs"]])
+    error = np.linalg.norm(np.array(RECORD["networks"][name]["offsets"]) - truth, axis=-1).mean()
+    assert error < 0.5 * np.linalg.norm(truth, axis=-1).mean()
