@@ -1,16 +1,19 @@
 """Does the data teach? One network, one budget, two data arms.
 
-    python -m benchmarks.transfer train [--steps N] [--sequences S] [--out out/transfer]
+    python -m benchmarks.transfer train [--steps N] [--sequences S] [--presets P ...] [--paper DIR] [--out out/transfer]
     python -m benchmarks.transfer record [--out out/transfer]
-    python -m benchmarks.transfer table [--paper DIR] [--out out/transfer]
+    python -m benchmarks.transfer table [--paper DIR] [--chosen-on N] [--out out/transfer]
+    python -m benchmarks.transfer diagnose --paper DIR [--out out/transfer]
 
-``train`` renders the training sequences once (``misaligned``, 384 x 512, 6 views, procedural
-paintings 1000 .. 1000 + S - 1, seed 0; kept in ``OUT``), then trains the same
+``train`` renders the training sequences once (``misaligned`` by default, or S of each of several
+presets, 384 x 512, 6 views, procedural paintings 1000 .. 1000 + S - 1, seed 0; kept in ``OUT``), then trains the same
 :class:`sidar_torch.deep_homography.network.CornerNet` with the same settings twice: on protocol
 pairs of those sequences (``sidar-net``) and on the classic 2-D recipe on the same paintings
 (``warp-net``). Progress, wall and CPU time are printed; checkpoints in ``OUT`` make it resumable
 (run the same command again). Each arm ends with its score on held-out data of both kinds (24
-sequences of paintings 5000-5023; ``warps-v1``), beside the identity's, and its weights in ``OUT``.
+sequences of paintings 5000-5023 of each preset; the first 24 of ``warps-v1``; with ``--paper DIR``, the
+first ``--chosen-on`` sequences of a folder in the paper's layout), beside the identity's, and its weights
+in ``OUT``.
 
 ``record`` copies the two networks' weights from ``OUT`` into the package
 (``sidar_torch/deep_homography/weights/``) with what the shipped-weights test checks: each network's
@@ -20,7 +23,15 @@ corner offsets on the first protocol pairs of ``warps-v1`` (``scores.json``).
 patch protocol (128 px, rho 32, seed 0) on ``warps-v1``, ``homography-v1`` (rendered into
 ``OUT/homography-v1``) and, with ``--paper DIR``, a folder in the SIDAR paper's layout, and prints a
 markdown table: MACE with its 90 % bootstrap interval over pairs (2000 resamples, seed 0), the median
-and success rates, and the paired bootstrap interval of sidar-net's MACE over warp-net's.
+and success rates, and the paired bootstrap interval of sidar-net's MACE over warp-net's; with ``--paper``,
+also each estimator's MACE on each of the paper's sequences, and on the first ``--chosen-on`` (those
+a recipe was chosen on) and the others apart.
+
+``diagnose --paper DIR`` says why the paper's pairs are hard: how much of their patches is blown out
+or black beside ``homography-v1`` and the two presets' held-out pairs, whether the folder's ``H`` puts
+the target on the source (the best gradient match of the pairs at rho 0), how often SIFT finds no
+homography with no perturbation at all, and the shipped networks on the classic 2-D recipe applied to
+the paper's own source photographs (``seqNN/source.png``: the content alone, without the renders).
 """
 
 from __future__ import annotations
@@ -124,6 +135,11 @@ def _train(args: argparse.Namespace) -> None:
             "warp-net": WarpPairs(paintings(TRAIN_FIRST, args.sequences))}
     warps = WarpTestSet(count=24)
     scored = {**held_out, "warps-v1 (24)": warps}
+    if args.paper:
+        from sidar_torch import ExportedDataset
+
+        paper = ExportedDataset(Path(args.paper), geometry_dtype="float64")
+        scored[f"the paper's first {args.chosen_on} sequences"] = [paper[k] for k in range(args.chosen_on)]
     identity = {label: protocol_errors(None, data) for label, data in scored.items()}
     for name in args.arms:
         wall, cpu = time.perf_counter(), time.process_time()
@@ -261,6 +277,135 @@ def _by_sequence(paper: str, chosen_on: int, out: Path) -> list[str]:
     return lines
 
 
+SATURATED, BLACK = 0.97, 0.03
+"""Grey levels (in [0, 1]) above which a pixel counts as blown out, below which as black (``diagnose``)."""
+
+
+def _as_float(sample: dict) -> dict:
+    images = sample["images"]
+    return dict(sample, images=images.float() / 255 if images.dtype == torch.uint8 else images,
+                masks=sample["masks"].float())
+
+
+def _cut_pairs(sequences, rho: float = 32):
+    """``(pair, cut)`` for every protocol pair (seed 0, 128 px) of ``sequences`` (an indexable of samples)."""
+    for k in range(len(sequences)):
+        sample = _as_float(sequences[k])
+        for pair in draw_pairs(sample, k, rho=rho):
+            yield pair, cut_pair(sample["images"], sample["homographies"][pair.source, pair.target].double().numpy(),
+                                 pair)
+
+
+def patch_statistics(sequences) -> np.ndarray:
+    """``(pairs, 2, 3)``: for the source and target patch of each protocol pair of ``sequences``, the standard
+    deviation of its grey levels and the fractions of its pixels above :data:`SATURATED` and below :data:`BLACK`."""
+    found = []
+    for _, cut in _cut_pairs(sequences):
+        grey = torch.stack([cut["source"], cut["target"]]).mul(torch.tensor([0.299, 0.587, 0.114])[:, None, None]).sum(1)
+        found.append([[float(g.std()), float((g > SATURATED).double().mean()), float((g < BLACK).double().mean())]
+                      for g in grey])
+    return np.array(found)
+
+
+def _gradient(patch: torch.Tensor) -> torch.Tensor:
+    grey = patch.mul(torch.tensor([0.299, 0.587, 0.114])[:, None, None]).sum(0)
+    grey = torch.nn.functional.avg_pool2d(grey[None, None], 3, 1, 1)[0, 0]
+    return torch.hypot(grey[1:-1, 2:] - grey[1:-1, :-2], grey[2:, 1:-1] - grey[:-2, 1:-1])
+
+
+def best_shifts(sequences, reach: int = 6) -> np.ndarray:
+    """``(pairs, 3)``: for every pair of the protocol at ``rho = 0`` (the target should then sit exactly on the
+    source), the whole-pixel shift ``(du, dv)`` of the target's gradient magnitude that best correlates with
+    the source's within ``reach`` pixels, and that best normalised correlation."""
+    found = []
+    for _, cut in _cut_pairs(sequences, rho=0):
+        a, b = _gradient(cut["source"]), _gradient(cut["target"])
+        centre = a[reach:-reach, reach:-reach]
+        centre = (centre - centre.mean()) / (centre.std() + 1e-9)
+        best = (-2.0, 0, 0)
+        size = centre.shape[0]
+        for dv in range(-reach, reach + 1):
+            for du in range(-reach, reach + 1):
+                moved = b[reach + dv:reach + dv + size, reach + du:reach + du + size]
+                score = float((centre * (moved - moved.mean()) / (moved.std() + 1e-9)).mean())
+                best = max(best, (score, du, dv))
+        found.append([best[1], best[2], best[0]])
+    return np.array(found)
+
+
+def _exports(folder: Path) -> list:
+    from sidar_torch import ExportedDataset
+
+    return [ExportedDataset(p, geometry_dtype="float64") for p in sorted(folder.iterdir()) if (p / "export.json").is_file()]
+
+
+class _Chained:
+    """Several indexables of samples as one."""
+
+    def __init__(self, parts: list):
+        self.items = [(part, k) for part in parts for k in range(len(part))]
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, k: int) -> dict:
+        part, index = self.items[k]
+        return part[index]
+
+
+def photo_warps(paper: Path, draws: int = 4) -> list[dict]:
+    """The classic 2-D recipe on the paper's own source photographs (``seqNN/source.png``, what its renders
+    show): ``draws`` jittered two-view sequences of each (jitter ``default_rng([777, draw, k])``), 8-bit levels."""
+    from PIL import Image
+
+    from sidar_torch.deep_homography.warps import classic_sequence
+
+    found = []
+    for draw in range(draws):
+        for k, path in enumerate(sorted(paper.glob("*/source.png"))):
+            image = torch.from_numpy(np.asarray(Image.open(path).convert("RGB")).copy()).permute(2, 0, 1).float() / 255
+            sequence = classic_sequence(image, np.random.default_rng([777, draw, k]))
+            sequence["images"] = (sequence["images"] * 255).round() / 255
+            found.append(sequence)
+    return found
+
+
+def _diagnose(args: argparse.Namespace) -> None:
+    """Why the paper's pairs are hard: their patches' light, the truth's check, SIFT with no perturbation,
+    and the networks on classic warps of the paper's own photographs."""
+    from sidar_torch import ExportedDataset
+
+    torch.set_num_threads(args.threads)
+    out, paper = Path(args.out), Path(args.paper)
+    sets = {"paper's sequences": ExportedDataset(paper, geometry_dtype="float64")}
+    if (out / "homography-v1").is_dir():
+        sets["homography-v1"] = _Chained(_exports(out / "homography-v1"))
+    for preset in ("misaligned", "paper_misaligned"):
+        sets[f"{preset}, 24 held-out"] = _Indexed(render(preset, HELD_OUT_FIRST, 24, out / f"held-out-{preset}.pt"))
+    print(f"| set | pairs | median grey std of a patch | pairs with a patch > 30 % blown out (> {SATURATED}) | "
+          f"> 10 % | pairs with a patch > 30 % black (< {BLACK}) |\n|---|---|---|---|---|---|")
+    for label, data in sets.items():
+        found = patch_statistics(data)
+        worst = found.max(1)
+        print(f"| {label} | {len(found)} | {np.median(found[:, :, 0]):.3f} | {100 * (worst[:, 1] > 0.3).mean():.0f} % | "
+              f"{100 * (worst[:, 1] > 0.1).mean():.0f} % | {100 * (worst[:, 2] > 0.3).mean():.0f} % |", flush=True)
+    shifts = best_shifts(sets["paper's sequences"])
+    clear = shifts[:, 2] > 0.3
+    print(f"\nthe truth's check, paper's sequences at rho 0: {len(shifts)} pairs, {int(clear.sum())} with a clear "
+          f"gradient match (best correlation > 0.3); of those, {int((np.abs(shifts[clear, :2]).max(1) <= 1).sum())} "
+          f"have it within 1 px of the folder's H (median shift {np.median(np.abs(shifts[clear, :2]).max(1)):.0f} px)")
+    for label, testset in (("paper's sequences", paper), ("homography-v1", "homography-v1")):
+        result = evaluate("sift", testset, protocol="patches", rho=0,
+                          cache=out / "homography-v1" if testset == "homography-v1" else None)
+        print(f"SIFT + RANSAC at rho 0 on {label}: no homography found on {result['failures']} of {result['pairs']} "
+              f"pairs ({100 * result['failures'] / result['pairs']:.0f} %)", flush=True)
+    warps = photo_warps(paper)
+    for name in (*estimators.NETWORKS, None):
+        errors = protocol_errors(estimators.load_network(name) if name else None, warps)
+        print(f"classic warps of the paper's {len(warps) // 4} source photographs, {name or 'identity'}: "
+              f"MACE {errors.mean():.2f} px, median {np.median(errors):.2f}, {len(errors)} pairs", flush=True)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The command line: ``train``, ``record`` and ``table`` (see the module docstring)."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -275,6 +420,8 @@ def build_parser() -> argparse.ArgumentParser:
     training.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     training.add_argument("--arms", nargs="+", default=["sidar-net", "warp-net"], choices=["sidar-net", "warp-net"])
     training.add_argument("--out", default="out/transfer")
+    training.add_argument("--paper", metavar="DIR", help="also score on a folder in the SIDAR paper's layout ...")
+    training.add_argument("--chosen-on", type=int, default=3, metavar="N", help="... its first N sequences (default 3)")
     recording = commands.add_parser("record", help="copy the trained weights into the package, with their answers")
     recording.add_argument("--out", default="out/transfer")
     table = commands.add_parser("table", help="score the shipped networks, SIFT and the identity (patch protocol)")
@@ -282,12 +429,16 @@ def build_parser() -> argparse.ArgumentParser:
     table.add_argument("--chosen-on", type=int, default=3, metavar="N",
                        help="how many of the paper's first sequences were used to choose the recipe (reported apart)")
     table.add_argument("--out", default="out/transfer", help="where homography-v1 is rendered (kept)")
+    diagnosis = commands.add_parser("diagnose", help="why the paper's pairs are hard (light, truth, SIFT, content)")
+    diagnosis.add_argument("--paper", metavar="DIR", required=True, help="a folder in the SIDAR paper's layout")
+    diagnosis.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    diagnosis.add_argument("--out", default="out/transfer", help="where the held-out sequences are kept")
     return parser
 
 
 def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
-    {"train": _train, "record": _record, "table": _table}[args.command](args)
+    {"train": _train, "record": _record, "table": _table, "diagnose": _diagnose}[args.command](args)
 
 
 if __name__ == "__main__":
