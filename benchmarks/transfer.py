@@ -178,15 +178,20 @@ def recorded_offsets(name: str) -> list[list[list[float]]]:
 
 
 def _record(args: argparse.Namespace) -> None:
+    from sidar_torch.deep_homography.network import CornerNet
+
     folder = Path(estimators.__file__).parent / "weights"
     folder.mkdir(exist_ok=True)
     commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    record = {"recorded_pairs": RECORDED_PAIRS, "networks": {}}
+    trained_with = CornerNet().normalisation  # what train gives every network it makes
+    record = {"recorded_pairs": RECORDED_PAIRS,
+              "networks": {name: {"normalisation": trained_with} for name in estimators.NETWORKS}}
+    (folder / "scores.json").write_text(json.dumps(record, indent=1) + "\n")  # what load_network reads
     for name, file in estimators.NETWORKS.items():
         shutil.copyfile(Path(args.out) / file, folder / file)
         estimators.load_network.cache_clear()
-        record["networks"][name] = {"sha256": hashlib.sha256((folder / file).read_bytes()).hexdigest(),
-                                    "offsets": recorded_offsets(name)}
+        record["networks"][name].update(sha256=hashlib.sha256((folder / file).read_bytes()).hexdigest(),
+                                        offsets=recorded_offsets(name))
         print(f"{name}: {folder / file}, SHA-256 {record['networks'][name]['sha256']}")
     (folder / "scores.json").write_text(json.dumps(record, indent=1) + "\n")
     print(f"wrote {folder / 'scores.json'} (recorded at commit {commit or 'unknown'})")

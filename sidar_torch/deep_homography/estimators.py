@@ -15,6 +15,7 @@ to the images' pixels, so whole views work too, at the network's resolution.
 from __future__ import annotations
 
 import hashlib
+import json
 from functools import lru_cache
 from importlib import resources
 from typing import Callable
@@ -26,7 +27,7 @@ from torch.nn import functional as F
 from .network import CornerNet
 from .protocol import PATCH, patch_homography
 
-__all__ = ["NETWORKS", "load_network", "network_estimator", "weights_sha256"]
+__all__ = ["NETWORKS", "load_network", "network_estimator", "normalisation", "weights_sha256"]
 
 NETWORKS = {"sidar-net": "sidar-net.pt", "warp-net": "warp-net.pt"}
 """Shipped network name -> its weights file in ``sidar_torch/deep_homography/weights``."""
@@ -43,10 +44,18 @@ def weights_sha256(name: str) -> str:
     return hashlib.sha256(_weights(name).read_bytes()).hexdigest()
 
 
+def normalisation(name: str) -> str:
+    """The input normalisation the shipped network ``name`` was trained with (:data:`.network.NORMALISATIONS`),
+    as ``weights/scores.json`` records it (``standardised`` where it does not say: the first weights')."""
+    _weights(name)
+    record = json.loads((resources.files(__package__) / "weights" / "scores.json").read_text())
+    return record["networks"].get(name, {}).get("normalisation", "standardised")
+
+
 @lru_cache(maxsize=None)
 def load_network(name: str) -> CornerNet:
     """The shipped network ``name`` (:data:`NETWORKS`), in eval mode, on the CPU (loaded once per process)."""
-    network = CornerNet()
+    network = CornerNet(normalisation=normalisation(name))
     with _weights(name).open("rb") as file:
         network.load_state_dict(torch.load(file, map_location="cpu", weights_only=True))
     return network.eval()

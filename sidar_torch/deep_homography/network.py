@@ -29,7 +29,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["CornerNet", "ITERATIONS", "RADIUS", "local_contrast"]
+__all__ = ["CornerNet", "ITERATIONS", "NORMALISATIONS", "RADIUS", "local_contrast", "standardised_grey"]
 
 RADIUS = 4
 """Correlation reach, feature cells (8 patch pixels each): 4 cells cover a 32 px perturbation."""
@@ -57,6 +57,15 @@ EPSILON = 0.02
 pool) come out near 0 instead of as amplified noise."""
 
 
+def standardised_grey(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
+    """``(N, 3, P, P)`` RGB in [0, 1] -> ``(N, 1, size, size)`` grey, area-resized, mean 0 and std 1 each (the
+    first version's input, that of weights recorded with ``"normalisation": "standardised"``)."""
+    grey = kornia.color.rgb_to_grayscale(patches.float())
+    grey = F.interpolate(grey, (size, size), mode="area") if grey.shape[-1] != size else grey
+    mean, std = grey.mean((2, 3), keepdim=True), grey.std((2, 3), keepdim=True)
+    return (grey - mean) / (std + 1e-3)
+
+
 def local_contrast(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
     """``(N, 3, P, P)`` RGB in [0, 1] -> ``(N, 1, size, size)``: grey, area-resized to ``size``, minus its
     local mean, over its local standard deviation plus :data:`EPSILON` (both Gaussian-weighted,
@@ -69,13 +78,22 @@ def local_contrast(patches: torch.Tensor, size: int = INPUT) -> torch.Tensor:
     return detail / (spread.clamp_min(0).sqrt() + EPSILON)
 
 
+NORMALISATIONS = {"local_contrast": local_contrast, "standardised": standardised_grey}
+"""What :class:`CornerNet` can feed its encoder: ``local_contrast`` (the default, what the networks are trained
+with) or ``standardised`` (the first shipped weights' input)."""
+
+
 class CornerNet(nn.Module):
     """Source and target patches ``(N, 3, P, P)`` -> ``(ITERATIONS, N, 4, 2)`` float32: the corners'
     offsets in patch pixels after each round (the last is the estimate; the others feed the training
     loss). ``patch`` is ``P``; patches are resized to ``min(P, INPUT)`` pixels, a multiple of 4."""
 
-    def __init__(self, patch: int = 128, features: int = 64, radius: int = RADIUS, iterations: int = ITERATIONS):
+    def __init__(self, patch: int = 128, features: int = 64, radius: int = RADIUS, iterations: int = ITERATIONS,
+                 normalisation: str = "local_contrast"):
         super().__init__()
+        if normalisation not in NORMALISATIONS:
+            raise ValueError(f"normalisation: expected one of {sorted(NORMALISATIONS)}, got {normalisation!r}")
+        self.normalisation, self._normalise = normalisation, NORMALISATIONS[normalisation]
         self.patch, self.radius, self.iterations = patch, radius, iterations
         self.input = min(patch, INPUT)
         if self.input % 4:
@@ -90,8 +108,8 @@ class CornerNet(nn.Module):
         nn.init.zeros_(self.update[-1].bias)
 
     def forward(self, source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-        a = self.encoder(local_contrast(source, self.input))
-        b = self.encoder(local_contrast(target, self.input))
+        a = self.encoder(self._normalise(source, self.input))
+        b = self.encoder(self._normalise(target, self.input))
         n, _, h, w = a.shape
         cell = self.patch / w  # patch pixels per feature cell
         # Feature-cell centres in patch pixels: cell (x, y) covers pixels [x cell, (x + 1) cell).
