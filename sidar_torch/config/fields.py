@@ -158,9 +158,10 @@ class SidarConfig:
     area_spread_deg: Range = _field((180.0, 180.0), bounds=(1.0, 180.0), meaning=(
         "range of an area light's spread (Blender's), the full angle of the cone it emits into. ``(180, 180)``: "
         "the whole half-space, lighting the painting evenly (no draw then, so such configs draw the same scenes "
-        "as before the field existed); below 180, a beam aimed at the painting's centre with no inner cone and "
-        "the same power, so the narrower the brighter its centre (``sidar_torch.scene.spread_beam``; cones "
-        "wider than 114 degrees are capped there)."))
+        "as before the field existed); below 180, a beam aimed at the painting's centre with the same power and "
+        "Cycles' profile, ``cos t (1 - tan t / tan a)`` at angle ``t`` from its axis (``a`` half the spread), so "
+        "the narrower the brighter its centre (``sidar_torch.scene.spread_beam``; cones wider than 114 degrees "
+        "are capped there)."))
     area_light_samples: int = _field(4, bounds=(1, MAX_SHADOWED_LIGHTS), meaning=(
         "jittered shadow-casting samples an area light is made of (``n_lights`` high end times this at most "
         f"{MAX_SHADOWED_LIGHTS}, the shadow maps the renderer can bind, when ``area`` lights are drawn)."))
