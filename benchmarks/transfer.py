@@ -1,7 +1,8 @@
 """Does the data teach? One network, one budget, two data arms.
 
-    python -m benchmarks.transfer train [--steps N] [--sequences S] [--presets P ...] [--paper DIR] [--out out/transfer]
-    python -m benchmarks.transfer record [--out out/transfer]
+    python -m benchmarks.transfer train [--steps N] [--sequences S] [--presets P ...] [--normalisation N]
+        [--paper DIR] [--out out/transfer]
+    python -m benchmarks.transfer record [--normalisation N] [--out out/transfer]
     python -m benchmarks.transfer table [--paper DIR] [--chosen-on N] [--out out/transfer]
     python -m benchmarks.transfer diagnose --paper DIR [--out out/transfer]
 
@@ -30,7 +31,8 @@ a recipe was chosen on) and the others apart.
 ``diagnose --paper DIR`` says why the paper's pairs are hard: how much of their patches is blown out
 or black beside ``homography-v1`` and the two presets' held-out pairs, whether the folder's ``H`` puts
 the target on the source (the best gradient match of the pairs at rho 0), how often SIFT finds no
-homography with no perturbation at all, and the shipped networks on the classic 2-D recipe applied to
+homography with no perturbation at all, the shipped networks with twice their refinement rounds (on the
+paper's first ``--chosen-on`` sequences and 24 of ``warps-v1``), and on the classic 2-D recipe applied to
 the paper's own source photographs (``seqNN/source.png``: the content alone, without the renders).
 """
 
@@ -130,7 +132,7 @@ def _train(args: argparse.Namespace) -> None:
                 for preset in args.presets}
     print(f"rendered in {time.perf_counter() - wall:.0f} s wall (this process's CPU {time.process_time() - cpu:.0f} s; "
           f"the workers' is not counted)", flush=True)
-    settings = TrainSettings(steps=args.steps, batch=args.batch, seed=args.seed)
+    settings = TrainSettings(steps=args.steps, batch=args.batch, seed=args.seed, normalisation=args.normalisation)
     arms = {"sidar-net": SidarPairs(sequences["images"], sequences["masks"], sequences["homographies"]),
             "warp-net": WarpPairs(paintings(TRAIN_FIRST, args.sequences))}
     warps = WarpTestSet(count=24)
@@ -183,9 +185,9 @@ def _record(args: argparse.Namespace) -> None:
     folder = Path(estimators.__file__).parent / "weights"
     folder.mkdir(exist_ok=True)
     commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
-    trained_with = CornerNet().normalisation  # what train gives every network it makes
+    CornerNet(normalisation=args.normalisation)  # a known name, or the error naming them
     record = {"recorded_pairs": RECORDED_PAIRS,
-              "networks": {name: {"normalisation": trained_with} for name in estimators.NETWORKS}}
+              "networks": {name: {"normalisation": args.normalisation} for name in estimators.NETWORKS}}
     (folder / "scores.json").write_text(json.dumps(record, indent=1) + "\n")  # what load_network reads
     for name, file in estimators.NETWORKS.items():
         shutil.copyfile(Path(args.out) / file, folder / file)
@@ -377,7 +379,9 @@ def photo_warps(paper: Path, draws: int = 4) -> list[dict]:
 
 def _diagnose(args: argparse.Namespace) -> None:
     """Why the paper's pairs are hard: their patches' light, the truth's check, SIFT with no perturbation,
-    and the networks on classic warps of the paper's own photographs."""
+    the networks with twice the refinement rounds, and on classic warps of the paper's own photographs."""
+    import copy
+
     from sidar_torch import ExportedDataset
 
     torch.set_num_threads(args.threads)
@@ -404,6 +408,14 @@ def _diagnose(args: argparse.Namespace) -> None:
                           cache=out / "homography-v1" if testset == "homography-v1" else None)
         print(f"SIFT + RANSAC at rho 0 on {label}: no homography found on {result['failures']} of {result['pairs']} "
               f"pairs ({100 * result['failures'] / result['pairs']:.0f} %)", flush=True)
+    first = [sets["paper's sequences"][k] for k in range(args.chosen_on)]
+    for name in estimators.NETWORKS:
+        network = copy.deepcopy(estimators.load_network(name))
+        for rounds in (network.iterations, 2 * network.iterations):
+            network.iterations = rounds
+            print(f"{name} with {rounds} refinement rounds: MACE {protocol_errors(network, first).mean():.2f} px on the "
+                  f"paper's first {args.chosen_on} sequences, {protocol_errors(network, WarpTestSet(count=24)).mean():.2f} "
+                  f"on warps-v1 (24)", flush=True)
     warps = photo_warps(paper)
     for name in (*estimators.NETWORKS, None):
         errors = protocol_errors(estimators.load_network(name) if name else None, warps)
@@ -422,6 +434,8 @@ def build_parser() -> argparse.ArgumentParser:
     training.add_argument("--presets", nargs="+", default=list(PRESETS),
                           help=f"the sidar arm's presets, --sequences of each (default {' '.join(PRESETS)})")
     training.add_argument("--seed", type=int, default=0)
+    training.add_argument("--normalisation", default="local_contrast", choices=["local_contrast", "standardised"],
+                          help="the network's input, both arms (default local_contrast; standardised: version 1's)")
     training.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     training.add_argument("--arms", nargs="+", default=["sidar-net", "warp-net"], choices=["sidar-net", "warp-net"])
     training.add_argument("--out", default="out/transfer")
@@ -429,6 +443,8 @@ def build_parser() -> argparse.ArgumentParser:
     training.add_argument("--chosen-on", type=int, default=3, metavar="N", help="... its first N sequences (default 3)")
     recording = commands.add_parser("record", help="copy the trained weights into the package, with their answers")
     recording.add_argument("--out", default="out/transfer")
+    recording.add_argument("--normalisation", default="local_contrast", choices=["local_contrast", "standardised"],
+                           help="the input the networks were trained with (train's --normalisation)")
     table = commands.add_parser("table", help="score the shipped networks, SIFT and the identity (patch protocol)")
     table.add_argument("--paper", metavar="DIR", help="also a folder in the SIDAR paper's layout")
     table.add_argument("--chosen-on", type=int, default=3, metavar="N",
@@ -436,6 +452,8 @@ def build_parser() -> argparse.ArgumentParser:
     table.add_argument("--out", default="out/transfer", help="where homography-v1 is rendered (kept)")
     diagnosis = commands.add_parser("diagnose", help="why the paper's pairs are hard (light, truth, SIFT, content)")
     diagnosis.add_argument("--paper", metavar="DIR", required=True, help="a folder in the SIDAR paper's layout")
+    diagnosis.add_argument("--chosen-on", type=int, default=3, metavar="N",
+                           help="the paper's first N sequences score the refinement rounds (default 3)")
     diagnosis.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     diagnosis.add_argument("--out", default="out/transfer", help="where the held-out sequences are kept")
     return parser

@@ -25,6 +25,7 @@ from torch import nn
 
 from ..config import as_int
 from .network import CornerNet
+from .network import NORMALISATIONS
 from .protocol import PATCH, RHO, PatchPair, cut_pair, draw_pair, draw_pairs
 from .warps import jitter
 
@@ -132,18 +133,22 @@ def corner_loss(estimates: torch.Tensor, offsets: torch.Tensor, decay: float = 0
 class TrainSettings:
     """The budget and optimiser of a run, the same for both arms: ``steps`` (at least 3, what the one-cycle
     schedule needs for a rise and a fall), pairs per step ``batch``, AdamW's peak ``lr`` and ``weight_decay``,
-    the ``seed`` of the weights and of every batch, and how often a checkpoint is written and progress reported."""
+    the ``seed`` of the weights and of every batch, how often a checkpoint is written and progress reported, and
+    the network's input ``normalisation`` (:data:`sidar_torch.deep_homography.network.NORMALISATIONS`)."""
 
     def __init__(self, steps: int = 1500, batch: int = 32, lr: float = 1e-3, weight_decay: float = 1e-4,
-                 seed: int = 0, checkpoint_every: int = 100):
+                 seed: int = 0, checkpoint_every: int = 100, normalisation: str = "local_contrast"):
         steps, batch = as_int("steps", steps, 3), as_int("batch", batch, 1)
         checkpoint_every, seed = as_int("checkpoint_every", checkpoint_every, 1), as_int("seed", seed, 0)
         self.steps, self.batch, self.lr, self.weight_decay = steps, batch, lr, weight_decay
         self.seed, self.checkpoint_every = seed, checkpoint_every
+        if normalisation not in NORMALISATIONS:
+            raise ValueError(f"normalisation: expected one of {sorted(NORMALISATIONS)}, got {normalisation!r}")
+        self.normalisation = normalisation
 
     def __repr__(self) -> str:
         return (f"TrainSettings(steps={self.steps}, batch={self.batch}, lr={self.lr}, weight_decay={self.weight_decay}, "
-                f"seed={self.seed})")
+                f"seed={self.seed}, normalisation={self.normalisation!r})")
 
 
 def train(pairs: PairSource, settings: TrainSettings, checkpoint: Path | None = None,
@@ -162,7 +167,7 @@ def train(pairs: PairSource, settings: TrainSettings, checkpoint: Path | None = 
         The trained network, in eval mode.
     """
     torch.manual_seed(settings.seed)
-    network = CornerNet(pairs.patch)
+    network = CornerNet(pairs.patch, normalisation=settings.normalisation)
     optimizer = torch.optim.AdamW(network.parameters(), lr=settings.lr, weight_decay=settings.weight_decay)
     schedule = torch.optim.lr_scheduler.OneCycleLR(optimizer, settings.lr, total_steps=settings.steps,
                                                    pct_start=max(0.05, 2 / settings.steps))  # a warm-up of >= 2 steps

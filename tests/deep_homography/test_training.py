@@ -83,3 +83,11 @@ def test_settings_refuse_a_budget_the_schedule_cannot_run():
         TrainSettings(steps=2)
     with pytest.raises(ValueError, match="batch"):
         TrainSettings(batch=0)
+
+
+def test_the_settings_choose_the_networks_input():
+    pairs = WarpPairs(_paintings(1), patch=32, rho=4)
+    assert train(pairs, TrainSettings(steps=3, batch=2, normalisation="standardised")).normalisation == "standardised"
+    assert train(pairs, TrainSettings(steps=3, batch=2)).normalisation == "local_contrast"
+    with pytest.raises(ValueError, match="normalisation: expected one of"):
+        TrainSettings(normalisation="none")
