@@ -213,8 +213,8 @@ class SidarDataset(IterableDataset):
 
     def warm_up(self) -> None:
         """Compile every shader variant this dataset's samples can need in this process's renderer
-        now (``sidar_torch.sample.warm_up``), which the first sample does otherwise; later calls return at
-        once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
+        (:meth:`renderer`) now (``sidar_torch.sample.warm_up``), which the renderer's second sample does
+        otherwise (its first compiles only what it draws); later calls return at once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
         too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
         and compile nothing.
 
