@@ -48,7 +48,7 @@ CUTS: dict[str, tuple[str, tuple[Replacement, ...]]] = {
         ("spot_shadow.glsl", "float spot_shadow(int i, mat4 light_matrix, int layer, float nl)\n{\n",
          "float spot_shadow(int i, mat4 light_matrix, int layer, float nl)\n{\n    return 0.0;\n"),)),
     "texture": ("the painting's texture read and its sRGB decoding", (
-        ("surface.frag", "base_color = base_color * srgb_to_linear(texture(material.base_color_texture, uv_0));",
+        ("surface.frag", "base_color = base_color * srgb_to_linear(painting_texel(material.base_color_texture, uv_0));",
          "base_color = base_color * vec4(uv_0, 0.5, 1.0);"),)),
     "encoding": ("the sRGB encoding of the output (its power)", (
         ("surface_output.glsl", "return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, step(vec3(0.0031308), c));",
