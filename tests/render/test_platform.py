@@ -170,9 +170,10 @@ def test_own_framebuffer_gives_the_pixels_of_osmesas_buffer(monkeypatch):
     # drawn upright, lit pixels round differently.
     sequences = [(sample_sequence(small_config(p), np.random.default_rng(s)), textured_painting(SMALL, s))
                  for p, s in SEQUENCES]
-    settings = {replace(RenderSettings.from_config(small_config(p)), antialias=1, highlight_spill=True, light_radius=0.0)
-                for p, _ in SEQUENCES}
-    assert len(settings) == 1  # the presets' renderer, at one sample per pixel, spilling highlights, hard shadows
+    settings = {replace(RenderSettings.from_config(small_config(p)), antialias=1, highlight_spill=True,
+                        light_radius=0.0, texture_filter="trilinear") for p, _ in SEQUENCES}
+    # the presets' renderer, at one sample per pixel, spilling highlights, hard shadows, trilinear texture
+    assert len(settings) == 1
     # The painting seen in mirrors and glass (settings.mirrors) takes its texture level from screen-space
     # derivatives, which llvmpipe takes per 2 x 2 quad from one of its rows: drawn the other way up, a few
     # of those pixels move by a level (2 of 36864 view values in paper_misaligned's scene). Without

@@ -1,14 +1,15 @@
-float cone_ramp(int i, float cd)
+float cone_ramp(int i, float cd, float sd)
 {
-    // Quirk 11: the square root of light i's cone falloff at cos(angle from its axis) cd, by its profile
-    // (smooth_falloff). pyrender's falloff (0) is the square of a linear ramp r in cos from the outer cone (0)
-    // to the inner one (1); Blender's spot blend (1) is smoothstep of that ramp, r^2 (3 - 2 r) (exactly
-    // pyrender's ramp at 0: mix gives 1.0); Cycles' area-light spread (2), a Lambertian soft box, is
+    // Quirk 11: the square root of light i's cone falloff at cos cd and sin sd of the angle from its axis, by
+    // its profile (smooth_falloff). pyrender's falloff (0) is the square of a linear ramp r in cos from the
+    // outer cone (0) to the inner one (1); Blender's spot blend (1) is smoothstep of that ramp, r^2 (3 - 2 r)
+    // (exactly pyrender's ramp at 0: mix gives 1.0); Cycles' area-light spread (2), a Lambertian soft box, is
     // cd (1 - tan / tan a), a the outer cone (cos a = -offset / scale: the inner cone is 0), 1 on the axis.
+    // The tangent is sd / cd, sd the length of a cross product: sqrt(1 - cd^2) would turn the last bit of cd
+    // near the axis into a step of the light (a frame drawn upside down would round differently there).
     if (spot_lights[i].smooth_falloff > 1.5) {
         float cos_a = -spot_lights[i].light_angle_offset / spot_lights[i].light_angle_scale;
-        float tan_ratio = sqrt(max(1.0 - cd * cd, 0.0)) * cos_a
-                        / (max(cd, 1e-6) * sqrt(max(1.0 - cos_a * cos_a, 1e-12)));  // tan / tan a
+        float tan_ratio = sd * cos_a / (max(cd, 1e-6) * sqrt(max(1.0 - cos_a * cos_a, 1e-12)));  // tan / tan a
         return cd > cos_a ? sqrt(cd * max(1.0 - tan_ratio, 0.0)) : 0.0;
     }
     float r = clamp(cd * spot_lights[i].light_angle_scale + spot_lights[i].light_angle_offset, 0.0, 1.0);
@@ -26,7 +27,7 @@ vec3 spot_light(int i, vec3 n, float roughness, float metallic, vec3 f0, vec3 c_
     vec3 direction = spot_lights[i].group_direction;
     float dist = length(position - frag_position);
     float cd = clamp(dot(direction, -l), 0.0, 1.0);
-    float attenuation = cone_ramp(i, cd);
+    float attenuation = cone_ramp(i, cd, length(cross(direction, l)));
     attenuation = attenuation * attenuation * spot_lights[i].intensity;
     attenuation = attenuation / (dist * dist);
     vec3 radiance = attenuation * spot_lights[i].color;
@@ -42,7 +43,7 @@ vec3 spot_irradiance(int i, vec3 p, vec3 n)
     float dist = length(to_light);
     vec3 l = to_light / dist;
     float cd = clamp(dot(spot_lights[i].group_direction, -l), 0.0, 1.0);
-    float spot = cone_ramp(i, cd);
+    float spot = cone_ramp(i, cd, length(cross(spot_lights[i].group_direction, l)));
     return max(dot(n, l), 0.0) * spot * spot * spot_lights[i].intensity / (dist * dist) * spot_lights[i].color;
 }
 
