@@ -31,7 +31,7 @@ import torch
 from sidar_torch.cli import parse_overrides as parse_set
 
 __all__ = ["DEFAULT_PRESET", "cpu_seconds", "kornia_call", "kornia_pipeline", "machine", "machine_line",
-           "median", "warm_heap", "one_thread", "parse_set", "parse_size", "rss_mb", "size_label"]
+           "median", "plain_pipeline", "warm_heap", "one_thread", "parse_set", "parse_size", "rss_mb", "size_label"]
 
 DEFAULT_PRESET = "misaligned"
 """The preset ``SidarDataset`` uses when given none; the speed targets refer to it."""
@@ -148,17 +148,24 @@ def kornia_pipeline() -> torch.nn.Module:
         KA.RandomPlasmaShadow(p=1.0), KA.RandomGaussianNoise(std=0.05, p=1.0))
 
 
-def kornia_call(batch: int, size: tuple[int, int], seed: int = 0) -> Callable[[], object]:
-    """One call of :func:`kornia_pipeline` on a ``(batch, 3, H, W)`` float32 batch, as a function to
-    time (one untimed call made here). Benchmarks time its calls between their own, so that the
-    baseline and what it is compared with meet the same state of the machine."""
+def plain_pipeline() -> torch.nn.Module:
+    """The first two steps of :func:`kornia_pipeline` alone: RandomPerspective(0.5) + ColorJitter(0.2,
+    0.2, 0.2, 0.05), each applied with probability 1 (a plain geometric and photometric augmentation)."""
+    return torch.nn.Sequential(*list(kornia_pipeline())[:2])
+
+
+def kornia_call(batch: int, size: tuple[int, int], seed: int = 0,
+                pipeline: Callable[[], torch.nn.Module] = kornia_pipeline) -> Callable[[], object]:
+    """One call of ``pipeline()`` (default :func:`kornia_pipeline`) on a ``(batch, 3, H, W)`` float32
+    batch, as a function to time (one untimed call made here). Benchmarks time its calls between their
+    own, so that the baseline and what it is compared with meet the same state of the machine."""
     torch.manual_seed(seed)
-    pipeline = kornia_pipeline()
+    module = pipeline()
     images = torch.rand(batch, 3, *size)
 
     def call() -> object:
         with torch.no_grad():
-            return pipeline(images)
+            return module(images)
 
     call()
     return call

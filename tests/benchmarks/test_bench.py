@@ -27,6 +27,7 @@ def test_report_structure_and_consistency(report):
     a = report["augment"]
     assert (a["batch"], a["views"], a["size"]) == (2, 2, "48x64")
     assert a["ms_per_image"] > 0 and a["kornia_ratio"] == pytest.approx(a["ms_per_image"] / a["kornia_ms_per_image"])
+    assert a["plain_ratio"] == pytest.approx(a["ms_per_image"] / a["plain_ms_per_image"])
     w = report["loaders"]
     assert w["scaling"] == pytest.approx(w["sequences_per_s"]["2"] / w["sequences_per_s"]["1"]) and w["scaling"] > 0
     assert w["samples"] == 4  # samples 0..3 with 1 worker and with 2 (loader_rate checks the indices it got)
@@ -60,18 +61,32 @@ def fake_report(ms_per_view, kornia_ms, s_per_sequence, augment_ratio, pool, sca
              for size in bench.TARGET_SIZES.values()]
     return {"views": views, "machine": {"before": {"load": 0.1, "cpus": 2}, "after": {"load": 0.2, "cpus": 2}},
             "augment": {"preset": "misaligned", "batch": 8, "views": 2, "size": "192x256", "ms_per_image": 1.0,
-                        "kornia_ms_per_image": 1 / augment_ratio, "kornia_ratio": augment_ratio, "pool_speedup": pool},
+                        "kornia_ms_per_image": 1 / augment_ratio, "kornia_ratio": augment_ratio,
+                        "plain_ms_per_image": 0.5 / augment_ratio, "plain_ratio": 2 * augment_ratio, "pool_speedup": pool},
             "loaders": {"preset": "misaligned", "size": "384x512", "scaling": scaling, "first_sample_s": first}}
 
 
 def test_targets_are_judged_on_the_figures_of_the_target_sizes():
-    met = bench.targets(fake_report(8.0, 10.0, 0.2, 4.0, 1.8, 1.8))  # at or within every limit
+    met = bench.targets(fake_report(8.0, 10.0, 0.2, 2.5, 1.8, 1.8))  # at or within every limit
     assert [t["met"] for t in met] == [True] * 8
-    missed = bench.targets(fake_report(12.0, 10.0, 0.25, 4.1, None, 1.79, first=0.51))
+    missed = bench.targets(fake_report(12.0, 10.0, 0.25, 2.6, None, 1.79, first=0.51))
     # 1.2x kornia: within 192x256's 1.2x, over the others' 0.8x and 1.0x; no pool: not met, saying why
     assert [t["met"] for t in missed] == [False, True, False, False, False, False, False, False]
     assert missed[0]["measured"] == "0.250 s" and missed[5]["measured"].startswith("no pool")
     assert "1.20x" in missed[2]["measured"] and "1.79x" in missed[6]["measured"] and missed[7]["measured"] == "0.51 s"
+
+
+def test_parts_not_measured_are_said_so():
+    report = {**fake_report(10.0, 10.0, 0.1, 1.0, 2.0, 2.0), "views": [], "loaders": None}
+    verdicts = bench.targets(report)
+    assert [t["met"] for t in verdicts] == [None] * 4 + [True, True, None, None]
+    assert all(t["measured"] == "not measured in this run" for t in verdicts[:4] + verdicts[6:])
+    report = {**report, "augment": None, "settings": {}, "heap": "warm", "seconds": 1.0}
+    report["machine"]["before"].update(python="3", torch="2", kornia="0", gl_platform="osmesa", lp_num_threads="0")
+    text = bench.format_report({**report, "targets": bench.targets(report)})
+    assert "## Targets" in text and "SidarAugment against" not in text and "## Per view" not in text
+    with pytest.raises(ValueError, match="parts"):
+        bench.BenchSettings(parts=("views", "nope"))
 
 
 def test_five_views_do_not_count_for_the_sequence_target():
