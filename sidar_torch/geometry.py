@@ -252,17 +252,17 @@ def plane_induced_homographies(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> n
     painting's plane in camera i's frame (Hartley & Zisserman, result 13.1).
 
     Args:
-        K, R: ``(V, 3, 3)``; t: ``(V, 3)`` float64.
+        K, R: ``(..., V, 3, 3)``; t: ``(..., V, 3)`` float64 (leading dims: a batch of sequences).
 
     Returns:
-        ``(V, V, 3, 3)`` float64 array.
+        ``(..., V, V, 3, 3)`` float64 array.
     """
-    R_ij = np.einsum("jab,icb->ijac", R, R)  # R_j R_i^T
-    t_ij = t[None, :] - np.einsum("ijab,ib->ija", R_ij, t)  # t_j - R_ij t_i
-    n = R @ PLANE_NORMAL  # (V, 3)
-    d = -np.einsum("ia,ia->i", n, t)
-    euclid = R_ij - np.einsum("ija,ib->ijab", t_ij, n) / d[:, None, None, None]
-    H = np.einsum("jab,ijbc,icd->ijad", K, euclid, np.linalg.inv(K))
+    R_ij = np.einsum("...jab,...icb->...ijac", R, R)  # R_j R_i^T
+    t_ij = t[..., None, :, :] - np.einsum("...ijab,...ib->...ija", R_ij, t)  # t_j - R_ij t_i
+    n = R @ PLANE_NORMAL  # (..., V, 3)
+    d = -np.einsum("...ia,...ia->...i", n, t)
+    euclid = R_ij - np.einsum("...ija,...ib->...ijab", t_ij, n) / d[..., :, None, None, None]
+    H = np.einsum("...jab,...ijbc,...icd->...ijad", K, euclid, np.linalg.inv(K))
     return normalize_det(torch.from_numpy(H)).numpy()
 
 
@@ -277,12 +277,19 @@ def point_disagreement(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray, whe
     Returns:
         The largest distance in view-j pixels (0 when ``where`` selects nothing).
     """
-    src = np.concatenate([points, np.ones((*points.shape[:2], 1))], axis=2)[:, None]  # (V, 1, N, 3)
-    a = src @ np.swapaxes(H_a, -1, -2)  # (V, V, N, 3): H[i, j] applied to view i's points
+    return float(point_disagreements(H_a, H_b, points, where))
+
+
+def point_disagreements(H_a: np.ndarray, H_b: np.ndarray, points: np.ndarray,
+                        where: np.ndarray | None = None) -> np.ndarray:
+    """:func:`point_disagreement` of each of a batch of sequences: ``H_a``, ``H_b`` ``(..., V, V, 3, 3)``,
+    ``points`` ``(..., V, N, 2)``, ``where`` ``(..., V, V, N)``; returns ``(...)`` float64 pixels."""
+    src = np.concatenate([points, np.ones((*points.shape[:-1], 1))], axis=-1)[..., :, None, :, :]  # (..., V, 1, N, 3)
+    a = src @ np.swapaxes(H_a, -1, -2)  # (..., V, V, N, 3): H[i, j] applied to view i's points
     b = src @ np.swapaxes(H_b, -1, -2)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # unselected points may map to infinity
         distance = np.linalg.norm(a[..., :2] / a[..., 2:] - b[..., :2] / b[..., 2:], axis=-1)
-    return float(distance.max() if where is None else distance[where].max(initial=0.0))
+    return np.max(distance, axis=(-3, -2, -1), where=True if where is None else where, initial=0.0)
 
 
 def visible_plane_points(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
@@ -290,18 +297,18 @@ def visible_plane_points(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size
     """A ``grid x grid`` lattice over the painting, and which cameras see each of its points.
 
     Args:
-        K, R: ``(V, 3, 3)``; t: ``(V, 3)`` float64 cameras.
+        K, R: ``(..., V, 3, 3)``; t: ``(..., V, 3)`` float64 cameras (leading dims: a batch of sequences).
         image_size: ``(H, W)`` of the views and the painting.
 
     Returns:
-        ``(V, N, 2)`` float64 pixel coordinates of the ``N = grid**2`` points in every view, and
-        ``(V, N)`` bool: the point is in front of the camera and inside the image's outer edges.
+        ``(..., V, N, 2)`` float64 pixel coordinates of the ``N = grid**2`` points in every view, and
+        ``(..., V, N)`` bool: the point is in front of the camera and inside the image's outer edges.
     """
     h, w = image_size
     corners = plane_corners(image_size)
     u, v = (c.reshape(-1, 1) for c in np.meshgrid(np.linspace(0, 1, grid), np.linspace(0, 1, grid)))
     points = corners[0] + u * (corners[1] - corners[0]) + v * (corners[3] - corners[0])
-    depth = np.einsum("vab,nb->vna", R, points)[..., 2] + t[:, None, 2]
+    depth = np.einsum("...vab,nb->...vna", R, points)[..., 2] + t[..., :, None, 2]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # points in the camera's plane
         pixels = project(K, R, t, points)
         inside = (depth > 0) & (pixels[..., 0] >= -0.5) & (pixels[..., 0] <= w - 0.5) \
@@ -310,9 +317,9 @@ def visible_plane_points(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size
 
 
 def shared_points(inside: np.ndarray) -> np.ndarray:
-    """``(V, V, N)`` bool: point ``n`` is seen by both views ``i != j``, from ``inside (V, N)``."""
-    v = len(inside)
-    return inside[:, None] & inside[None, :] & ~np.eye(v, dtype=bool)[..., None]
+    """``(..., V, V, N)`` bool: point ``n`` is seen by both views ``i != j``, from ``inside (..., V, N)``."""
+    v = inside.shape[-2]
+    return inside[..., :, None, :] & inside[..., None, :, :] & ~np.eye(v, dtype=bool)[..., None]
 
 
 def visible_halfplanes(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:

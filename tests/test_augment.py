@@ -7,7 +7,7 @@ import torch
 from kornia.geometry.transform import get_perspective_transform, warp_perspective
 
 from sidar_torch import SidarAugment, SidarDataset, flow, homography_pairs
-from sidar_torch.sample import sequence_homographies
+from sidar_torch.sample import batch_homographies, sequence_homographies
 from sidar_torch.paintings import ProceduralPaintings
 
 from conftest import assert_same_batch, small_config
@@ -69,6 +69,18 @@ def test_same_sample_as_the_dataset_for_the_same_scene_and_image(crop):
             assert torch.equal(out[key][b], s[key]), key
         assert out["homography_error"][b] == pytest.approx(s["homography_error"], abs=1e-12)
         assert out["index"][b] == s["index"] == b
+
+
+def test_a_batchs_homographies_and_error_bounds_are_each_sequences_own():
+    # batch_homographies fits and bounds a batch's sequences together: bit for bit what each gets alone.
+    aug = tiny_augment(seed=2)
+    sequences = [aug.scene(0, b) for b in range(4)]
+    for sequence, (H, error) in zip(sequences, batch_homographies(sequences)):
+        alone, alone_error = sequence_homographies(sequence)
+        assert torch.equal(H, alone) and error == alone_error
+    other = SidarAugment("misaligned", seed=2, n_views=3, image_size=(24, 32)).scene(0, 0)
+    with pytest.raises(ValueError, match=r"sequences: expected one image_size, got \[\(24, 32\), \(48, 64\)\]"):
+        batch_homographies([sequences[0], other])
 
 
 def test_a_seed_gives_the_same_outputs_call_after_call_and_calls_differ():

@@ -54,16 +54,17 @@ def batch_homographies(sequences: Sequence[SceneSequence]) -> list[tuple[torch.T
     if len(views) != 1:
         raise ValueError(f"sequences: expected at least one, all with the same number of views, got "
                          f"{[len(sequence.views) for sequence in sequences]} views")
-    cameras = [sequence.cameras() for sequence in sequences]
+    sizes = {tuple(sequence.image_size) for sequence in sequences}
+    if len(sizes) != 1:
+        raise ValueError(f"sequences: expected one image_size, got {sorted(sizes)}")
+    K, R, t = (np.stack(cameras) for cameras in zip(*(sequence.cameras() for sequence in sequences)))
     centres = [np.stack([view.camera.position for view in sequence.views]) for sequence in sequences]
-    points = [geometry.project(K, R, t, geometry.fit_points(c)) for (K, R, t), c in zip(cameras, centres)]
+    points = [geometry.project(*camera, geometry.fit_points(c)) for *camera, c in zip(K, R, t, centres)]
     fits = geometry.homographies_from_points(np.stack(points))
-    results = []
-    for sequence, (K, R, t), H in zip(sequences, cameras, fits):
-        pixels, inside = geometry.visible_plane_points(K, R, t, sequence.image_size)
-        truth = geometry.plane_induced_homographies(K, R, t)
-        results.append((H, geometry.point_disagreement(H.numpy(), truth, pixels, geometry.shared_points(inside))))
-    return results
+    pixels, inside = geometry.visible_plane_points(K, R, t, sizes.pop())
+    truth = geometry.plane_induced_homographies(K, R, t)
+    errors = geometry.point_disagreements(fits.numpy(), truth, pixels, geometry.shared_points(inside))
+    return [(H, float(error)) for H, error in zip(fits, errors)]
 
 
 def render_arrays(renderer: SceneRenderer, sequence: SceneSequence, painting: np.ndarray, config: SidarConfig,
