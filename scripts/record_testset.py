@@ -17,7 +17,7 @@ import tempfile
 from pathlib import Path
 
 from sidar_torch.evaluation.testsets import (Category, TestSet, available_testsets, category_config,
-                                                     export_testset, file_digests, rasteriser)
+                                                     export_testset, file_digests)
 
 SIZE = {"image_size": (384, 512)}  # the paper's size
 
@@ -75,7 +75,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as out:
         export_testset(testset, out)
         digests = file_digests(Path(out))
-        recorded_on = {**rasteriser(), "python": platform.python_version(),
+        recorded_on = {**categories[-1].dataset().renderer().rasteriser(), "python": platform.python_version(),
                        **{package: importlib.metadata.version(package) for package in VERSIONED}}
     definition = {"name": name, "task": testset.task, "description": testset.description, "pairs": testset.pairs,
                   "categories": [vars(category) for category in categories], "recorded_on": recorded_on,

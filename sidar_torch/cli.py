@@ -145,7 +145,7 @@ def _list_syntax(message: str, overrides: dict[str, Any]) -> str:
 
 def _warm_up(dataset: SidarDataset, clock: WallClock) -> None:
     """Compile every shader variant ``dataset``'s samples can need (:meth:`SidarDataset.warm_up`), timed
-    as the part ``warm-up``: forked DataLoader workers take the warm renderer over."""
+    as the part ``warm-up``: Mesa's disk cache then holds them for the DataLoader workers forked afterwards."""
     try:
         with clock.part("warm-up"):
             dataset.warm_up()

@@ -24,7 +24,7 @@ from contextlib import contextmanager, nullcontext
 from contextvars import ContextVar
 from typing import Callable, ContextManager, Iterator
 
-__all__ = ["collect_timings", "stopwatch", "timed"]
+__all__ = ["add_timings", "collect_timings", "collecting", "stopwatch", "timed"]
 
 _UNTIMED = nullcontext()
 
@@ -64,6 +64,20 @@ def timed(key: str, sync: Callable[[], object] | None = None) -> ContextManager[
     that runs untouched when none is (``sync`` is then not called either)."""
     timings = _COLLECTOR.get()
     return _UNTIMED if timings is None else _Stopwatch(timings, key, sync)
+
+
+def collecting() -> bool:
+    """Whether a collector is open in this context (:func:`collect_timings`): whether :func:`timed` measures."""
+    return _COLLECTOR.get() is not None
+
+
+def add_timings(seconds: dict[str, float]) -> None:
+    """Add ``seconds`` (step -> seconds, e.g. collected in another process) to the collector open in this
+    context, key by key; nothing when none is open."""
+    timings = _COLLECTOR.get()
+    if timings is not None:
+        for key, value in seconds.items():
+            timings[key] = timings.get(key, 0.0) + value
 
 
 @contextmanager

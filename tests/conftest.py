@@ -8,8 +8,13 @@ import pytest
 import torch
 
 import sidar_torch  # noqa: F401  (selects the OSMesa platform before anything imports OpenGL)
+from sidar_torch.render import render_in_this_process
 from sidar_torch import geometry, load_config
 from sidar_torch.scene import Camera, Material, SceneSequence, ViewScene
+
+render_in_this_process()
+"""The suite renders in its own process, where it inspects renderers; the default for a process that may fork,
+a render process (``sidar_torch.render.process``), is tested in subprocesses (tests/render/test_render_process.py)."""
 
 SMALL = (96, 128)
 

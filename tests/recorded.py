@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from sidar_torch.evaluation.testsets import rasteriser, rasteriser_name, same_rasteriser
+from sidar_torch.evaluation.testsets import rasteriser_name, same_rasteriser
+from sidar_torch.render.context import current_rasteriser
 
 RTOL = 1e-9
 """Tolerance of a recorded geometry array, relative to its largest entry."""
@@ -33,18 +34,18 @@ VERSIONED = ("torch", "kornia", "numpy", "scipy", "pyrender2", "trimesh", "Pillo
 
 
 def environment() -> dict[str, str]:
-    """What produced a record: Python, the rasteriser (``testsets.rasteriser``: GL renderer and
+    """What produced a record: Python, the rasteriser (``current_rasteriser``: GL renderer and
     version) and the versions of the packages that compute pixels and geometry. Call it after
     rendering (it asks the current GL context)."""
     versions = {name: importlib.metadata.version(name) for name in VERSIONED}
-    return {"python": platform.python_version(), **rasteriser(), **versions}
+    return {"python": platform.python_version(), **current_rasteriser(), **versions}
 
 
 def rasteriser_mismatch(recorded: dict[str, str]) -> str | None:
     """``None`` where pixels recorded on ``recorded`` (a record's ``recorded_with`` / ``recorded_on``)
     compare byte for byte in this process (``testsets.same_rasteriser``); otherwise why not, in words.
     Call it after rendering (it asks the current GL context)."""
-    here = rasteriser()
+    here = current_rasteriser()
     if same_rasteriser(recorded, here):
         return None
     return f"recorded on {rasteriser_name(recorded)!r}, this is {rasteriser_name(here)!r}"

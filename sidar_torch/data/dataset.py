@@ -17,14 +17,14 @@ import torch
 from torch.utils.data import IterableDataset, get_worker_info
 
 from ..config import SidarConfig, as_int, load_config
-from ..render import RenderSettings, preload, shared_renderer
+from ..render import RenderSettings, preload, renderer_for
 from ..sample import SampleArrays, render_arrays
 from ..scene import SceneSequence, sample_sequence
 from ..paintings import PaintingSource, make_source
-from ..sample.warm_up import warm_up_renderer
+from ..sample.warm_up import announce_compiles, warm_up_renderer
 
 if TYPE_CHECKING:  # the renderer's module imports pyrender: loaded at the first render
-    from ..render import SceneRenderer
+    from ..render import RenderProcess, SceneRenderer
 
 __all__ = ["EPOCH_STRIDE", "SidarDataset"]
 
@@ -63,7 +63,9 @@ class SidarDataset(IterableDataset):
 
     Rendering uses this process's renderer for the config (:meth:`renderer`), created at the first
     sample and warmed up (every shader variant compiled) by :meth:`warm_up` or before the second
-    sample: each DataLoader worker makes its own, or takes over its copy of the parent's, and reuses it.
+    sample: in the main process a render process holds it (``sidar_torch.render.process``), so the
+    main process opens no GL context and forks DataLoader workers safely; each worker makes its own
+    and reuses it. Mesa's disk cache keeps the compiled variants for later processes and workers.
 
     Sharding: the ``num_workers`` DataLoader workers of each of the ``world_size`` ranks split
     the indices into ``n = world_size * num_workers`` shards; worker ``w`` of rank ``r`` draws shard
@@ -147,23 +149,27 @@ class SidarDataset(IterableDataset):
         painting = self.source.painting(index % len(self.source), self.config.image_size)
         return render_arrays(self.renderer(), sequence, painting, self.config, index, rng=rng)
 
-    def renderer(self) -> SceneRenderer:
-        """This process's renderer for the config (``sidar_torch.render.shared_renderer`` of
-        ``RenderSettings.from_config(config)``), made at the first call, as each sample gets it: warm
+    def renderer(self) -> SceneRenderer | RenderProcess:
+        """This process's renderer for the config (``sidar_torch.render.renderer_for`` of
+        ``RenderSettings.from_config(config)``: a ``RenderProcess`` in a process that may fork, a
+        ``SceneRenderer`` in a DataLoader worker), made at the first call, as each sample gets it: warm
         (every shader variant the config can need compiled, ``sidar_torch.sample.warm_up``) after
         :meth:`warm_up`, or else once it has rendered a sample.
 
-        A fresh renderer (a DataLoader worker whose parent never rendered) thus hands its first sample
-        out after compiling only the variants that sample draws, and warms up before its second, so its
-        later samples still meet no compile mid-stream. Compiling in another order changes no pixel
-        (``tests/render/test_warm_up.py``).
+        A fresh renderer thus hands its first sample out after compiling (or loading from Mesa's disk
+        cache) only the variants that sample draws, and warms up before its second, so its later samples
+        still meet no compile mid-stream. Compiling in another order changes no pixel
+        (``tests/render/test_warm_up.py``). Before a first sample that will compile because the cache does
+        not hold this config's variants yet, it says so once on stderr (``warm_up.announce_compiles``).
 
         Raises:
             RuntimeError: no GL context can be opened (the message names the package to install).
         """
-        renderer = shared_renderer(RenderSettings.from_config(self.config))
+        renderer = renderer_for(RenderSettings.from_config(self.config))
         if renderer.renders:
             warm_up_renderer(renderer, self.config)
+        else:
+            announce_compiles(renderer, self.config)
         return renderer
 
     def indices(self) -> Iterator[int]:
@@ -214,9 +220,10 @@ class SidarDataset(IterableDataset):
     def warm_up(self) -> None:
         """Compile every shader variant this dataset's samples can need in this process's renderer
         (:meth:`renderer`) now (``sidar_torch.sample.warm_up``), which the renderer's second sample does
-        otherwise (its first compiles only what it draws); later calls return at once. Called in the main process before ``iter(loader)``, it warms the DataLoader workers
-        too: forked ones take over this process's renderer (``render.renderer.shared_renderer``)
-        and compile nothing.
+        otherwise (its first compiles only what it draws); later calls return at once. Called in the main
+        process before ``iter(loader)``, it fills Mesa's disk cache with them, from which the DataLoader
+        workers forked afterwards load them instead of compiling (where this process renders in itself,
+        ``render.render_in_this_process``, forked workers take over its renderer and compile nothing).
 
         Raises:
             RuntimeError: no GL context can be opened (the message names the package to install).

@@ -12,6 +12,14 @@ Importing this package fixes two environment variables before anything imports O
 With ``egl``, also ``PYGLET_HEADLESS`` (default ``true``): pyrender's import loads pyglet, which
 otherwise needs X11's libraries. Set any of them before importing ``sidar_torch`` to choose otherwise.
 
+Who renders where (:func:`renderer_for`): a process that may fork (a training script's main process)
+renders its own samples in a render process it forks (``process``), which keeps Mesa's disk cache on
+(shader variants loaded, not compiled: a fresh process's first sample in about half a second); the
+process itself opens no context, so the DataLoader workers and render pools it forks open their own,
+with the cache. Those workers render in their own process. A context opened in a process that may fork
+(a test's or a benchmark's :func:`shared_renderer`) keeps the cache off: a child forked after it would
+deadlock at its first cache write.
+
 Importing this package loads no GL library: ``renderer`` (pyrender, PyOpenGL) is imported at the
 first use of :func:`shared_renderer` or an attribute named in
 ``__all__``, after :func:`~.context.check_platform_libraries`, whose error names what to install.
@@ -29,9 +37,12 @@ if os.environ["PYOPENGL_PLATFORM"] == "egl":
     # Headless, pyglet uses EGL, which this platform has.
     os.environ.setdefault("PYGLET_HEADLESS", "true")
 
+from .context import may_fork  # noqa: E402  (GL-free)
+from .process import RenderProcess  # noqa: E402  (GL-free)
 from .settings import RenderSettings  # noqa: E402  (GL-free)
 
-__all__ = ["RenderSettings", "RenderedSequence", "SceneRenderer", "preload", "shared_renderer"]
+__all__ = ["RenderProcess", "RenderSettings", "RenderedSequence", "SceneRenderer", "preload",
+           "render_in_this_process", "renderer_for", "shared_renderer"]
 
 
 @functools.cache
@@ -65,11 +76,47 @@ def preload() -> None:
 
 def shared_renderer(settings):
     """:func:`.renderer.shared_renderer` (this process's renderer for ``settings``, a
-    :class:`RenderSettings`), importing the renderer at the first call; defined here so that
-    ``from .render import shared_renderer`` loads no GL. Called by the owners of a renderer
-    (``SidarDataset.renderer``, ``SidarAugment``, the render pool's workers, tests and benchmarks), which
-    hand it to what renders (``sidar_torch.sample.render_arrays``)."""
+    :class:`RenderSettings`, in this process), importing the renderer at the first call; defined here so
+    that ``from .render import shared_renderer`` loads no GL. Called by :func:`renderer_for` (which the
+    owners of a renderer call: ``SidarDataset.renderer``, ``SidarAugment``, the render pool's workers),
+    and by tests and benchmarks that measure or inspect the renderer in their own process."""
     return _renderer().shared_renderer(settings)
+
+
+_PROCESSES: dict[tuple[int, RenderSettings], RenderProcess] = {}
+"""The render processes of this process (its pid) by settings: :func:`renderer_for`'s."""
+
+_IN_THIS_PROCESS = False
+
+
+def render_in_this_process() -> None:
+    """Make :func:`renderer_for` hand out this process's own renderer (:func:`shared_renderer`) even where
+    the process may fork: for benchmarks, which measure rendering in their own CPU time, and the test
+    suite, which inspects renderers. Its contexts keep Mesa's disk cache off, as every context of a process
+    that may fork does (``context``), so forking after it rendered stays safe, and each such process
+    compiles its shader variants itself."""
+    global _IN_THIS_PROCESS
+    _IN_THIS_PROCESS = True
+
+
+def renderer_for(settings):
+    """The renderer this process's own samples render with, for ``settings`` (a :class:`RenderSettings`),
+    made at the first call and reused; what the owners of a renderer call (``SidarDataset.renderer``,
+    ``SidarAugment``, the render pool's workers).
+
+    In a process that may fork (:func:`.context.may_fork`: not a DataLoader or render-pool worker), a
+    :class:`~.process.RenderProcess` (a new one if the last died): GL stays out of this process, and the
+    render process keeps Mesa's disk cache (see ``process``). Elsewhere, or after
+    :func:`render_in_this_process`, :func:`shared_renderer`, in this process. Both have ``render``,
+    ``warm_up``, ``rasteriser``, ``settings`` and ``renders``.
+    """
+    if _IN_THIS_PROCESS or not may_fork():
+        return shared_renderer(settings)
+    key = (os.getpid(), settings)
+    held = _PROCESSES.get(key)
+    if held is None or not held.usable:
+        _PROCESSES[key] = held = RenderProcess(settings, shared_renderer)
+    return held
 
 
 def __getattr__(name):

@@ -15,7 +15,8 @@ from __future__ import annotations
 import ctypes
 import os
 
-__all__ = ["GL_PLATFORM", "EglContext", "check_platform_libraries", "import_platform", "open_context"]
+__all__ = ["GL_PLATFORM", "EglContext", "check_platform_libraries", "current_rasteriser", "forks_nothing", "import_platform", "may_fork",
+           "open_context"]
 
 GL_PLATFORM = os.environ["PYOPENGL_PLATFORM"]
 """The PyOpenGL platform in use, fixed when ``sidar_torch.render`` was first imported."""
@@ -79,20 +80,28 @@ def forks_nothing() -> None:
     _FORKS_NOTHING = True
 
 
-def _disable_disk_cache_unless_worker() -> None:
-    """Keep Mesa's on-disk shader cache out of processes that may fork.
-
-    The cache writes through a background thread. A child forked after its parent created a
-    context inherits the parent's GL screen without that thread, and deadlocks at the first
-    draw that compiles a new shader variant. Mesa reads ``MESA_SHADER_CACHE_DISABLE`` when
-    the process's first context is created, so it is set here, unless this process is a
-    DataLoader worker or declared :func:`forks_nothing` (neither forks) or the user set it. A
-    worker forked after its parent rendered inherits the parent's screen, created without the
-    cache, and compiles cold.
-    """
+def may_fork() -> bool:
+    """Whether this process may fork a process that renders: neither a DataLoader worker nor a process
+    that declared :func:`forks_nothing` (a render-pool worker, a render process)."""
     from torch.utils.data import get_worker_info
 
-    if get_worker_info() is None and not _FORKS_NOTHING:
+    return get_worker_info() is None and not _FORKS_NOTHING
+
+
+def _disable_disk_cache_unless_worker() -> None:
+    """Keep Mesa's on-disk shader cache out of processes that may fork (:func:`may_fork`).
+
+    The cache writes through a background thread. A child forked after its parent created a
+    context with the cache inherits the parent's GL screen without that thread, and deadlocks at
+    the first draw that compiles a new shader variant (Mesa 22.3: the child's
+    ``pthread_cond_signal`` on the cache queue's condition variable waits for the parent's thread).
+    Mesa reads ``MESA_SHADER_CACHE_DISABLE`` when the process's first context is created, so it is
+    set here unless this process forks nothing or the user set it. A process that may fork renders
+    its own samples in a render process (``render.process``), which has the cache; a context it
+    opens itself (a test's or a benchmark's ``shared_renderer``) compiles cold, and a child forked
+    after it inherits that screen, without the cache.
+    """
+    if may_fork():
         os.environ.setdefault("MESA_SHADER_CACHE_DISABLE", "true")
 
 
@@ -220,3 +229,15 @@ def open_context(width: int, height: int):
     except (ImportError, AttributeError, OSError, AssertionError) as error:
         raise _cannot_open(repr(error)) from error
     return platform
+
+
+def current_rasteriser() -> dict[str, str]:
+    """What draws the current GL context's pixels: ``{"gl_renderer": GL_RENDERER, "gl_version":
+    GL_VERSION}``, e.g. ``"llvmpipe (LLVM 15.0.6, 256 bits)"`` and ``"4.5 (Core Profile) Mesa 22.3.6"``.
+    The renderer string names llvmpipe's LLVM and vector width but not Mesa's release, and two releases
+    on the same LLVM draw different pixels (Mesa 25.0.7 against 22.3.6: the views of 2 of the 20 samples
+    ``tests/stored_digests.py`` records differ). A renderer's own: ``SceneRenderer.rasteriser()``."""
+    from OpenGL import GL
+
+    return {"gl_renderer": GL.glGetString(GL.GL_RENDERER).decode(),
+            "gl_version": GL.glGetString(GL.GL_VERSION).decode()}

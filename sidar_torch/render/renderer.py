@@ -261,13 +261,13 @@ class SceneRenderer:
 
     def _painting_texture(self, painting: np.ndarray, slot: int) -> PaintingTexture:
         """The texture of ``painting`` in ``slot`` (0: the label's and, by default, the views'; 1: the
-        views' own, ``render``'s ``texture``), created (and uploaded at first draw) once per
-        painting; the slot's previous texture is freed."""
+        views' own, ``render``'s ``texture``): made at the slot's first painting, refilled with each
+        new one (``PaintingTexture.replace``: every painting is ``image_size``), uploaded at its first draw."""
         held = self._textures[slot]
-        if held is None or not np.array_equal(painting, held.rgb):
-            if held is not None:
-                held.delete()
+        if held is None:
             self._textures[slot] = PaintingTexture(painting.copy(), PAINTING_FILTERS[self.settings.texture_filter])
+        elif not np.array_equal(painting, held.rgb):
+            held.replace(painting.copy())
         return self._textures[slot]
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture

@@ -27,28 +27,44 @@ warms it up; the path that makes a sample (``sample.render_arrays``) takes a ren
 nothing ahead. The owners: ``SidarDataset`` (``SidarDataset.warm_up`` before the first sample; else
 ``SidarDataset.renderer`` after the renderer's first sample, which compiles only what it draws, and
 before its second), and ``SidarAugment`` and its render pool's workers (before their first batch or
-task). A forked DataLoader worker or render-pool process takes over its parent's renderer
-(``render.renderer.shared_renderer``): if the parent rendered, or called ``SidarDataset.warm_up``, the
-worker compiles nothing at all.
+task). A process that may fork renders in a render process (``render.process``), which keeps Mesa's disk
+cache: the variants it compiles are loaded, not compiled, by every later process and by the DataLoader
+workers it forks. Where a process renders in itself (``render.render_in_this_process``: benchmarks, the
+tests), a forked worker takes over its parent's renderer (``render.renderer.shared_renderer``): if the
+parent rendered, or called ``SidarDataset.warm_up``, the worker compiles nothing at all.
+
+A renderer that is about to compile because Mesa's cache lacks the config's variants says so once on
+stderr first (:func:`announce_compiles`); a marker file in the cache folder, written after a warm-up,
+tells which settings and variants the cache holds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import hashlib
+import json
+import os
+import sys
 from dataclasses import replace
+from pathlib import Path
 from itertools import cycle, islice
 from typing import TYPE_CHECKING, Hashable
 
 import numpy as np
 
 from ..config import SidarConfig
+from ..render import RenderProcess
+from ..render.context import may_fork
 from ..config.memory import shadowed_emitters
 from ..scene import MATERIAL_KINDS, Material, Occluder, SceneSequence, sample_sequence
+from ..version import __version__
 
 if TYPE_CHECKING:  # the renderer's module imports pyrender; rendering imports it at first use
     from ..render import SceneRenderer
 
-__all__ = ["WARM_UP_SEED", "light_group_counts", "variant_signature", "warm_up_renderer", "warm_up_sequence"]
+__all__ = ["COLD_COMPILE_S", "WARM_UP_SEED", "announce_compiles", "light_group_counts", "variant_signature",
+           "warm_up_renderer", "warm_up_sequence"]
 
 WARM_UP_SEED = 0x5EED
 """Seed of the generator that draws the warm-up scene (any fixed value: the scene is never handed out)."""
@@ -146,4 +162,50 @@ def warm_up_renderer(renderer: SceneRenderer, config: SidarConfig) -> bool:
     Returns:
         Whether it rendered (False: warm for ``config`` already).
     """
-    return renderer.warm_up(*_scenes_and_key(config))
+    if renderer.renders == 0:
+        announce_compiles(renderer, config)
+    rendered = renderer.warm_up(*_scenes_and_key(config))
+    marker = _cache_marker(renderer, config)
+    if rendered and marker is not None:
+        marker.parent.mkdir(parents=True, exist_ok=True)
+        marker.touch()
+    return rendered
+
+
+COLD_COMPILE_S = 4
+"""Seconds the first sample and the warm-up of the ``misaligned`` preset spend compiling with a cold cache,
+on one idle core (2.7 s and 1.6 s at 384x512 measured, 2026-11-28): what :func:`announce_compiles` says."""
+
+_ANNOUNCED: set[Path] = set()
+
+
+def announce_compiles(renderer: SceneRenderer, config: SidarConfig) -> None:
+    """Say once per process on stderr, before ``renderer``'s first render, that it will compile its shader
+    variants and for about how long, where Mesa's disk cache will keep them but does not yet: where
+    :func:`warm_up_renderer` never finished for these settings and this config's variants with this cache
+    folder (a marker file in it). Silent where the renderer works without the cache (a context of a
+    process that may fork, ``render.context``), which compiles in every process."""
+    marker = _cache_marker(renderer, config)
+    if marker is None or marker.exists() or marker in _ANNOUNCED:
+        return
+    _ANNOUNCED.add(marker)
+    print(f"sidar_torch: compiling the renderer's shader variants for this config (about {COLD_COMPILE_S} s on an "
+          f"idle core, once: Mesa's shader cache in {marker.parents[1]} keeps them for later processes)",
+          file=sys.stderr)
+
+
+def _cache_marker(renderer: SceneRenderer, config: SidarConfig) -> Path | None:
+    """The file whose presence says that Mesa's disk cache holds every shader variant of ``config`` for
+    ``renderer``'s settings (written after a warm-up), in Mesa's cache folder (``MESA_SHADER_CACHE_DIR``,
+    else ``$XDG_CACHE_HOME/mesa_shader_cache``, else ``~/.cache/mesa_shader_cache``), so that emptying it
+    removes the marker too; None where ``renderer`` renders without the cache."""
+    in_render_process = isinstance(renderer, RenderProcess)
+    disabled = os.environ.get("MESA_SHADER_CACHE_DISABLE", "false").lower() in ("true", "1", "yes")
+    if disabled or not (in_render_process or not may_fork()):
+        return None
+    home = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    folder = Path(os.environ.get("MESA_SHADER_CACHE_DIR") or Path(home) / "mesa_shader_cache")
+    fields = {name: sorted(value) if isinstance(value, frozenset) else value
+              for name, value in dataclasses.asdict(renderer.settings).items()}
+    key = json.dumps([__version__, fields, repr(_scenes_and_key(config)[1])], default=str, sort_keys=True)
+    return folder / "sidar_torch-warm" / hashlib.sha256(key.encode()).hexdigest()[:20]

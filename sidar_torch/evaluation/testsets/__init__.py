@@ -5,7 +5,7 @@ kind: ``clean``, ``lights``, ``shadows``, ``occlusions``, ``all``) the full conf
 number of sequences (indices ``0 .. count-1``); the pairs evaluated (``reference``: view 0 to each
 other view); and the SHA-256 digest of every file of its export (the folder layout, one export per
 category, ``<category>/<sequence>/<file>``), with the rasteriser (GL renderer and version,
-:func:`rasteriser`) and package versions that recorded them. The data is not shipped:
+:func:`sidar_torch.render.context.current_rasteriser`) and package versions that recorded them. The data is not shipped:
 :func:`export_testset` renders it and checks it against the digests.
 
 A published set is never changed: a change is a new name (``homography-v2``). The test suite holds
@@ -75,7 +75,7 @@ class TestSet:
         pairs: which view pairs a homography set scores (:data:`PAIRS`).
         categories: its categories, in the order evaluation interleaves them.
         digests: ``{"<category>/<sequence>/<file>": SHA-256 hex}`` of every sequence file of its export.
-        recorded_on: the rasteriser (:func:`rasteriser`; for the v1 sets, whose files name no GL
+        recorded_on: the rasteriser (``SceneRenderer.rasteriser()``; for the v1 sets, whose files name no GL
             version, :data:`V1_GL_VERSION`) and the package versions that recorded ``digests``.
     """
 
@@ -182,7 +182,7 @@ class DigestCheck:
 
 def check_digests(testset: TestSet, out: Path, renderer: dict[str, str] | None = None) -> DigestCheck:
     """Compare the sequence files under ``out`` (an export of ``testset``, whole or its first
-    sequences) with the recorded digests; ``renderer``: the :func:`rasteriser` that rendered them."""
+    sequences) with the recorded digests; ``renderer``: the ``SceneRenderer.rasteriser()`` that rendered them."""
     now = file_digests(out)
     known = [name for name in now if name in testset.digests]
     return DigestCheck(checked=len(known),
@@ -210,27 +210,15 @@ def export_testset(testset: TestSet, out: str | Path, sequences: int | None = No
     renderer = None
     for category in testset.categories:
         count = category.count if sequences is None else min(sequences, category.count)
-        summary = export_dataset(category.dataset(), out / category.name, count, progress=progress)
+        dataset = category.dataset()
+        summary = export_dataset(dataset, out / category.name, count, progress=progress)
         if summary.written:
-            renderer = rasteriser()
+            renderer = dataset.renderer().rasteriser()
     return check_digests(testset, out, renderer)
 
 
-def rasteriser() -> dict[str, str]:
-    """What draws this process's pixels (call it after rendering: it asks the current GL context):
-    ``{"gl_renderer": GL_RENDERER, "gl_version": GL_VERSION}``, e.g. ``"llvmpipe (LLVM 15.0.6, 256
-    bits)"`` and ``"4.5 (Core Profile) Mesa 22.3.6"``. The renderer string names llvmpipe's LLVM and
-    vector width but not Mesa's release, and two releases on the same LLVM draw different pixels
-    (Mesa 25.0.7 against 22.3.6: the views of 2 of the 20 samples ``tests/stored_digests.py``
-    records differ)."""
-    from OpenGL import GL
-
-    return {"gl_renderer": GL.glGetString(GL.GL_RENDERER).decode(),
-            "gl_version": GL.glGetString(GL.GL_VERSION).decode()}
-
-
 def same_rasteriser(recorded: dict[str, str], here: dict[str, str]) -> bool:
-    """Whether pixels recorded on ``recorded`` (a :func:`rasteriser` record, or the ``recorded_on`` /
+    """Whether pixels recorded on ``recorded`` (a ``SceneRenderer.rasteriser()`` record, or the ``recorded_on`` /
     ``recorded_with`` dict holding one) can be compared byte for byte on ``here``: the same GL
     renderer and, where ``recorded`` names one, the same GL version (records older than it name none)."""
     return (recorded.get("gl_renderer") == here["gl_renderer"]
