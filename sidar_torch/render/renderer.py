@@ -65,7 +65,7 @@ from ..geometry import is_reference_camera
 from ..choices.outputs import OUTPUTS
 from ..scene import SceneSequence, ViewScene
 from ..timing import timed
-from .context import GL_PLATFORM, import_platform, open_context
+from .context import GL_PLATFORM, current_rasteriser, import_platform, open_context
 from .draws import Surface, ViewDraws, world_pose
 from .framebuffer import size_limits
 from .gpu import PaintingTexture
@@ -243,6 +243,12 @@ class SceneRenderer:
         self.skipped = skipped
         self._warmed_up.add(key)
         return True
+
+    def rasteriser(self) -> dict[str, str]:
+        """What draws this renderer's pixels: ``{"gl_renderer", "gl_version"}`` of its context
+        (:func:`~.context.current_rasteriser`)."""
+        self._platform.make_current()
+        return current_rasteriser()
 
     def close(self) -> None:
         """Destroy the context and every GL object in it (safe to call twice)."""
