@@ -81,11 +81,14 @@ def forks_nothing() -> None:
 
 
 def may_fork() -> bool:
-    """Whether this process may fork a process that renders: neither a DataLoader worker nor a process
+    """Whether this process may fork a process that renders: not a DataLoader worker, not a daemonic
+    ``multiprocessing`` process (a ``Pool`` worker: ``multiprocessing`` refuses it children), not a process
     that declared :func:`forks_nothing` (a render-pool worker, a render process)."""
+    import multiprocessing
+
     from torch.utils.data import get_worker_info
 
-    return get_worker_info() is None and not _FORKS_NOTHING
+    return get_worker_info() is None and not multiprocessing.current_process().daemon and not _FORKS_NOTHING
 
 
 def _disable_disk_cache_unless_worker() -> None:

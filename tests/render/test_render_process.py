@@ -126,3 +126,24 @@ print("ok")
 def test_render_process_failures_are_raised_where_it_is_called(tmp_path):
     result = run(FAILURES, tmp_path)
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-3000:]
+
+
+POOL_WORKER = """
+import multiprocessing
+from sidar_torch import SidarDataset, load_config
+
+def first_pixels(index):
+    from sidar_torch.render import SceneRenderer
+    dataset = SidarDataset(config=load_config("ambient", image_size=(24, 32), n_views=2), seed=0)
+    assert isinstance(dataset.renderer(), SceneRenderer), type(dataset.renderer())  # it may have no children
+    return dataset.sample(index)["images"].sum().item()
+
+if __name__ == "__main__":
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        print("ok" if pool.map(first_pixels, [0]) else "empty")
+"""
+
+
+def test_a_daemonic_pool_worker_renders_in_itself(tmp_path):
+    result = run(POOL_WORKER, tmp_path)
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-3000:]
