@@ -6,7 +6,8 @@ Each sample is made by ``sample.render_arrays`` (the renderer, the lens step aft
 homographies; same seeds and indices, so the same scenes: the lens draws change no other draw), after 3
 warm-up samples per model; torch runs one thread. Prints per model the median ms per view in wall-clock
 and this process's CPU time, the ratio of the CPU medians to ``none``, the ``"lens"`` step's share (maps,
-tiles, resampling) and the mean tiles rendered per view, then the machine's load. Numbers only.
+canvas, resampling) and the mean canvas a view is drawn over (``sample.lens_views.lens_canvas``), in pixels
+and as a ratio to the output's, then the machine's load. Numbers only.
 
     python -m benchmarks.lens_cost --size 384x512 --samples 12
 """
@@ -16,7 +17,7 @@ from __future__ import annotations
 import argparse
 
 from sidar_torch import SidarDataset
-from sidar_torch.sample.lens_views import distortion_maps, tile_origins
+from sidar_torch.sample.lens_views import distortion_maps, lens_canvas
 from sidar_torch.sample import render_arrays
 from sidar_torch.scene import sample_sequence
 from sidar_torch.timing import collect_timings
@@ -64,27 +65,30 @@ def main(argv: list[str] | None = None) -> None:
                     steps[model][step] = steps[model].get(step, 0.0) + seconds
     base = median(ms["none"]["cpu"])
     print(f"{args.config} at {args.size[0]}x{args.size[1]}, {config.n_views} views, {args.samples} samples per model")
-    print("| lens_model | wall ms / view | cpu ms / view | cpu ratio to none | lens step share | tiles per view |")
-    print("|---|---|---|---|---|---|")
+    print("| lens_model | wall ms / view | cpu ms / view | cpu ratio to none | lens step share | canvas px / view "
+          "| canvas / output |")
+    print("|---|---|---|---|---|---|---|")
+    output = args.size[0] * args.size[1]
     for model in MODELS:
         total = sum(steps[model].values())
         share = steps[model].get("lens", 0.0) / total if total else 0.0
+        pixels = _canvas_pixels(datasets[model], args.samples)
         print(f"| {model} | {median(ms[model]['wall']):.1f} | {median(ms[model]['cpu']):.1f} | "
-              f"{median(ms[model]['cpu']) / base:.2f} | {100 * share:.0f} % | {_tiles(datasets[model], args.samples):.2f} |")
+              f"{median(ms[model]['cpu']) / base:.2f} | {100 * share:.0f} % | {pixels:.0f} | {pixels / output:.2f} |")
     print(machine_line(before, machine()))
 
 
-def _tiles(dataset: SidarDataset, samples: int) -> float:
-    """Mean tiles drawn per view for ``samples`` samples of ``dataset`` (1 without a lens)."""
-    counts: list[int] = []
+def _canvas_pixels(dataset: SidarDataset, samples: int) -> float:
+    """Mean pixels of the canvas each view of ``samples`` samples of ``dataset`` is drawn over (the
+    output's without a lens)."""
+    pixels: list[int] = []
     for index in range(samples):
         sequence = dataset.scene(index)
-        if sequence.lens_model == "none":
-            counts += [1] * len(sequence.views)
-            continue
-        maps = distortion_maps(sequence.lens_model, sequence.lenses, sequence.cameras()[0], sequence.image_size)
-        counts += [len(tile_origins(m, sequence.image_size)) for m in maps]
-    return sum(counts) / len(counts)
+        size = sequence.image_size
+        if sequence.lens_model != "none":
+            size = lens_canvas(distortion_maps(sequence.lens_model, sequence.lenses, sequence.cameras()[0], size)).size
+        pixels += [size[0] * size[1]] * len(sequence.views)
+    return sum(pixels) / len(pixels)
 
 
 if __name__ == "__main__":

@@ -28,8 +28,15 @@ two outputs writes its fragment shader's ``location = 1`` output there (the shad
 The single-sampled buffers have a stencil: the lit colour pass can leave in it which pixels show
 the painting (:meth:`Framebuffer.read_stencil`), from which the renderer takes the mask.
 
+Its size is the size passes draw and read (:meth:`Framebuffer.resize`, a render's canvas:
+``render.canvas``); its storage only grows, to the largest size asked so far, and a smaller size is
+drawn into the storage's first rows and columns (the viewport, and clears scissored to it): the
+rasteriser's arithmetic depends on window coordinates only, so the bytes are those of a framebuffer
+of exactly that size (``tests/render/test_canvas.py``).
+
 Like every other GL object of a renderer, it is freed with its context (framebuffers and
-renderbuffers belong to that context alone); it issues no GL call when collected.
+renderbuffers belong to that context alone); it issues no GL call when collected, only when its
+storage grows (the old renderbuffers are deleted then).
 """
 
 from __future__ import annotations
@@ -66,15 +73,18 @@ _COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
 """The colour attachments of an output count's framebuffers, in output (``location``) order."""
 
 
-def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8) -> int:
+def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8
+                     ) -> tuple[int, list[int]]:
     """A framebuffer with ``outputs`` colour renderbuffers of format ``colour`` (RGBA8, or a float format
     for the camera pass) and a 24-bit depth, 8-bit stencil renderbuffer, ``samples`` per pixel (1:
-    single-sampled). Raises RuntimeError if the driver reports it incomplete."""
+    single-sampled), and its renderbuffers. Raises RuntimeError if the driver reports it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
+    renderbuffers = []
     for attachment, storage in ((*((c, colour) for c in _COLOURS[:outputs]),
                                  (GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_DEPTH24_STENCIL8))):
         renderbuffer = GL.glGenRenderbuffers(1)
+        renderbuffers.append(int(renderbuffer))
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
         if samples > 1:
             GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, storage, width, height)
@@ -87,13 +97,52 @@ def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour
     if status != GL.GL_FRAMEBUFFER_COMPLETE:
         raise RuntimeError(f"offscreen framebuffer {width} x {height}, {samples} sample(s), incomplete "
                            f"(status 0x{int(status):04x})")
-    return framebuffer
+    return framebuffer, renderbuffers
+
+
+def _delete_framebuffer(framebuffer: int, renderbuffers: list[int]) -> None:
+    GL.glDeleteFramebuffers(1, [framebuffer])
+    GL.glDeleteRenderbuffers(len(renderbuffers), renderbuffers)
+
+
+class _Storage:
+    """The GL objects behind a framebuffer of a drawing size that may change: made at ``capacity``
+    (width, height), remade larger when a size beyond it is asked (:meth:`fit`)."""
+
+    def __init__(self, make, width: int, height: int):
+        self._make = make  # (width, height) -> [(framebuffer, renderbuffers), ...]
+        self.capacity = (width, height)
+        self.objects = make(width, height)
+
+    def fit(self, width: int, height: int) -> bool:
+        """Grow to hold ``width`` x ``height`` (each side to at least the larger of the old and the
+        asked); whether it was remade."""
+        if width <= self.capacity[0] and height <= self.capacity[1]:
+            return False
+        for framebuffer, renderbuffers in self.objects:
+            _delete_framebuffer(framebuffer, renderbuffers)
+        self.capacity = (max(width, self.capacity[0]), max(height, self.capacity[1]))
+        self.objects = self._make(*self.capacity)
+        return True
+
+
+def clear_drawn(bits: int, width: int, height: int, capacity: tuple[int, int]) -> None:
+    """``glClear(bits)`` of the bound draw framebuffer, only its first ``width`` x ``height`` pixels when
+    its storage (``capacity``) is larger: what a pass draws and reads; the rest is never read."""
+    if (width, height) == tuple(capacity):
+        GL.glClear(bits)
+        return
+    GL.glScissor(0, 0, width, height)
+    GL.glEnable(GL.GL_SCISSOR_TEST)
+    GL.glClear(bits)
+    GL.glDisable(GL.GL_SCISSOR_TEST)
 
 
 class Framebuffer:
     """An RGBA8 colour renderbuffer (two with ``outputs = 2``) and a depth and stencil renderbuffer of
     ``width`` x ``height`` pixels, single-sampled, in the current context; with ``samples > 1``
-    also a multisampled set for the passes drawn inside :meth:`multisampled`.
+    also a multisampled set for the passes drawn inside :meth:`multisampled`. ``width`` and ``height``
+    are the size drawn and read, which :meth:`resize` changes.
 
     Raises:
         ValueError: ``samples`` is neither 1 nor a count of :func:`sample_counts` (naming the
@@ -109,10 +158,37 @@ class Framebuffer:
             raise ValueError(f"antialias: {samples} samples per pixel is not offered by this OpenGL context "
                              f"(GL_MAX_SAMPLES = {int(GL.glGetIntegerv(GL.GL_MAX_SAMPLES))}): expected 1 or one of "
                              f"{sample_counts()}")
-        self.id = _new_framebuffer(width, height, 1, outputs)
-        self._multisampled_id = _new_framebuffer(width, height, samples, outputs) if samples > 1 else None
+        self._storage = _Storage(self._make, width, height)
         self._multisample = False
         self._drawing = 1  # colour outputs of the pass being drawn
+
+    def _make(self, width: int, height: int) -> list[tuple[int, list[int]]]:
+        single = _new_framebuffer(width, height, 1, self.outputs)
+        return [single, _new_framebuffer(width, height, self.samples, self.outputs)] if self.samples > 1 else [single]
+
+    @property
+    def id(self) -> int:
+        """The single-sampled framebuffer's GL name."""
+        return self._storage.objects[0][0]
+
+    @property
+    def _multisampled_id(self) -> int | None:
+        return self._storage.objects[1][0] if self.samples > 1 else None
+
+    @property
+    def capacity(self) -> tuple[int, int]:
+        """``(width, height)`` of the storage: the largest size drawn so far, per side."""
+        return self._storage.capacity
+
+    def resize(self, width: int, height: int) -> None:
+        """Draw and read ``width`` x ``height`` pixels from now on (the storage grows if it must)."""
+        self._storage.fit(width, height)
+        self.width, self.height = width, height
+
+    def clear(self, bits: int) -> None:
+        """Clear ``bits`` of the drawn ``width`` x ``height`` pixels (:func:`clear_drawn`); bound by
+        :meth:`begin_drawing` first."""
+        clear_drawn(bits, self.width, self.height, self.capacity)
 
     @contextlib.contextmanager
     def multisampled(self) -> Iterator[None]:
@@ -181,7 +257,21 @@ class FloatFramebuffer:
     def __init__(self, width: int, height: int, channels: int = 1):
         self.width, self.height, self.channels = width, height, channels
         storage, self._read = self._FORMATS[channels]
-        self.id = _new_framebuffer(width, height, 1, 1, storage)
+        self._storage = _Storage(lambda w, h: [_new_framebuffer(w, h, 1, 1, storage)], width, height)
+
+    @property
+    def id(self) -> int:
+        """The framebuffer's GL name."""
+        return self._storage.objects[0][0]
+
+    def resize(self, width: int, height: int) -> None:
+        """Draw and read ``width`` x ``height`` pixels from now on (see :meth:`Framebuffer.resize`)."""
+        self._storage.fit(width, height)
+        self.width, self.height = width, height
+
+    def clear(self, bits: int) -> None:
+        """Clear ``bits`` of the drawn pixels (:func:`clear_drawn`); bound by :meth:`begin_drawing` first."""
+        clear_drawn(bits, self.width, self.height, self._storage.capacity)
 
     def begin_drawing(self) -> None:
         """Make it the draw framebuffer, with clockwise front faces (see :meth:`Framebuffer.begin_drawing`)."""

@@ -272,7 +272,7 @@ class Passes:
     """The passes of one GL context (current whenever a method is called).
 
     Args:
-        width, height: the framebuffer's size, pixels.
+        width, height: the framebuffer's first size, pixels (:meth:`resize` changes it).
         shadow_map_size: side of each shadow map, texels (a power of two).
         shadow_taps: depth-compare taps per lookup (``programs`` quirk 3).
         samples: samples per pixel of the colour pass (antialiasing); the other passes use 1.
@@ -320,6 +320,12 @@ class Passes:
         for name, value in parameters:
             GL.glSamplerParameteri(sampler, name, value)
         return sampler
+
+    def resize(self, width: int, height: int) -> None:
+        """Draw and read ``width`` x ``height`` pixels in the next forward passes (a render's canvas,
+        ``render.canvas``; the label's ``image_size``): the framebuffers grow if they must."""
+        self.width, self.height = width, height
+        self.target.resize(width, height)
 
     def matrices(self, view: ViewDraws, light: SpotEmitter) -> tuple[np.ndarray, np.ndarray]:
         """``light``'s shadow-map view and projection in ``view`` (:func:`light_matrices`)."""
@@ -393,6 +399,7 @@ class Passes:
         if row.channels not in self._float_targets:
             self._float_targets[row.channels] = FloatFramebuffer(self.width, self.height, row.channels)
         target = self._float_targets[row.channels]
+        target.resize(self.width, self.height)
         camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
         with timed(quantity, GL.glFinish):
             GL.glViewport(0, 0, self.width, self.height)
@@ -402,7 +409,7 @@ class Passes:
             GL.glDepthRange(0.0, 1.0)
             target.begin_drawing()
             GL.glClearColor(0.0, 0.0, 0.0, 0.0)  # 0: nothing drawn (no drawn value is: see CameraQuantity)
-            GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+            target.clear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
             GL.glDisable(GL.GL_MULTISAMPLE)
             for surface in surfaces:
                 defines = {name: surface.mesh.defines[name] for name in row.attributes}
@@ -504,13 +511,13 @@ class Passes:
         if stencil:  # cleared to 0; each fragment that passes the depth test writes its draw's value
             GL.glStencilMask(0xFF)
             GL.glClearStencil(0)
-            GL.glClear(GL.GL_STENCIL_BUFFER_BIT)
+            self.target.clear(GL.GL_STENCIL_BUFFER_BIT)
             GL.glEnable(GL.GL_STENCIL_TEST)
             GL.glStencilOp(GL.GL_KEEP, GL.GL_KEEP, GL.GL_REPLACE)
         segmentation = pass_.grey if isinstance(pass_, SegmentationPass) else None
         # Alpha 0: background (the segmentation draw clears to opaque black).
         GL.glClearColor(*((0.0, 0.0, 0.0, 1.0) if segmentation is not None else (0.0, 0.0, 0.0, 0.0)))
-        GL.glClear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
+        self.target.clear(GL.GL_COLOR_BUFFER_BIT | GL.GL_DEPTH_BUFFER_BIT)
         (GL.glDisable if segmentation is not None else GL.glEnable)(GL.GL_MULTISAMPLE)
         camera = _Camera(np.linalg.inv(view.camera_pose), FLIP_Y @ view.projection, view.camera_pose[:3, 3])
         lighting = _PassLighting(self, view, lit) if lit is not None else None

@@ -135,19 +135,22 @@ class ViewPlan:
     painting_parts: tuple[PaintingPart, ...] = ()
 
 
-def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPlan]:
+def plan_views(sequence: SceneSequence, settings: RenderSettings,
+               canvas_size: tuple[int, int] | None = None) -> list[ViewPlan]:
     """The plan of every view of ``sequence`` (see the module docstring).
 
     Args:
-        sequence: the scenes.
+        sequence: the scenes (the painting of ``sequence.image_size``).
         settings: the renderer's; its ``shadow_map_size``, ``shadows``, ``occluders_visible`` and
             the skips count here. ``skip_idle_shadows`` false: every emitter of a view with
             occluders is shadowed, and every occluder is a caster. ``cull_occluders`` false: every
             occluder is a caster, and drawn when occluders are visible.
+        canvas_size: ``(H, W)`` pixels each camera draws (``render.canvas``); default ``sequence.image_size``.
     """
     first = sequence.views[0]
     shared = all(v.lights == first.lights and v.occluders == first.occluders for v in sequence.views)
-    facts = [_ViewFacts(view, sequence.image_size, settings) for view in sequence.views]
+    frame = tuple(sequence.image_size) if canvas_size is None else tuple(canvas_size)
+    facts = [_ViewFacts(view, sequence.image_size, frame, settings) for view in sequence.views]
     casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
     plans = []
     for view, f, cast in zip(sequence.views, facts, casting):
@@ -171,7 +174,7 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings) -> list[ViewPl
         casters = frozenset().union(*(p.casters for p in plans))
         plans = [replace(p, casters=casters) for p in plans]
     if settings.split_shadow_lookups:
-        plans = [_with_painting_parts(view, p, sequence.image_size, settings) for view, p in zip(sequence.views, plans)]
+        plans = [_with_painting_parts(view, p, frame, settings) for view, p in zip(sequence.views, plans)]
     return plans
 
 
@@ -199,8 +202,8 @@ def whole_lights(begin: np.ndarray, end: np.ndarray, lights: list[int]) -> tuple
 
 
 def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], settings: RenderSettings) -> ViewPlan:
-    """``plan`` with the painting's draw split by shadow footprints (``render.footprints``),
-    unless every part would need every lookup."""
+    """``plan`` with the painting's draw over the camera's ``size (H, W)`` pixels split by shadow footprints
+    (``render.footprints``), unless every part would need every lookup."""
     if not plan.n_shadowed:
         return plan
     emitters = list(plan.order[:plan.n_shadowed])
@@ -216,22 +219,23 @@ def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int],
 class _ViewFacts:
     """One view's drawn occluders, and for each emitter the other occluders whose shadow from it
     may be read by a lookup of the view (``hits``): on the painting the camera sees, or on a drawn
-    occluder. Drawn occluders shadow themselves, so with any of them every emitter casts."""
+    occluder. Drawn occluders shadow themselves, so with any of them every emitter casts. ``size``: the
+    painting's ``(H, W)``; ``frame``: the pixels the camera draws."""
 
-    def __init__(self, view: ViewScene, size: tuple[int, int], settings: RenderSettings):
+    def __init__(self, view: ViewScene, size: tuple[int, int], frame: tuple[int, int], settings: RenderSettings):
         cam, map_size = view.camera, settings.shadow_map_size
         self.emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
         centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
         radii = np.array([occluder_radius(occ) for occ in view.occluders])
         self.drawn = frozenset(i for i, (c, r) in enumerate(zip(centres, radii))
-                               if settings.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, size, c, r))
+                               if settings.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, frame, c, r))
         self.hits: dict[tuple[int, int], frozenset[int]] = {e: frozenset() for e in self.emitters}
         hidden = np.array([i for i in range(len(radii)) if i not in self.drawn], dtype=int)
         if not (self.emitters and len(hidden)):
             return
         emitters = np.array([view.lights[a].emitters[b] for a, b in self.emitters])
         margins = lookup_margins(view, self.emitters, map_size, settings.light_radius)
-        region = clip_polygon(plane_corners(size)[:, :2], visible_halfplanes(cam.K, cam.R, cam.t, size))
+        region = clip_polygon(plane_corners(size)[:, :2], visible_halfplanes(cam.K, cam.R, cam.t, frame))
         drawn = sorted(self.drawn)
         hit = shadow_may_reach(emitters, centres[hidden], radii[hidden], region, margins) \
             | shadow_may_fall_on_ball(emitters, centres[hidden], radii[hidden], centres[drawn], radii[drawn],

@@ -31,6 +31,11 @@ Per view it draws, in the camera's pixel grid (Kornia convention, see ``geometry
 and once per sequence the **label**: the painting through view 0's camera, unlit and without
 occluders (the texture as the reference camera samples it).
 
+A render may draw every view over a :class:`~.canvas.Canvas` instead of its own ``image_size`` pixels:
+a window of its camera's pixel grid, larger (an overscan: the wider canvas a lens resamples) or
+smaller (a crop); everything per view (culling, shadow frusta, footprints, masks, outputs) is then
+of the canvas, the painting and the label keep ``image_size`` and view 0's own camera.
+
 Inside ``sidar_torch.timing.collect_timings()``, ``SceneRenderer.render`` adds the seconds spent in each step
 to the collector (``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``normals``, ``opacity``,
 ``shadow_mask``, ``label``, ``readback``; see ``render.passes`` for how GL time is attributed).
@@ -73,6 +78,7 @@ from .meshes import MeshPool, mesh_level, plane_mesh
 from .mirror import PaintingMirror
 from .passes import LitPass, Passes, SegmentationPass, ShadowFractionPass
 from .plan import ViewPlan, plan_views
+from .canvas import Canvas
 from .scene_graph import PAINTING_FILTERS, gl_material, view_draws
 from .settings import RenderSettings
 from .shadow_maps import ShadowMaps
@@ -170,7 +176,7 @@ class SceneRenderer:
         return self._shadows.layers
 
     def render(self, sequence: SceneSequence, painting: np.ndarray, *,
-               texture: np.ndarray | None = None) -> RenderedSequence:
+               texture: np.ndarray | None = None, canvas: Canvas | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
@@ -179,6 +185,14 @@ class SceneRenderer:
             texture: ``(H, W, 3)`` uint8 sRGB, the texture the views (and the painting's reflections)
                 see instead, e.g. the painting blurred (config ``texture_blur_sigma``); the label
                 is drawn from ``painting`` either way. Default: ``painting``.
+            canvas: the window of each view's pixel grid to draw (``render.canvas``): the
+                :class:`RenderedSequence`'s per-view arrays are then of ``canvas.size``, its label of
+                ``image_size`` (view 0's own camera). Default: each view itself.
+
+        Raises:
+            ValueError: ``sequence.image_size`` not this renderer's; ``painting`` or ``texture`` not
+                ``(H, W, 3)`` uint8; ``canvas`` not one origin per view, or larger than this context's
+                ``GL_MAX_RENDERBUFFER_SIZE`` (naming both).
 
         Timed steps (``sidar_torch.timing``): ``"upload"`` (painting texture and meshes), ``"graph"``
         (building the draw lists), ``"shadow"``, ``"colour"``, ``"mask"``, ``"label"`` and each
@@ -191,15 +205,17 @@ class SceneRenderer:
                 raise ValueError(f"{name}: expected {(*self.image_size, 3)} uint8, got {array.shape} {array.dtype}")
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
+        framed, frame = self._framed(sequence, canvas)
         self._platform.make_current()
         with timed("upload"):  # the texture object; its GL upload is timed in draw
             label_texture = self._painting_texture(painting, 0)
             texture = label_texture if texture is None else self._painting_texture(texture, 1)
         with timed("graph"):
-            plans = plan_views(sequence, self.settings)
+            plans = plan_views(framed, self.settings, frame)
+        self._passes.resize(frame[1], frame[0])
         views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
-        for view, plan in zip(sequence.views, plans):
-            image, mask, extra = self._render_view(view, plan, sequence, texture)
+        for view, plan in zip(framed.views, plans):
+            image, mask, extra = self._render_view(view, plan, framed, texture, frame)
             views.append(image)
             masks.append(mask)
             for name, array in extra.items():
@@ -213,11 +229,25 @@ class SceneRenderer:
             with timed("label"):
                 label = painting.copy()
         else:
+            self._passes.resize(self.image_size[1], self.image_size[0])
             label = render_label(self._passes, reference, self._plane, label_texture, self.image_size)
         views = np.stack(views)
         self.renders += 1
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 {name: np.stack(arrays) for name, arrays in outputs.items()})
+
+    def _framed(self, sequence: SceneSequence, canvas: Canvas | None) -> tuple[SceneSequence, tuple[int, int]]:
+        """``sequence`` with its cameras drawing ``canvas`` (:meth:`Canvas.views`) and the ``(H, W)`` drawn,
+        checked against this context's renderbuffer limit; ``(sequence, image_size)`` without a canvas."""
+        if canvas is None:
+            return sequence, self.image_size
+        if not isinstance(canvas, Canvas):
+            raise TypeError(f"canvas: expected a render.Canvas or None, got {type(canvas).__name__}")
+        limit = self.gl_limits[0]
+        if max(canvas.size) > limit:
+            raise ValueError(f"canvas size: {canvas.size} (H, W) exceeds this OpenGL context's "
+                             f"GL_MAX_RENDERBUFFER_SIZE = {limit}: expected H, W <= {limit}")
+        return canvas.views(sequence), canvas.size
 
     def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
         """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
@@ -276,12 +306,14 @@ class SceneRenderer:
             held.replace(painting.copy())
         return self._textures[slot]
 
-    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture
-                     ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
+                     frame: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and its
-        optional outputs (``settings.outputs``, see :class:`RenderedSequence`), drawing what ``plan`` says."""
+        optional outputs (``settings.outputs``, see :class:`RenderedSequence`), drawing what ``plan`` says
+        over ``frame (H, W)`` pixels (the canvas's, or ``image_size``)."""
         with timed("graph"):
-            draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size)
+            draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size,
+                               frame)
             self._passes.painting = (PaintingMirror.of_view(texture, self.image_size, view.plane_material)
                                      if self.settings.mirrors else None)
             # Every occluder is listed, culled or not: they set the depth range of the cone-fitted
@@ -297,7 +329,7 @@ class SceneRenderer:
             casters = [draws.occluders[i] for i in sorted(plan.casters)]
             transmitting = [draws.occluders[i] for i in sorted(plan.casters)
                             if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow]
-            self._passes.shadow_frusta = self._shadows.frusta(shadowed, view, sequence)
+            self._passes.shadow_frusta = self._shadows.frusta(shadowed, view, sequence, frame)
             map_keys = self._shadows.map_keys(draws, shadowed, [s for s in casters if not any(s is t for t in transmitting)])
             stale = self._shadows.stale(map_keys)
             self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
@@ -324,7 +356,7 @@ class SceneRenderer:
             # what the rasteriser's rule computes, up to its sub-pixel vertex snapping.
             self.skipped["masks_from_outline"] += 1
             with timed("mask"):
-                mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size)
+                mask = painting_mask(view.camera.K, view.camera.R, view.camera.t, self.image_size, frame)
         elif stencil and len(masked) == len(drawn):
             # The mask's draw would draw what the colour pass drew, in the same order with the same
             # depth test: the painting is visible where its fragment kept the depth, which the colour
@@ -355,7 +387,7 @@ class SceneRenderer:
         parts = [part for part in plan.painting_parts if part.begin < part.end]
         colour = drawn.colour
         if not colour.shadowed or (plan.painting_parts and not parts):
-            return np.zeros(self.image_size, np.uint8)
+            return np.zeros(drawn.mask.shape, np.uint8)
         fraction = ShadowFractionPass(colour.casters, colour.transmitting, colour.shadowed, parts)
         blocked = self._passes.draw(draws, fraction, [draws.painting])
         return np.where(drawn.mask, 0, blocked[..., 0]).astype(np.uint8)

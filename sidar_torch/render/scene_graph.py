@@ -34,18 +34,20 @@ the painting, each at a finer level (``programs`` quirk 15: sharper oblique view
 The texture is clamped at its edges, which keeps texels of the opposite edge out of the border pixels."""
 
 
-def camera_draws(camera: Camera, image_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def camera_draws(camera: Camera, image_size: tuple[int, int],
+                 canvas_size: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The camera-to-world pose (OpenGL axes, a ``draws.world_pose``) and OpenGL projection ``(4, 4)``
-    of a Kornia-convention ``camera`` drawing ``image_size`` pixels, with :func:`clip_range`.
+    of a Kornia-convention ``camera`` drawing ``canvas_size`` pixels (default ``image_size``, the
+    painting's; ``render.canvas``), with :func:`clip_range`.
 
     The one place where pixel conventions meet: OpenGL puts pixel centres at +0.5 in window
     coordinates, Kornia at integers, so the principal point shifts by half a pixel (``cy``
     counts from the top row in both).
     """
     K = camera.K
-    h, w = image_size
+    h, w = image_size if canvas_size is None else canvas_size
     projection = perspective(float(K[0, 0]), float(K[1, 1]), float(K[0, 2] + 0.5), float(K[1, 2] + 0.5), w, h,
-                             *clip_range(camera, image_size))
+                             *clip_range(camera, image_size, canvas_size))
     return world_pose(gl_pose(camera.R, camera.t)), projection
 
 
@@ -58,8 +60,10 @@ def gl_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     return world_from_cv @ GL_FROM_CV
 
 
-def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, float]:
-    """Near and far clip distances (painting units, along the optical axis).
+def clip_range(camera: Camera, image_size: tuple[int, int],
+               canvas_size: tuple[int, int] | None = None) -> tuple[float, float]:
+    """Near and far clip distances (painting units, along the optical axis) of ``camera`` drawing
+    ``canvas_size`` pixels (default ``image_size``) of the painting of ``image_size``.
 
     Far lies beyond the painting's farthest corner. Near is far / 2000 (24-bit depth then resolves
     about 1e-4 painting units at the painting), or less for a camera closer to the painting than
@@ -69,7 +73,7 @@ def clip_range(camera: Camera, image_size: tuple[int, int]) -> tuple[float, floa
     from the axis. Near is half the smaller such depth.
     """
     zfar = 2.0 * float(np.linalg.norm(plane_corners(image_size) - camera.position, axis=1).max())
-    h, w = image_size
+    h, w = image_size if canvas_size is None else canvas_size
     f = camera.K[0, 0]
     corner = np.hypot(max(camera.K[0, 2] + 0.5, w - 0.5 - camera.K[0, 2]), max(camera.K[1, 2] + 0.5, h - 0.5 - camera.K[1, 2]))
     cos_corner = f / np.hypot(f, corner)
@@ -134,9 +138,10 @@ def transmission_factors(material: Material) -> tuple[np.ndarray, float, float]:
 
 
 def view_draws(camera: Camera, ambient: float, painting: GpuMesh, material: Material, texture: PaintingTexture,
-               image_size: tuple[int, int]) -> ViewDraws:
-    """The draw list of one view with the ``painting`` mesh (``meshes.plane_mesh``) in ``material``
-    and ``texture``, ambient light ``ambient`` and ``camera``; occluders and lights are added by the caller."""
-    pose, projection = camera_draws(camera, image_size)
+               image_size: tuple[int, int], canvas_size: tuple[int, int] | None = None) -> ViewDraws:
+    """The draw list of one view with the ``painting`` mesh (``meshes.plane_mesh``, of ``image_size``) in
+    ``material`` and ``texture``, ambient light ``ambient`` and ``camera`` drawing ``canvas_size`` pixels
+    (default ``image_size``); occluders and lights are added by the caller."""
+    pose, projection = camera_draws(camera, image_size, canvas_size)
     plane = Surface(painting, world_pose(np.eye(4)), gl_material(material, texture))
     return ViewDraws(pose, projection, np.full(3, ambient, np.float32), plane)

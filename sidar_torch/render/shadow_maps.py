@@ -96,8 +96,8 @@ class ShadowMaps:
             self._held.clear()
         return k
 
-    def frusta(self, shadowed: list[SpotEmitter], view: ViewScene,
-               sequence: SceneSequence) -> dict[int, np.ndarray]:
+    def frusta(self, shadowed: list[SpotEmitter], view: ViewScene, sequence: SceneSequence,
+               canvas_size: tuple[int, int] | None = None) -> dict[int, np.ndarray]:
         """Fitted frusta (:func:`~.visibility.light_frustum`) of the ``shadowed`` emitters, keyed by
         ``id``, for ``"fitted"``; none for ``"cone"``, whose maps keep the cone's frustum
         (``passes.light_matrices``).
@@ -109,32 +109,34 @@ class ShadowMaps:
         painting and every occluder instead (view-independent too) measured 0.03-0.7 dB worse
         against a 4096 reference at 256-512 maps. Every occluder's ball counts as a caster. The
         window gets :data:`SHADOW_MARGIN_TEXELS` of margin. A light with no receiver in front
-        of it keeps the cone's frustum.
+        of it keeps the cone's frustum. The cameras draw ``canvas_size (H, W)`` pixels (``render.canvas``;
+        default ``image_size``).
         """
+        frame = self.image_size if canvas_size is None else tuple(canvas_size)
         if self.settings.shadow_frustum == "cone" or not shadowed:
             return {}
         casters = np.array([[*occ.position, np.linalg.norm(occ.scale)] for occ in view.occluders]).reshape(-1, 4)
         points = np.vstack([p for other in sequence.views
                             if other.lights == view.lights and other.occluders == view.occluders
-                            for p in self._visible_receivers(other.camera, casters)])
+                            for p in self._visible_receivers(other.camera, casters, frame)])
         margin = SHADOW_MARGIN_TEXELS / self._passes.shadow_map_size
         frusta = {id(light): light_frustum(light.pose[:3, 3], light.outer_cone, points, casters, margin, light.soft_reach)
                   for light in shadowed}
         return {key: frustum for key, frustum in frusta.items() if frustum is not None}
 
-    def _visible_receivers(self, cam: Camera, casters: np.ndarray) -> list[np.ndarray]:
-        """World points ``(N, 3)`` bounding what ``cam`` sees: the corners of the visible part of
-        the painting and of the bounding cubes of the occluders that may be in view."""
-        region = self._visible_region(cam)
+    def _visible_receivers(self, cam: Camera, casters: np.ndarray, frame: tuple[int, int]) -> list[np.ndarray]:
+        """World points ``(N, 3)`` bounding what ``cam`` sees over ``frame (H, W)`` pixels: the corners of
+        the visible part of the painting and of the bounding cubes of the occluders that may be in view."""
+        region = self._visible_region(cam, frame)
         points = [np.column_stack([region, np.zeros(len(region))])]
         if self.settings.occluders_visible:
             points += [cube_corners(c[:3], c[3]) for c in casters
-                       if ball_may_be_seen(cam.K, cam.R, cam.t, self.image_size, c[:3], c[3])]
+                       if ball_may_be_seen(cam.K, cam.R, cam.t, frame, c[:3], c[3])]
         return points
 
-    def _visible_region(self, cam: Camera) -> np.ndarray:
-        """``(N, 2)`` the convex part of the painting (plane ``z = 0``) that ``cam`` sees."""
-        halfplanes = visible_halfplanes(cam.K, cam.R, cam.t, self.image_size)
+    def _visible_region(self, cam: Camera, frame: tuple[int, int]) -> np.ndarray:
+        """``(N, 2)`` the convex part of the painting (plane ``z = 0``) that ``cam`` sees over ``frame (H, W)``."""
+        halfplanes = visible_halfplanes(cam.K, cam.R, cam.t, frame)
         return clip_polygon(plane_corners(self.image_size)[:, :2], halfplanes)
 
     def map_keys(self, draws: ViewDraws, shadowed: list[SpotEmitter],

@@ -141,8 +141,9 @@ def shadow_may_fall_on_ball(emitters: np.ndarray, centres: np.ndarray, radii: np
     return inside | (between <= half_a[..., None] + half_b[:, None, :] + np.reshape(margins, (-1, 1, 1)))
 
 
-def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """``(H, W)`` bool: True at pixels whose centre does not see the painting (background).
+def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                  canvas_size: tuple[int, int] | None = None) -> np.ndarray:
+    """``(H, W)`` bool (``canvas_size``'s): True at pixels whose centre does not see the painting (background).
 
     The camera ray through pixel centre ``(u, v)`` (Kornia pixels, integer centres) meets the
     plane at homogeneous plane point ``p = M^-1 K^-1 (u, v, 1)``, ``M = [r_1, r_2, t]`` (so
@@ -156,8 +157,9 @@ def painting_mask(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple
     Args:
         K, R: ``(3, 3)``; t: ``(3,)`` float64 camera.
         image_size: ``(H, W)`` in pixels, of the image and of the painting (same aspect).
+        canvas_size: ``(H, W)`` the camera draws (``render.canvas``); default ``image_size``.
     """
-    h, w = image_size
+    h, w = image_size if canvas_size is None else canvas_size
     half_w, half_h = plane_size(image_size)[0] / 2, plane_size(image_size)[1] / 2
     to_plane = np.linalg.inv(np.asarray(K, dtype=np.float64) @ np.column_stack([R[:, 0], R[:, 1], t]))
     # Conditions c . p >= 0: in front, then the painting's four edges.

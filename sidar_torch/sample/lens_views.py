@@ -4,20 +4,20 @@ way back for users (:func:`undistort`). The models and their conventions: :mod:`
 
 How a view is distorted, exactly. Each distorted pixel takes its colour from where the pinhole
 camera sees the same ray, which may lie outside the pinhole view (barrel distortion sees more than
-the view's pinhole field). The renderer draws every view at one size, so the wider undistorted
-canvas is drawn in *tiles*: the view's camera with its principal point moved by whole image widths
-or heights (``K[0, 2] -= ox``, ``K[1, 2] -= oy``: the same focal length, tile pixel ``(u, v)`` is
-canvas pixel ``(u + ox, v + oy)``), as few as cover every source pixel (one, the view itself, when
-the lens only pulls pixels inwards; 2 x 2 while the canvas is under twice the view's side, as for
-every default range and the ``lens`` preset; up to 3 x 3 for the strongest barrel the bounds allow). The tiles are pasted
-into the canvas and every image is resampled bilinearly into the distorted view (torch's
+the view's pinhole field). So each view is drawn once over the wider undistorted *canvas* that holds
+every pixel its bilinear resampling reads (:func:`lens_canvas`: the pinhole view's pixels from the
+floor to the ceiling of its sources' coordinates), a render size apart from the output size
+(``sidar_torch.render.canvas``: the view's camera with its principal point moved by the canvas's
+origin, the same focal length); one canvas size for every view of a sample, the largest of its
+views' boxes. Every image is then resampled bilinearly into the distorted view (torch's
 ``grid_sample``); masks and the background flag are resampled as fractions and cut at 1/2, so they
-stay binary. The view effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
+stay binary. The label is view 0's pinhole camera at the output size, as without a lens. The view
+effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import functools
 import math
 from typing import Any, Mapping
 
@@ -25,18 +25,22 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted_points
-from ..scene import Camera, SceneSequence
+from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted_grid, undistorted_points
+from ..scene import SceneSequence
 from ..timing import timed
 
-__all__ = ["distortion_maps", "render_through_lens", "tile_origins", "undistort"]
+__all__ = ["LATTICE_STEP", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens", "undistort"]
 
 
+@functools.lru_cache(maxsize=4)
 def _pixel_grid(image_size: tuple[int, int]) -> np.ndarray:
-    """``(H, W, 2)`` float64 Kornia pixel coordinates ``(u, v)`` of every pixel."""
+    """``(H, W, 2)`` float64 Kornia pixel coordinates ``(u, v)`` of every pixel (read-only, shared)."""
     h, w = image_size
-    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
-    return np.stack([u, v], -1)
+    grid = np.empty((h, w, 2))
+    grid[..., 0] = np.arange(w)
+    grid[..., 1] = np.arange(h)[:, None]
+    grid.flags.writeable = False
+    return grid
 
 
 def distortion_maps(model: str, lenses: np.ndarray | None, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
@@ -49,38 +53,55 @@ def distortion_maps(model: str, lenses: np.ndarray | None, K: np.ndarray, image_
         image_size: ``(H, W)``.
 
     Returns:
-        ``(V, H, W, 2)`` float64 Kornia pixels ``(u, v)`` of the undistorted view.
+        ``(V, H, W, 2)`` float64 Kornia pixels ``(u, v)`` of the undistorted view: each pixel's own answer
+        (an iterative model starts from the answers of a lattice :data:`LATTICE_STEP` pixels apart,
+        interpolated, and ends within its tolerance: ``choices.lenses.NEWTON_TOLERANCE``).
     """
-    grid = _pixel_grid(image_size)
+    grid = _pixel_grid(tuple(image_size))
     if model == NO_LENS:
         return np.broadcast_to(grid, (len(K), *grid.shape)).copy()
-    return np.stack([undistorted_points(model, lens, k, grid) for lens, k in zip(lenses, K)])
+    if not LENS_MODELS[model].iterative:
+        return np.stack([undistorted_grid(model, lens, k, image_size) for lens, k in zip(lenses, K)])
+    return np.stack([undistorted_points(model, lens, k, grid, _lattice_start(model, lens, k, image_size))
+                     for lens, k in zip(lenses, K)])
 
 
-def _axis_origins(lo: int, hi: int, n: int) -> list[int]:
-    """Tile origins along an axis of ``n`` pixels whose tiles ``[o, o + n)`` cover ``[lo, hi]``:
-    one tile, as close to the view (origin 0) as it can be, if one can; else tiles spread evenly."""
-    count = math.ceil((hi - lo + 1) / n)
-    if count == 1:
-        return [int(np.clip(0, hi - n + 1, lo))]
-    return sorted({int(round(o)) for o in np.linspace(lo, hi - n + 1, count)})
+LATTICE_STEP = 8
+"""Pixels between the points of the lattice whose answers, interpolated bilinearly, start an iterative
+lens model at every pixel (:func:`distortion_maps`): within about a thousandth of a pixel for the default
+ranges, so Newton's method ends in 2 steps instead of 4-5."""
 
 
-def tile_origins(sources: np.ndarray, image_size: tuple[int, int]) -> list[tuple[int, int]]:
-    """The ``(ox, oy)`` origins of the tiles covering every pixel the bilinear resampling of one view's
-    ``sources (H, W, 2)`` reads with a weight above 0 (``floor`` to ``ceil`` of each coordinate)."""
+def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """``(H, W, 2)`` float32: the undistorted pixels of a lattice spanning the view, about
+    :data:`LATTICE_STEP` apart, interpolated bilinearly at every pixel."""
     h, w = image_size
-    xs = _axis_origins(math.floor(sources[..., 0].min()), math.ceil(sources[..., 0].max()), w)
-    ys = _axis_origins(math.floor(sources[..., 1].min()), math.ceil(sources[..., 1].max()), h)
-    return [(ox, oy) for oy in ys for ox in xs]
+    ys = np.linspace(0, h - 1, max(2, math.ceil((h - 1) / LATTICE_STEP) + 1))
+    xs = np.linspace(0, w - 1, max(2, math.ceil((w - 1) / LATTICE_STEP) + 1))
+    lattice = undistorted_points(model, lens, K, np.stack(np.meshgrid(xs, ys), -1))  # (ny, nx, 2)
+    planes = torch.from_numpy(np.ascontiguousarray(lattice.transpose(2, 0, 1), np.float32))[None]
+    full = F.interpolate(planes, size=(h, w), mode="bilinear", align_corners=True)[0]  # float32: only a start
+    return full.permute(1, 2, 0).numpy()
 
 
-def _tile(view: Any, ox: int, oy: int) -> Any:
-    """``view`` (a ``ViewScene``) seen through its camera with the principal point moved by ``(-ox, -oy)``."""
-    K = view.camera.K.copy()
-    K[0, 2] -= ox
-    K[1, 2] -= oy
-    return dataclasses.replace(view, camera=Camera(K, view.camera.R, view.camera.t))
+SOURCE_SLACK = 1e-6
+"""Pixels a source coordinate may pass a whole pixel before the canvas holds the next one: its bilinear
+weight there is below this (nothing in float32 after 8-bit rounding), and ``grid_sample``'s border
+padding reads the canvas's last pixel instead. A lens of zeros (Newton's method may leave 1e-13 px)
+thus draws the view itself."""
+
+
+def lens_canvas(sources: np.ndarray) -> Any:
+    """The canvas (``sidar_torch.render.Canvas``) that holds every pinhole pixel the bilinear
+    resampling of each view reads with a weight above :data:`SOURCE_SLACK`: per view the box from the floor
+    to the ceiling of its ``sources (V, H, W, 2)`` (:func:`distortion_maps`), one size for all (the
+    largest box's sides), each view's origin its box's top-left pixel."""
+    from ..render.canvas import Canvas  # as render_through_lens's import of render: at the first use
+
+    planes = [(view[..., 0], view[..., 1]) for view in sources]  # per view and axis: numpy's (1, 2) reduction is slow
+    lo = np.floor(np.array([[u.min(), v.min()] for u, v in planes]) + SOURCE_SLACK).astype(np.int64)  # (V, 2) x, y
+    hi = np.ceil(np.array([[u.max(), v.max()] for u, v in planes]) - SOURCE_SLACK).astype(np.int64)
+    return Canvas.covering(np.concatenate([lo, np.maximum(hi, lo)], axis=1))
 
 
 def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.ndarray,
@@ -92,11 +113,14 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
         sequence: the scenes, ``sequence.lens_model`` not ``"none"``.
         painting, texture: ``(H, W, 3)`` uint8, as for ``SceneRenderer.render``.
 
-    Timed steps (``sidar_torch.timing``): the renderer's and ``"lens"`` (maps, tiles, resampling).
+    Timed steps (``sidar_torch.timing``): the renderer's and ``"lens"`` (maps, canvas, resampling).
 
     Returns:
         The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and
         dtypes) and the :func:`distortion_maps` ``(V, H, W, 2)`` float64 it was resampled with.
+
+    Raises:
+        ValueError: a canvas larger than the renderer's GL context allows (``SceneRenderer.render``).
     """
     from ..render import RenderedSequence  # imports the GL libraries: at the first render, as the renderer's
 
@@ -104,54 +128,55 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
     with timed("lens"):
         K = sequence.cameras()[0]
         sources = distortion_maps(sequence.lens_model, sequence.lenses, K, size)
-        origins = [tile_origins(s, size) for s in sources]
-        # The renderer's label is drawn with its first view's camera: view 0's own comes first.
-        first = [] if (0, 0) in origins[0] else [sequence.views[0]]
-        origins[0].sort(key=lambda o: o != (0, 0))
-        tiles = [_tile(view, ox, oy) for view, view_origins in zip(sequence.views, origins) for ox, oy in view_origins]
-    rendered = renderer.render(SceneSequence(size, (*first, *tiles)), painting, texture=texture)
+        canvas = lens_canvas(sources)
+    rendered = renderer.render(sequence, painting, texture=texture, canvas=canvas)
     with timed("lens"):
         names = sorted(rendered.outputs)
-        planes = [rendered.views, rendered.masks[..., None], rendered.background[..., None],
-                  *(rendered.outputs[name].reshape(*rendered.masks.shape, -1) for name in names)]
-        stacked = np.concatenate(planes, -1)[len(first):]
-        out, start = [], 0
-        for view_sources, view_origins in zip(sources, origins):
-            out.append(_resample(stacked[start:start + len(view_origins)], view_origins, view_sources, size))
-            start += len(view_origins)
-        out = np.stack(out)
-        views = np.rint(out[..., :3]).clip(0, 255).astype(np.uint8)
-        masks, background = out[..., 3] >= 0.5, out[..., 4] >= 0.5
+        out = [_resample(_channels(rendered, i, names), view_sources, origin)
+               for i, (view_sources, origin) in enumerate(zip(sources, canvas.origins))]
+        levels = [view.round_().clamp_(0, 255).to(torch.uint8) for view in out]  # (C, H, W) each
+        views = torch.stack([view[:3] for view in levels]).permute(0, 2, 3, 1).contiguous().numpy()
+        masks = torch.stack([view[3] >= 0.5 for view in out]).numpy()  # fractions; rounding kept them
+        background = torch.stack([view[4] >= 0.5 for view in out]).numpy()
         outputs, channel = {}, 5
         for name in names:
             c = 1 if rendered.outputs[name].ndim == 3 else 3
-            block = np.rint(out[..., channel:channel + c]).clip(0, 255).astype(np.uint8)
-            outputs[name] = block[..., 0] if c == 1 else block
+            block = torch.stack([view[channel:channel + c] for view in levels]).permute(0, 2, 3, 1)
+            outputs[name] = (block[..., 0] if c == 1 else block).contiguous().numpy()
             channel += c
     return RenderedSequence(views, masks, rendered.label, background, outputs), sources
 
 
-def _resample(tiles: np.ndarray, origins: list[tuple[int, int]], sources: np.ndarray,
-              image_size: tuple[int, int]) -> np.ndarray:
-    """Paste one view's ``tiles (T, H, W, C)`` (any dtype) at ``origins`` into their canvas and sample it
-    bilinearly at ``sources (H, W, 2)`` (view pixels): ``(H, W, C)`` float32."""
-    h, w = image_size
-    x0, y0 = min(o[0] for o in origins), min(o[1] for o in origins)
-    width, height = max(o[0] for o in origins) + w - x0, max(o[1] for o in origins) + h - y0
-    canvas = np.empty((height, width, tiles.shape[-1]), np.float32)
-    # The view's own tile, if drawn, is pasted last: where tiles overlap, its pixels are the pinhole view's
-    # (another tile's may differ at a few edge and shadow pixels: its shadow maps are fitted to what it sees).
-    for tile, (ox, oy) in sorted(zip(tiles, origins), key=lambda pair: pair[1] == (0, 0)):
-        canvas[oy - y0:oy - y0 + h, ox - x0:ox - x0 + w] = tile
-    return _bilinear(torch.from_numpy(canvas).permute(2, 0, 1)[None], sources - (x0, y0), "border")[0].permute(1, 2, 0).numpy()
+def _channels(rendered: Any, index: int, names: list[str]) -> torch.Tensor:
+    """View ``index``'s per-view images of ``rendered`` (a ``RenderedSequence``) as one ``(C, h, w)``
+    float32 tensor: RGB, mask, background, then each of ``names``' outputs' channels (uint8 levels)."""
+    planes = [rendered.views[index], rendered.masks[index][..., None], rendered.background[index][..., None],
+              *(rendered.outputs[name][index].reshape(*rendered.masks.shape[1:], -1) for name in names)]
+    count = sum(plane.shape[-1] for plane in planes)
+    channels = torch.empty((count, *rendered.masks.shape[1:]), dtype=torch.float32)
+    start = 0
+    for plane in planes:
+        channels[start:start + plane.shape[-1]] = torch.from_numpy(plane).permute(2, 0, 1)
+        start += plane.shape[-1]
+    return channels
+
+
+def _resample(channels: torch.Tensor, pixels: np.ndarray, origin: np.ndarray) -> torch.Tensor:
+    """One view's canvas ``channels (C, h, w)`` float32, whose pixel ``(0, 0)`` is the view's pixel
+    ``origin (2,)``, sampled bilinearly at the view's ``pixels (H, W, 2)`` (border padding): ``(C, H, W)``
+    float32, a mask's fractions kept. The grid is float32, as ``grid_sample`` reads it (1e-7 of a side)."""
+    h, w = channels.shape[-2:]
+    scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)])
+    grid = torch.from_numpy(pixels).float() * scale - (torch.from_numpy(origin).float() * scale + 1)
+    return F.grid_sample(channels[None], grid[None], mode="bilinear", padding_mode="border", align_corners=True)[0]
 
 
 def _bilinear(images: torch.Tensor, pixels: np.ndarray, padding: str) -> torch.Tensor:
     """``images (N, C, h, w)`` sampled bilinearly at ``pixels (N or 1, H, W, 2)`` or ``(H, W, 2)``
     (Kornia pixels of ``images``): ``(N, C, H, W)`` in ``images``' dtype; ``padding`` is ``grid_sample``'s."""
     h, w = images.shape[-2:]
-    grid = torch.from_numpy(pixels).to(torch.float64)
-    grid = torch.stack([2 * grid[..., 0] / max(w - 1, 1) - 1, 2 * grid[..., 1] / max(h - 1, 1) - 1], -1)
+    scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)], dtype=torch.float64)
+    grid = torch.from_numpy(np.asarray(pixels, np.float64)) * scale - 1
     grid = grid.expand(len(images), *grid.shape[-3:]) if grid.ndim == 3 or len(grid) == 1 else grid
     return F.grid_sample(images, grid.to(images.dtype), mode="bilinear", padding_mode=padding, align_corners=True)
 

@@ -55,7 +55,7 @@ def test_the_lens_draws_change_no_other_draw():
 @pytest.mark.gl
 @pytest.mark.parametrize("model", ["brown_conrady", "division"])
 def test_a_lens_of_zeros_renders_the_pinhole_sample_byte_for_byte(model):
-    """The lens path (draws, tiles, resampling) with every coefficient 0 gives every key of the sample
+    """The lens path (draws, canvas, resampling) with every coefficient 0 gives every key of the sample
     without the lens, view effects and their noise included: the lens's draws shift none of them."""
     config = small_config(**EVERYTHING, **ZERO_LENS, lens_lambda=(0, 0), lens_model=model)
     for index in range(2):
