@@ -56,7 +56,9 @@ class RenderProcess:
     The process starts here (a fork: milliseconds; the GL context opens at the first call) and lives
     until :meth:`close` (also at garbage collection and at exit); it exits by itself within a second of
     its parent's death (``sidar_torch.orphans``). It belongs to the process that made it: a forked copy
-    (in a DataLoader worker) refuses calls.
+    (in a DataLoader worker) refuses calls. Calls from several threads take turns. A call interrupted
+    while it waits (``KeyboardInterrupt``) ends the render process, whose late reply no later call may
+    read; the owner's next call starts a new one (``sidar_torch.render.renderer_for``).
     """
 
     def __init__(self, settings: RenderSettings, make_renderer: Callable[[RenderSettings], Any]):
@@ -74,7 +76,7 @@ class RenderProcess:
         there.close()
         self.pid = self._process.pid
         self.settings, self.image_size, self.renders = settings, settings.image_size, 0
-        self._connection = here
+        self._connection, self._lock = here, threading.Lock()
         self._finalizer = weakref.finalize(self, _shut_down, self.owner, here, self._process)
 
     @property
@@ -107,15 +109,19 @@ class RenderProcess:
                                f"{os.getpid()}: a forked copy cannot use it (render with renderer_for here)")
         if not self._finalizer.alive:
             raise RuntimeError(f"RenderProcess (pid {self.pid}): called after close()")
-        try:
-            self._connection.send((method, args, kwargs, collecting()))
-            status, payload, self.renders, seconds = self._connection.recv()
-        except (EOFError, OSError):  # the render process is gone
-            self._process.join(1.0)
-            how = (f"exit code {self._process.exitcode}" if self._process.exitcode is not None
-                   else process_state(self.pid))
-            self.close()
-            raise RuntimeError(f"the render process (pid {self.pid}) died with {how}") from None
+        with self._lock:  # one request at a time: replies come in the order of the requests
+            try:
+                self._connection.send((method, args, kwargs, collecting()))
+                status, payload, self.renders, seconds = self._connection.recv()
+            except (EOFError, OSError):  # the render process is gone
+                self._process.join(1.0)
+                how = (f"exit code {self._process.exitcode}" if self._process.exitcode is not None
+                       else process_state(self.pid))
+                self.close()
+                raise RuntimeError(f"the render process (pid {self.pid}) died with {how}") from None
+            except BaseException:  # interrupted (Ctrl-C): its reply may still come, which no later call may read
+                self.close()
+                raise
         add_timings(seconds)
         if status == "error":
             raise payload

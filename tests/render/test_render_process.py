@@ -147,3 +147,41 @@ if __name__ == "__main__":
 def test_a_daemonic_pool_worker_renders_in_itself(tmp_path):
     result = run(POOL_WORKER, tmp_path)
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-3000:]
+
+
+INTERRUPTED = """
+import signal, threading
+import numpy as np
+from sidar_torch import SidarDataset, load_config
+
+dataset = SidarDataset(config=load_config("misaligned", image_size=(96, 128), n_views=3), seed=0)
+first = dataset.sample(0)
+renderer = dataset.renderer()
+signal.setitimer(signal.ITIMER_REAL, 0.3)  # Ctrl-C during the warm-up of the second sample (a cold cache: seconds)
+signal.signal(signal.SIGALRM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt))
+try:
+    dataset.sample(1)
+except KeyboardInterrupt:
+    pass
+else:
+    raise AssertionError("not interrupted")
+assert not renderer.usable
+# The next samples come from a new render process, each its own (no late reply of the interrupted call).
+again = [dataset.sample(0), dataset.sample(2)]
+assert dataset.renderer().pid != renderer.pid
+assert np.array_equal(first["images"], again[0]["images"])
+# Threads take turns on one render process: each gets its own sample.
+out = {}
+threads = [threading.Thread(target=lambda i=i: out.__setitem__(i, dataset.sample(i))) for i in (0, 2)]
+for thread in threads:
+    thread.start()
+for thread in threads:
+    thread.join(120)
+assert np.array_equal(out[0]["images"], first["images"]) and np.array_equal(out[2]["images"], again[1]["images"])
+print("ok")
+"""
+
+
+def test_an_interrupted_call_ends_the_render_process_and_threads_take_turns(tmp_path):
+    result = run(INTERRUPTED, tmp_path)
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-3000:]
