@@ -53,12 +53,17 @@ Components = tuple[np.ndarray, np.ndarray]
 
 def _brown_distort(x: Components, lens: np.ndarray) -> Components:
     """OpenCV's distortion of undistorted normalised points ``x``."""
+    return _brown_terms(*x, lens)[0]
+
+
+def _brown_terms(u: np.ndarray, v: np.ndarray, lens: np.ndarray) -> tuple[Components, np.ndarray, np.ndarray]:
+    """:func:`_brown_distort` of ``(u, v)``, with the squared radius ``r2`` and the radial factor ``a``
+    (Newton's Jacobian reuses them)."""
     k1, k2, p1, p2, k3 = lens
-    u, v = x
-    r2 = u * u + v * v
+    uu, vv, uv2 = u * u, v * v, 2 * u * v
+    r2 = uu + vv
     a = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    uv2 = 2 * u * v
-    return u * a + p1 * uv2 + p2 * (r2 + 2 * u * u), v * a + p1 * (r2 + 2 * v * v) + p2 * uv2
+    return (u * a + p1 * uv2 + p2 * (r2 + 2 * uu), v * a + p1 * (r2 + 2 * vv) + p2 * uv2), r2, a
 
 
 def _brown_undistort(xd: Components, lens: np.ndarray, start: Components | None = None) -> Components:
@@ -67,13 +72,11 @@ def _brown_undistort(xd: Components, lens: np.ndarray, start: Components | None 
     k1, k2, p1, p2, k3 = lens
     u, v = (xd[0].copy(), xd[1].copy()) if start is None else (start[0].copy(), start[1].copy())
     for _ in range(NEWTON_STEPS):
-        fu, fv = _brown_distort((u, v), lens)
+        (fu, fv), r2, a = _brown_terms(u, v, lens)
         fu -= xd[0]
         fv -= xd[1]
-        if max(np.abs(fu).max(initial=0.0), np.abs(fv).max(initial=0.0)) < NEWTON_TOLERANCE:
+        if max(fu.max(initial=0.0), -fu.min(initial=0.0), fv.max(initial=0.0), -fv.min(initial=0.0)) < NEWTON_TOLERANCE:
             break
-        r2 = u * u + v * v
-        a = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
         g = 2 * k1 + r2 * (4 * k2 + 6 * k3 * r2)  # d a / d u = g u, d a / d v = g v
         gu, gv = g * u, g * v
         j11 = a + gu * u + 2 * p1 * v + 6 * p2 * u

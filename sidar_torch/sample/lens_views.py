@@ -134,17 +134,21 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
         names = sorted(rendered.outputs)
         out = [_resample(_channels(rendered, i, names), view_sources, origin)
                for i, (view_sources, origin) in enumerate(zip(sources, canvas.origins))]
-        levels = [view.round_().clamp_(0, 255).to(torch.uint8) for view in out]  # (C, H, W) each
-        views = torch.stack([view[:3] for view in levels]).permute(0, 2, 3, 1).contiguous().numpy()
-        masks = torch.stack([view[3] >= 0.5 for view in out]).numpy()  # fractions; rounding kept them
+        views = _levels([view[:3] for view in out])
+        masks = torch.stack([view[3] >= 0.5 for view in out]).numpy()
         background = torch.stack([view[4] >= 0.5 for view in out]).numpy()
         outputs, channel = {}, 5
         for name in names:
             c = 1 if rendered.outputs[name].ndim == 3 else 3
-            block = torch.stack([view[channel:channel + c] for view in levels]).permute(0, 2, 3, 1)
-            outputs[name] = (block[..., 0] if c == 1 else block).contiguous().numpy()
+            block = _levels([view[channel:channel + c] for view in out])
+            outputs[name] = block[..., 0] if c == 1 else block
             channel += c
     return RenderedSequence(views, masks, rendered.label, background, outputs), sources
+
+
+def _levels(planes: list[torch.Tensor]) -> np.ndarray:
+    """The views' resampled ``planes`` (each ``(C, H, W)`` float32 levels) as ``(V, H, W, C)`` uint8, rounded."""
+    return torch.stack(planes).round_().clamp_(0, 255).to(torch.uint8).permute(0, 2, 3, 1).contiguous().numpy()
 
 
 def _channels(rendered: Any, index: int, names: list[str]) -> torch.Tensor:
@@ -167,7 +171,7 @@ def _resample(channels: torch.Tensor, pixels: np.ndarray, origin: np.ndarray) ->
     float32, a mask's fractions kept. The grid is float32, as ``grid_sample`` reads it (1e-7 of a side)."""
     h, w = channels.shape[-2:]
     scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)])
-    grid = torch.from_numpy(pixels).float() * scale - (torch.from_numpy(origin).float() * scale + 1)
+    grid = torch.from_numpy(pixels).float().mul_(scale).sub_(torch.from_numpy(origin).float() * scale + 1)
     return F.grid_sample(channels[None], grid[None], mode="bilinear", padding_mode="border", align_corners=True)[0]
 
 
