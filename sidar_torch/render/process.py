@@ -135,9 +135,9 @@ class RenderProcess:
             self._finalizer.detach()
 
 
-_ENDINGS = ((None, 2.0), (signal.SIGTERM, 1.0), (signal.SIGKILL, 1.0))
-"""How :func:`_shut_down` ends the render process once its pipe is closed: the signal of each step
-(None: none, it leaves at the closed pipe) and the seconds it waits after it."""
+_ENDINGS = ((signal.SIGCONT, 2.0), (signal.SIGTERM, 1.0), (signal.SIGKILL, 1.0))
+"""How :func:`_shut_down` ends the render process once its pipe is closed: the signal of each step and
+the seconds it waits after it. ``SIGCONT`` first lets a stopped process see its closed pipe and leave."""
 
 
 def _shut_down(owner: int, connection, process) -> None:
@@ -145,7 +145,7 @@ def _shut_down(owner: int, connection, process) -> None:
         return
     connection.close()
     for sent, grace in _ENDINGS:
-        if sent is not None and process.is_alive():
+        if process.is_alive():
             with contextlib.suppress(ProcessLookupError):
                 os.kill(process.pid, sent)
         process.join(grace)
@@ -175,7 +175,10 @@ def _serve(connection, settings: RenderSettings, make_renderer: Callable[[Render
                 reply = "ok", getattr(renderer, method)(*args, **kwargs)
         except Exception as exc:
             reply = "error", portable(exc, f"the render process (pid {os.getpid()})")
-        connection.send((*reply, renderer.renders if renderer else 0, seconds))
+        try:
+            connection.send((*reply, renderer.renders if renderer else 0, seconds))
+        except OSError:  # the parent closed the pipe (it was interrupted) or died
+            return
 
 
 def portable(exc: Exception, where: str) -> BaseException:

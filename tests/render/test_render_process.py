@@ -150,15 +150,16 @@ def test_a_daemonic_pool_worker_renders_in_itself(tmp_path):
 
 
 INTERRUPTED = """
-import signal, threading
+import os, signal, threading
 import numpy as np
 from sidar_torch import SidarDataset, load_config
 
 dataset = SidarDataset(config=load_config("misaligned", image_size=(96, 128), n_views=3), seed=0)
 first = dataset.sample(0)
 renderer = dataset.renderer()
-signal.setitimer(signal.ITIMER_REAL, 0.3)  # Ctrl-C during the warm-up of the second sample (a cold cache: seconds)
+os.kill(renderer.pid, signal.SIGSTOP)  # the next call waits for as long as the render process is stopped
 signal.signal(signal.SIGALRM, lambda *_: (_ for _ in ()).throw(KeyboardInterrupt))
+signal.setitimer(signal.ITIMER_REAL, 0.5)  # Ctrl-C while it waits
 try:
     dataset.sample(1)
 except KeyboardInterrupt:
