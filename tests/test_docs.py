@@ -382,7 +382,7 @@ def test_benchmarks_tell_users_nothing_about_issue_numbers():
     report = {"settings": {"samples": 8, "kornia_calls": 3}, "heap": "warm", "machine": {"before": machine, "after": machine},
               "seconds": 60.0,
               "views": [row], "augment": {**row, "batch": 8, "size": "192x256", "ms_per_image": 100.0,
-                                          "pool_speedup": 1.1},
+                                          "plain_ms_per_image": 20.0, "plain_ratio": 5.0, "pool_speedup": 1.1},
               "loaders": {"preset": "misaligned", "size": "384x512", "views": 6, "scaling": 1.5,
                           "sequences_per_s": {"1": 2.0, "2": 3.0}, "first_sample_s": 0.7,
                           "first_sample": {"start": 0.02, "warm_up": 0.0, "sample": 0.6, "handover": 0.08,

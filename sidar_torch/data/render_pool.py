@@ -5,9 +5,9 @@ A *task* is everything image ``b`` of a call needs: its position, the entropy of
 ``(3, h, w)`` uint8. :func:`render_tasks` turns tasks into :class:`~sidar_torch.sample.SampleArrays`
 with the renderer it is handed; it is the only rendering path, whichever process runs it: all of a
 batch without a pool (with ``SidarAugment``'s renderer), one task at a time in a pool worker (with the
-worker's). It fits the homographies of the tasks it is given in one Kornia call, which gives each
-sequence the values it gets alone (``sample.batch_homographies``), so neither the pixels nor the
-geometry depend on the pool.
+worker's). It fits and bounds the homographies of the tasks it is given together (one Kornia call, one
+NumPy call per step of the error bounds: ``sample.batch_homographies``), which gives each sequence the
+values it gets alone, so neither the pixels nor the geometry depend on the pool.
 
 :class:`RenderPool` keeps ``n`` forked processes, each with its own renderer (its copy of the
 parent's, or one created and warmed up when the pool starts, ``sidar_torch.sample.warm_up``; then reused),
