@@ -125,6 +125,7 @@ def test_sizes_are_height_by_width():
     (["--sizes", "64by48"], "HEIGHTxWIDTH"),
     (["--presets", "nope"], "nope"),
     (["--samples", "0"], "samples"),
+    (["--parts", "augment", "nope"], "invalid choice: 'nope'"),
 ])
 def test_command_rejects_bad_arguments(argv, message, capsys):
     with pytest.raises(SystemExit) as error:
