@@ -69,6 +69,8 @@ class ShadowMaps:
         place in ``order``: views sharing the lights keep each emitter's map.
         """
         rank = {e: k for k, e in enumerate(sorted(order))}
+        if order:  # room for every rank's map at once: one reallocation of the array, not one per new rank
+            self._layer(len(order) - 1)
         group = self.settings.group_emitters
         # A light shaded as one (quirk 13) is shaded from its emitters' centre, aimed as they are.
         group_poses = {a: gl_pose(*look_at(view.lights[a].emitters.mean(axis=0)))
