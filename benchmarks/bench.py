@@ -21,7 +21,7 @@ In one process and one run (torch on one thread, llvmpipe in the calling thread)
 * **targets**: each speed goal of :data:`TARGETS`, met or not, with its figure.
 
 The figures are printed as markdown (and written as JSON with ``--json PATH``); nothing is asserted.
-``--parts augment`` measures the augment row alone (a minute), with the machine's load before and after.
+``--parts augment`` measures the augment row alone (about 15 s), with the machine's load before and after.
 """
 
 from __future__ import annotations
@@ -425,7 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
                              "cold: glibc's defaults, as in a fresh process")
     parser.add_argument("--parts", nargs="+", choices=PARTS, default=None, metavar="PART",
                         help=f"what to measure, among {', '.join(PARTS)} (default all; augment alone takes "
-                             f"about a minute)")
+                             f"about 15 s)")
     parser.add_argument("--json", default=None, metavar="PATH", help="also write the figures as JSON to PATH")
     return parser
 
