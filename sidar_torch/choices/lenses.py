@@ -66,16 +66,19 @@ def _brown_terms(u: np.ndarray, v: np.ndarray, lens: np.ndarray) -> tuple[Compon
     return (u * a + p1 * uv2 + p2 * (r2 + 2 * uu), v * a + p1 * (r2 + 2 * vv) + p2 * uv2), r2, a
 
 
-def _brown_undistort(xd: Components, lens: np.ndarray, start: Components | None = None) -> Components:
+def _brown_undistort(xd: Components, lens: np.ndarray, start: Components | None = None,
+                     steps: int | None = None) -> Components:
     """The undistorted normalised points whose :func:`_brown_distort` is ``xd`` (Newton's method from
-    ``start``, default ``xd`` itself, until every residual is under :data:`NEWTON_TOLERANCE`)."""
+    ``start``, default ``xd`` itself, until every residual is under :data:`NEWTON_TOLERANCE`; or
+    exactly ``steps`` steps, unchecked), in the dtype of ``xd`` and ``lens``."""
     k1, k2, p1, p2, k3 = lens
     u, v = (xd[0].copy(), xd[1].copy()) if start is None else (start[0].copy(), start[1].copy())
-    for _ in range(NEWTON_STEPS):
+    for _ in range(NEWTON_STEPS if steps is None else steps):
         (fu, fv), r2, a = _brown_terms(u, v, lens)
         fu -= xd[0]
         fv -= xd[1]
-        if max(fu.max(initial=0.0), -fu.min(initial=0.0), fv.max(initial=0.0), -fv.min(initial=0.0)) < NEWTON_TOLERANCE:
+        if steps is None and max(fu.max(initial=0.0), -fu.min(initial=0.0), fv.max(initial=0.0),
+                                 -fv.min(initial=0.0)) < NEWTON_TOLERANCE:
             break
         g = 2 * k1 + r2 * (4 * k2 + 6 * k3 * r2)  # d a / d u = g u, d a / d v = g v
         gu, gv = g * u, g * v
@@ -88,7 +91,8 @@ def _brown_undistort(xd: Components, lens: np.ndarray, start: Components | None 
     return u, v
 
 
-def _division_undistort(xd: Components, lens: np.ndarray, start: Components | None = None) -> Components:
+def _division_undistort(xd: Components, lens: np.ndarray, start: Components | None = None,
+                        steps: int | None = None) -> Components:
     s = 1 / (1 + lens[0] * (xd[0] * xd[0] + xd[1] * xd[1]))
     return xd[0] * s, xd[1] * s
 
@@ -117,8 +121,10 @@ class LensModel:
     Attributes:
         name: the ``lens_model`` config value.
         fields: the config fields (ranges) of its 5 coefficients, in the order of ``lens`` (None: always 0).
-        undistort: ``(x_d, lens (5,), start)`` -> the undistorted normalised points of ``x_d``; points as
-            :data:`Components`; ``start``: where an iterative model starts (None: ``x_d``), unused by a closed form.
+        undistort: ``(x_d, lens (5,), start, steps)`` -> the undistorted normalised points of ``x_d``; points
+            as :data:`Components`, in their and ``lens``' dtype; ``start``: where an iterative model starts
+            (None: ``x_d``), ``steps``: how many steps it takes (None: until :data:`NEWTON_TOLERANCE`);
+            both unused by a closed form.
         distort: ``(x_u, lens (5,))`` -> the distorted normalised points of ``x_u`` (:data:`Components`).
         scale: ``(coefficients at the corner (5,), corner radius)`` -> the lens in normalised
             coordinates (:func:`scaled_lens`).
@@ -127,7 +133,7 @@ class LensModel:
 
     name: str
     fields: tuple[str | None, ...]
-    undistort: Callable[[Components, np.ndarray, Components | None], Components]
+    undistort: Callable[[Components, np.ndarray, Components | None, int | None], Components]
     distort: Callable[[Components, np.ndarray], Components]
     scale: Callable[[np.ndarray, float], np.ndarray]
     iterative: bool = False

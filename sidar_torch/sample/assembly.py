@@ -103,9 +103,9 @@ def render_arrays(renderer: SceneRenderer, sequence: SceneSequence, painting: np
         with timed("upload"):
             texture = blur_painting(painting, config.texture_blur_sigma)
     if sequence.lens_model == NO_LENS:
-        rendered, sources = renderer.render(sequence, painting, texture=texture), None
+        rendered = renderer.render(sequence, painting, texture=texture)
     else:  # the lens's optics before the sensor's effects
-        rendered, sources = render_through_lens(renderer, sequence, painting, texture)
+        rendered = render_through_lens(renderer, sequence, painting, texture)
     views, outputs = rendered.views, dict(rendered.outputs)
     if effects is not None:
         with timed("effects"):
@@ -120,7 +120,7 @@ def render_arrays(renderer: SceneRenderer, sequence: SceneSequence, painting: np
     outputs = _with_computed_outputs(outputs, config, K, R, t)
     if config.distortion_map_output:
         with timed("lens"):
-            maps = sources if sources is not None else distortion_maps(NO_LENS, None, K, sequence.image_size)
+            maps = distortion_maps(sequence.lens_model, sequence.lenses, K, sequence.image_size)  # float64, exact
             outputs["distortion_maps"] = np.ascontiguousarray(maps.transpose(0, 3, 1, 2), np.float32)
     return SampleArrays(images=views, masks=rendered.masks.astype(np.uint8) * np.uint8(255), label=rendered.label,
                         homographies=homographies.numpy(), homography_error=homography_error, K=K, R=R, t=t,

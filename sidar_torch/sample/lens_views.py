@@ -25,11 +25,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted_grid, undistorted_points
+from ..choices.lenses import CHUNK, LENS_MODELS, NO_LENS, distorted_points, undistorted_grid, undistorted_points
 from ..scene import SceneSequence
 from ..timing import timed
 
-__all__ = ["LATTICE_STEP", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens", "undistort"]
+__all__ = ["LATTICE_STEP", "RESAMPLING_STEPS", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens",
+           "resampling_sources", "undistort"]
 
 
 @functools.lru_cache(maxsize=4)
@@ -72,30 +73,82 @@ lens model at every pixel (:func:`distortion_maps`): within about a thousandth o
 ranges, so Newton's method ends in 2 steps instead of 4-5."""
 
 
-def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """``(H, W, 2)`` float32: the undistorted pixels of a lattice spanning the view, about
-    :data:`LATTICE_STEP` apart, interpolated bilinearly at every pixel."""
+def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
+                   normalised: bool = False) -> Any:
+    """The undistorted points of a lattice spanning the view, about :data:`LATTICE_STEP` apart, interpolated
+    bilinearly at every pixel, float32: ``(H, W, 2)`` pixels, or with ``normalised`` the normalised
+    coordinates' two ``(H, W)`` planes."""
     h, w = image_size
     ys = np.linspace(0, h - 1, max(2, math.ceil((h - 1) / LATTICE_STEP) + 1))
     xs = np.linspace(0, w - 1, max(2, math.ceil((w - 1) / LATTICE_STEP) + 1))
     lattice = undistorted_points(model, lens, K, np.stack(np.meshgrid(xs, ys), -1))  # (ny, nx, 2)
+    if normalised:
+        y = (lattice[..., 1] - K[1, 2]) / K[1, 1]
+        lattice = np.stack([(lattice[..., 0] - K[0, 2] - K[0, 1] * y) / K[0, 0], y], -1)
     planes = torch.from_numpy(np.ascontiguousarray(lattice.transpose(2, 0, 1), np.float32))[None]
     full = F.interpolate(planes, size=(h, w), mode="bilinear", align_corners=True)[0]  # float32: only a start
-    return full.permute(1, 2, 0).numpy()
+    return (full[0].numpy(), full[1].numpy()) if normalised else full.permute(1, 2, 0).numpy()
 
 
-SOURCE_SLACK = 1e-6
+def resampling_sources(model: str, lenses: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
+    """The :func:`distortion_maps` a lens view is resampled at, in float32 as ``grid_sample`` reads them:
+    ``(V, H, W, 2)`` float32 Kornia pixels of the undistorted view.
+
+    A closed-form model (``division``) in float32 from each row's and column's normalised coordinate
+    (float32 rounding: about 3e-5 px at 500 px from the principal point); an iterative one
+    (``brown_conrady``) as one float32 Newton step from the exact answers of a lattice
+    :data:`LATTICE_STEP` pixels apart interpolated bilinearly (within 0.01-0.2 px before the step,
+    within :data:`SOURCE_SLACK` after: ``tests/render/test_canvas.py``). A third of the work of the
+    float64 maps' Newton step and check; the maps a sample hands out stay the exact float64 ones.
+
+    Args: as :func:`distortion_maps` (``model`` a lens model, not ``"none"``).
+    """
+    h, w = image_size
+    row = LENS_MODELS[model]
+    out = np.empty((len(K), h, w, 2), np.float32)
+    rows = max(1, 4 * CHUNK // w)  # Newton's float32 operations on arrays that stay in the core's cache
+    for view, (lens, k) in enumerate(zip(lenses, K)):
+        y = ((np.arange(h, dtype=np.float64) - k[1, 2]) / k[1, 1])[:, None]
+        x = np.broadcast_to((np.arange(w, dtype=np.float64)[None, :] - k[0, 2] - k[0, 1] * y) / k[0, 0], (h, w))
+        x32, y32, lens32 = x.astype(np.float32), y.astype(np.float32), np.asarray(lens, np.float32)
+        if row.iterative:
+            u0, v0 = _lattice_start(model, lens, k, image_size, normalised=True)
+            y32 = np.ascontiguousarray(np.broadcast_to(y32, (h, w)))
+            for top in range(0, h, rows):
+                part = slice(top, top + rows)
+                u, v = row.undistort((x32[part], y32[part]), lens32, (u0[part], v0[part]), RESAMPLING_STEPS)
+                _to_pixels(k, u, v, out[view, part])
+        else:
+            u, v = row.undistort((x32, y32), lens32, None, None)
+            _to_pixels(k, *np.broadcast_arrays(u, v), out[view])
+    return out
+
+
+RESAMPLING_STEPS = 1
+"""Newton steps of :func:`resampling_sources` from the lattice's start: one takes its error of 0.01-0.2 px
+to the float32 rounding's (the error after a step is about its square times the map's curvature)."""
+
+
+def _to_pixels(K: np.ndarray, u: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """Write the normalised points ``(u, v)`` as pixels ``K (u, v, 1)`` into ``out (..., 2)`` (float32)."""
+    k = K.astype(np.float32)
+    out[..., 0] = k[0, 0] * u + k[0, 1] * v + k[0, 2]
+    out[..., 1] = k[1, 1] * v + k[1, 2]
+
+
+SOURCE_SLACK = 1e-3
 """Pixels a source coordinate may pass a whole pixel before the canvas holds the next one: its bilinear
-weight there is below this (nothing in float32 after 8-bit rounding), and ``grid_sample``'s border
-padding reads the canvas's last pixel instead. A lens of zeros (Newton's method may leave 1e-13 px)
-thus draws the view itself."""
+weight there is at most this (a quarter of a level at an edge of full contrast), and ``grid_sample``'s
+border padding reads the canvas's last pixel instead. It covers :func:`resampling_sources`' float32
+rounding, so a lens of zeros draws the view itself."""
 
 
 def lens_canvas(sources: np.ndarray) -> Any:
     """The canvas (``sidar_torch.render.Canvas``) that holds every pinhole pixel the bilinear
     resampling of each view reads with a weight above :data:`SOURCE_SLACK`: per view the box from the floor
-    to the ceiling of its ``sources (V, H, W, 2)`` (:func:`distortion_maps`), one size for all (the
-    largest box's sides), each view's origin its box's top-left pixel."""
+    to the ceiling of its ``sources (V, H, W, 2)`` (:func:`resampling_sources`, or :func:`distortion_maps`),
+    one size for all (the largest box's sides), each view's origin its box's top-left pixel (rounded down
+    to an even one: ``render.canvas.QUAD``)."""
     from ..render.canvas import Canvas  # as render_through_lens's import of render: at the first use
 
     planes = [(view[..., 0], view[..., 1]) for view in sources]  # per view and axis: numpy's (1, 2) reduction is slow
@@ -105,7 +158,7 @@ def lens_canvas(sources: np.ndarray) -> Any:
 
 
 def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.ndarray,
-                        texture: np.ndarray | None = None) -> tuple[Any, np.ndarray]:
+                        texture: np.ndarray | None = None) -> Any:
     """Render ``sequence`` (with a lens) through its lenses: every per-view image distorted, the label not.
 
     Args:
@@ -117,7 +170,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
 
     Returns:
         The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and
-        dtypes) and the :func:`distortion_maps` ``(V, H, W, 2)`` float64 it was resampled with.
+        dtypes), resampled at :func:`resampling_sources` (the :func:`distortion_maps` in float32).
 
     Raises:
         ValueError: a canvas larger than the renderer's GL context allows (``SceneRenderer.render``).
@@ -127,7 +180,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
     size = tuple(sequence.image_size)
     with timed("lens"):
         K = sequence.cameras()[0]
-        sources = distortion_maps(sequence.lens_model, sequence.lenses, K, size)
+        sources = resampling_sources(sequence.lens_model, sequence.lenses, K, size)
         canvas = lens_canvas(sources)
     rendered = renderer.render(sequence, painting, texture=texture, canvas=canvas)
     with timed("lens"):
@@ -143,12 +196,16 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
             block = _levels([view[channel:channel + c] for view in out])
             outputs[name] = block[..., 0] if c == 1 else block
             channel += c
-    return RenderedSequence(views, masks, rendered.label, background, outputs), sources
+    return RenderedSequence(views, masks, rendered.label, background, outputs)
 
 
 def _levels(planes: list[torch.Tensor]) -> np.ndarray:
-    """The views' resampled ``planes`` (each ``(C, H, W)`` float32 levels) as ``(V, H, W, C)`` uint8, rounded."""
-    return torch.stack(planes).round_().clamp_(0, 255).to(torch.uint8).permute(0, 2, 3, 1).contiguous().numpy()
+    """The views' resampled ``planes`` (each ``(C, H, W)`` float32 levels, rounded in place) as
+    ``(V, H, W, C)`` uint8."""
+    out = np.empty((len(planes), *planes[0].shape[1:], planes[0].shape[0]), np.uint8)
+    for view, plane in zip(torch.from_numpy(out), planes):
+        view.copy_(plane.round_().clamp_(0, 255).permute(1, 2, 0))
+    return out
 
 
 def _channels(rendered: Any, index: int, names: list[str]) -> torch.Tensor:
@@ -167,11 +224,11 @@ def _channels(rendered: Any, index: int, names: list[str]) -> torch.Tensor:
 
 def _resample(channels: torch.Tensor, pixels: np.ndarray, origin: np.ndarray) -> torch.Tensor:
     """One view's canvas ``channels (C, h, w)`` float32, whose pixel ``(0, 0)`` is the view's pixel
-    ``origin (2,)``, sampled bilinearly at the view's ``pixels (H, W, 2)`` (border padding): ``(C, H, W)``
-    float32, a mask's fractions kept. The grid is float32, as ``grid_sample`` reads it (1e-7 of a side)."""
+    ``origin (2,)``, sampled bilinearly at the view's ``pixels (H, W, 2)`` float32 (border padding):
+    ``(C, H, W)`` float32, a mask's fractions kept."""
     h, w = channels.shape[-2:]
     scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)])
-    grid = torch.from_numpy(pixels).float().mul_(scale).sub_(torch.from_numpy(origin).float() * scale + 1)
+    grid = torch.addcmul(-1 - torch.from_numpy(origin).float() * scale, torch.from_numpy(pixels), scale)
     return F.grid_sample(channels[None], grid[None], mode="bilinear", padding_mode="border", align_corners=True)[0]
 
 

@@ -8,7 +8,8 @@ import pytest
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.render.canvas import Canvas
-from sidar_torch.sample.lens_views import SOURCE_SLACK, distortion_maps, lens_canvas
+from sidar_torch.choices.lenses import scaled_lens
+from sidar_torch.sample.lens_views import SOURCE_SLACK, distortion_maps, lens_canvas, resampling_sources
 from sidar_torch.scene import sample_sequence
 
 from conftest import small_config, textured_painting
@@ -109,19 +110,25 @@ def test_a_canvas_is_checked_and_named():
 
 @pytest.mark.parametrize("model", ["brown_conrady", "division"])
 def test_the_lens_canvas_holds_every_pixel_the_resampling_reads(model):
-    """Each view's canvas holds the floor and ceiling of every source coordinate (up to SOURCE_SLACK);
-    a lens of zeros draws the views themselves; the lens path renders once per sample, one canvas."""
+    """The float32 sources a view is resampled at are the exact maps within SOURCE_SLACK (default ranges
+    and the strongest barrels that do not fold); each view's canvas holds the floor and ceiling of every
+    one (up to SOURCE_SLACK); a lens of zeros draws the views themselves; the lens path renders once."""
     config = load_config("misaligned", image_size=(48, 64), n_views=3, lens_model=model)
     dataset = SidarDataset(None, config, seed=2)
+    strong = {"brown_conrady": (-0.1, 0.03, 0.01, 0.01, 0.0), "division": (-0.5, 0.0, 0.0, 0.0, 0.0)}[model]
     for index in range(3):
         sequence = dataset.scene(index)
-        sources = distortion_maps(model, sequence.lenses, sequence.cameras()[0], config.image_size)
+        K = sequence.cameras()[0]
+        lenses = sequence.lenses if index else np.stack([scaled_lens(model, np.array(strong), k, config.image_size)
+                                                         for k in K])
+        sources = resampling_sources(model, lenses, K, config.image_size)
+        assert sources.dtype == np.float32
+        assert np.abs(sources - distortion_maps(model, lenses, K, config.image_size)).max() < SOURCE_SLACK
         canvas = lens_canvas(sources)
         shifted = sources - canvas.origins[:, None, None, :]
         assert np.floor(shifted.min() + SOURCE_SLACK) >= 0
         assert (np.ceil(shifted.max(axis=(1, 2)) - SOURCE_SLACK) <= np.array(canvas.size[::-1]) - 1).all()
-    zeros = np.zeros((3, 5))
-    identity = distortion_maps(model, zeros, sequence.cameras()[0], config.image_size)
+    identity = resampling_sources(model, np.zeros((3, 5)), K, config.image_size)
     canvas = lens_canvas(identity)
     assert canvas.size == config.image_size and not canvas.origins.any()
     dataset.sample(0)  # the renderer warms up at the first sample (SidarDataset.renderer)
