@@ -39,19 +39,23 @@ pid) with the same polling thread.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
+import pickle
 import signal
 import stat
 import sys
 import threading
 import time
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterable
 
-__all__ = ["POLL_S", "ProcessStamp", "exit_with_parent", "exit_with_process", "open_descriptors",
-           "process_age", "process_state", "release_inherited_descriptors"]
+__all__ = ["ENDINGS", "POLL_S", "ProcessStamp", "end_processes", "exit_with_parent", "exit_with_process",
+           "open_descriptors", "portable_exception", "process_age", "process_state",
+           "release_inherited_descriptors"]
 
 POLL_S = 0.25
 """How often, in seconds, the watching thread checks that the parent is alive."""
@@ -230,3 +234,37 @@ def _releasable(fd: int) -> bool:
     except OSError:
         return False
     return any(kind(mode) for kind in (stat.S_ISSOCK, stat.S_ISFIFO, stat.S_ISREG, stat.S_ISDIR))
+
+
+ENDINGS = (((signal.SIGCONT,), 2.0), ((signal.SIGTERM, signal.SIGCONT), 1.0), ((signal.SIGKILL,), 1.0))
+"""How :func:`end_processes` ends children whose pipes or sockets their parent closed: the signals of each
+step and the seconds it waits after it. ``SIGCONT`` first lets a stopped child see its closed pipe and
+leave, and makes it act on a ``SIGTERM`` (a stopped process acts only on ``SIGKILL``)."""
+
+
+def end_processes(processes: Iterable) -> None:
+    """End ``processes`` (``multiprocessing.Process`` children whose pipes the caller closed): wait a
+    little for them to leave, then terminate stragglers and kill those that do not end, each step with
+    one wait shared by all of them (:data:`ENDINGS`)."""
+    processes = list(processes)
+    for signals, grace in ENDINGS:
+        deadline = time.monotonic() + grace
+        for process in processes:
+            for sent in signals if process.is_alive() else ():
+                with contextlib.suppress(ProcessLookupError):
+                    os.kill(process.pid, sent)
+        for process in processes:
+            process.join(max(deadline - time.monotonic(), 0.0))
+
+
+def portable_exception(exc: BaseException, where: str) -> BaseException:
+    """``exc`` with its traceback as a note saying it was raised in ``where`` (``"the render process (pid
+    12)"``), or a ``RuntimeError`` with its text if it does not survive pickling: what a child sends back
+    for its parent to raise."""
+    text = "".join(traceback.format_exception(exc))
+    try:
+        copy = pickle.loads(pickle.dumps(exc))
+    except Exception:
+        copy = RuntimeError(f"{type(exc).__name__}: {exc}")
+    copy.add_note(f"raised in {where}:\n{text}")
+    return copy

@@ -32,7 +32,7 @@ from torch import nn
 
 from .render_pool import RenderPool, RenderTask, render_tasks
 from ..config import MAX_WORKERS, SidarConfig, as_float, as_int, load_config
-from ..render import RenderSettings, shared_renderer
+from ..render import RenderSettings, renderer_for
 from ..sample import stack_arrays
 from ..sample.warm_up import warm_up_renderer
 from ..scene import SceneSequence, sample_sequence
@@ -54,7 +54,8 @@ class SidarAugment(nn.Module):
         seed: an integer ``>= 0``, or ``None`` to draw from PyTorch's global generator (like
             ``kornia.augmentation``; ``torch.manual_seed`` then makes runs repeatable).
         crop: how images are fitted to ``image_size``, ``"center"`` or ``"none"`` (see below).
-        num_workers: ``0`` (default): render in this process; ``n >= 1``: render each batch in a
+        num_workers: ``0`` (default): render with this process's renderer (``sidar_torch.render.renderer_for``:
+            in a process that may fork, its render process); ``n >= 1``: render each batch in a
             pool of ``n`` render processes (see "Render pool"), at most
             :data:`sidar_torch.config.MAX_WORKERS` (256; each holds its own renderer).
         timeout: with a pool, the most seconds a call may take: sending the images to the workers,
@@ -233,7 +234,7 @@ class SidarAugment(nn.Module):
 
     def _render(self, tasks: list[RenderTask]):
         if self.num_workers == 0:  # this process's renderer, warm before its first batch (as a pool's workers)
-            renderer = shared_renderer(RenderSettings.from_config(self.config))
+            renderer = renderer_for(RenderSettings.from_config(self.config))
             warm_up_renderer(renderer, self.config)
             return render_tasks(renderer, self.config, self.crop, tasks)
         if self._pool is None or not self._pool.usable:

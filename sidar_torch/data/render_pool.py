@@ -40,19 +40,16 @@ parent's renderer, with every shader variant the parent compiled (see
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
 import multiprocessing
 import os
 import pickle
 import selectors
-import signal
 import socket
 import struct
 import threading
 import time
-import traceback
 import weakref
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
@@ -60,7 +57,8 @@ import numpy as np
 import torch
 
 from ..config import MAX_WORKERS, SidarConfig, as_int
-from ..orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
+from ..orphans import (end_processes, exit_with_parent, open_descriptors, portable_exception, process_state,
+                       release_inherited_descriptors)
 from ..render import RenderSettings, preload, shared_renderer
 from ..render.context import forks_nothing
 from ..sample import SampleArrays, batch_homographies, render_arrays
@@ -346,27 +344,13 @@ def _deadline(limit: float) -> float:
     return time.monotonic() + limit if limit > 0 else math.inf
 
 
-_ENDINGS = (((signal.SIGCONT,), 2.0), ((signal.SIGTERM, signal.SIGCONT), 1.0), ((signal.SIGKILL,), 1.0))
-"""How :func:`_shut_down` ends the workers once their sockets are closed: the signals of each step
-and the seconds it waits for them after it. ``SIGCONT`` first lets a stopped worker see its closed
-socket and leave, and makes it act on a ``SIGTERM`` (a stopped process acts only on ``SIGKILL``)."""
-
-
 def _shut_down(pid: int, sockets: list[socket.socket], processes: list) -> None:
-    """Ask each worker to stop (closing its socket), wait a little, then terminate stragglers and kill
-    those that do not end, each step with one wait shared by all workers (:data:`_ENDINGS`)."""
+    """Ask each worker to stop (closing its socket), then end them (``orphans.end_processes``)."""
     if os.getpid() != pid:
         return
     for sock in sockets:
         sock.close()
-    for signals, grace in _ENDINGS:
-        deadline = time.monotonic() + grace
-        for process in processes:
-            for sent in signals if process.is_alive() else ():
-                with contextlib.suppress(ProcessLookupError):
-                    os.kill(process.pid, sent)
-        for process in processes:
-            process.join(max(deadline - time.monotonic(), 0.0))
+    end_processes(processes)
 
 
 def _worker_main(sock: socket.socket, config: SidarConfig, crop: str, parent_pid: int,
@@ -398,21 +382,9 @@ def _worker_main(sock: socket.socket, config: SidarConfig, crop: str, parent_pid
 
 
 def _attempt(work: Callable[[], Any]) -> tuple[str, Any]:
-    """``("ok", work())``, or ``("error", exception)`` with the exception ``work`` raised (:func:`_portable`),
+    """``("ok", work())``, or ``("error", exception)`` with the exception ``work`` raised (``orphans.portable_exception``),
     which the caller raises."""
     try:
         return "ok", work()
     except Exception as exc:
-        return "error", _portable(exc)
-
-
-def _portable(exc: Exception) -> BaseException:
-    """``exc`` with the worker's traceback as a note, or a ``RuntimeError`` with its text if it does
-    not survive pickling."""
-    text = "".join(traceback.format_exception(exc))
-    try:
-        copy = pickle.loads(pickle.dumps(exc))
-    except Exception:
-        copy = RuntimeError(f"{type(exc).__name__}: {exc}")
-    copy.add_note(f"raised in SidarAugment render worker (pid {os.getpid()}):\n{text}")
-    return copy
+        return "error", portable_exception(exc, f"SidarAugment render worker (pid {os.getpid()})")

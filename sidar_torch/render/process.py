@@ -25,19 +25,17 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
-import pickle
-import signal
 import threading
-import traceback
 import weakref
 from typing import Any, Callable
 
-from ..orphans import exit_with_parent, open_descriptors, process_state, release_inherited_descriptors
+from ..orphans import (end_processes, exit_with_parent, open_descriptors, portable_exception, process_state,
+                       release_inherited_descriptors)
 from ..timing import add_timings, collect_timings, collecting
 from .context import forks_nothing
 from .settings import RenderSettings
 
-__all__ = ["RenderProcess", "portable"]
+__all__ = ["RenderProcess"]
 
 
 class RenderProcess:
@@ -135,22 +133,10 @@ class RenderProcess:
             self._finalizer.detach()
 
 
-_ENDINGS = ((signal.SIGCONT, 2.0), (signal.SIGTERM, 1.0), (signal.SIGKILL, 1.0))
-"""How :func:`_shut_down` ends the render process once its pipe is closed: the signal of each step and
-the seconds it waits after it. ``SIGCONT`` first lets a stopped process see its closed pipe and leave."""
-
-
 def _shut_down(owner: int, connection, process) -> None:
-    if os.getpid() != owner:
-        return
-    connection.close()
-    for sent, grace in _ENDINGS:
-        if process.is_alive():
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(process.pid, sent)
-        process.join(grace)
-        if not process.is_alive():
-            return
+    if os.getpid() == owner:
+        connection.close()
+        end_processes([process])
 
 
 def _serve(connection, settings: RenderSettings, make_renderer: Callable[[RenderSettings], Any], parent_pid: int,
@@ -174,20 +160,8 @@ def _serve(connection, settings: RenderSettings, make_renderer: Callable[[Render
                 renderer = renderer or make_renderer(settings)
                 reply = "ok", getattr(renderer, method)(*args, **kwargs)
         except Exception as exc:
-            reply = "error", portable(exc, f"the render process (pid {os.getpid()})")
+            reply = "error", portable_exception(exc, f"the render process (pid {os.getpid()})")
         try:
             connection.send((*reply, renderer.renders if renderer else 0, seconds))
         except OSError:  # the parent closed the pipe (it was interrupted) or died
             return
-
-
-def portable(exc: Exception, where: str) -> BaseException:
-    """``exc`` with its traceback as a note saying it was raised in ``where``, or a ``RuntimeError`` with its
-    text if it does not survive pickling: what a worker sends back for its parent to raise."""
-    text = "".join(traceback.format_exception(exc))
-    try:
-        copy = pickle.loads(pickle.dumps(exc))
-    except Exception:
-        copy = RuntimeError(f"{type(exc).__name__}: {exc}")
-    copy.add_note(f"raised in {where}:\n{text}")
-    return copy
