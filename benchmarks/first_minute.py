@@ -15,7 +15,9 @@ then, in wall-clock seconds:
 
 The first run starts with an empty Mesa cache folder of its own (``MESA_SHADER_CACHE_DIR``, a temporary
 folder): its figures are the cold cache's. The next ``--runs`` share that folder, warmed: their medians
-are the figures. Nothing is asserted; the load is printed before and after.
+are the figures. ``--tree DIR`` imports ``sidar_torch`` from another checkout (``git worktree add --detach
+/tmp/before REV``), for the same figures of older code. Nothing is asserted; the load is printed before
+and after.
 
     python -m benchmarks.first_minute --runs 5
 """
@@ -64,13 +66,16 @@ print(json.dumps({"import": imported - start, "dataset": made - imported, "first
 FIGURES = ("import", "dataset", "first", "second", "third", "to_first", "worker_first", "worker_batch")
 
 
-def run_once(preset: str, size: tuple[int, int], cache: Path) -> dict[str, float]:
-    """One fresh interpreter running :data:`SCRIPT` with Mesa's cache in ``cache``; its seconds."""
+def run_once(preset: str, size: tuple[int, int], cache: Path, tree: Path | None = None) -> dict[str, float]:
+    """One fresh interpreter running :data:`SCRIPT` with Mesa's cache in ``cache`` (and ``sidar_torch`` imported
+    from the checkout ``tree``, if given); its seconds."""
     environment = {k: v for k, v in os.environ.items()
                    if k not in ("PYOPENGL_PLATFORM", "LP_NUM_THREADS", "MESA_SHADER_CACHE_DISABLE")}
     environment["MESA_SHADER_CACHE_DIR"] = str(cache)
+    if tree is not None:
+        environment["PYTHONPATH"] = str(tree)
     result = subprocess.run([sys.executable, "-c", SCRIPT, preset, str(size[0]), str(size[1])], capture_output=True,
-                            text=True, env=environment, timeout=900)
+                            text=True, env=environment, timeout=900, cwd=tree)
     if result.returncode != 0:
         raise RuntimeError(f"the measured script failed:\n{result.stderr[-3000:]}")
     return json.loads(result.stdout.strip().splitlines()[-1])
@@ -82,6 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--preset", default="misaligned")
     parser.add_argument("--size", type=parse_size, default=(384, 512), metavar="HxW")
     parser.add_argument("--runs", type=int, default=5, help="runs with the warmed cache (default 5)")
+    parser.add_argument("--tree", type=Path, default=None, metavar="DIR",
+                        help="import sidar_torch from this checkout (e.g. an older commit's git worktree)")
     return parser
 
 
@@ -89,9 +96,10 @@ def main(argv: list[str] | None = None) -> None:
     args = build_parser().parse_args(argv)
     before = machine()
     with tempfile.TemporaryDirectory() as folder:
-        cold = run_once(args.preset, args.size, Path(folder))
-        warm = [run_once(args.preset, args.size, Path(folder)) for _ in range(args.runs)]
-    print(f"{args.preset} {args.size[0]}x{args.size[1]}, 6 views: wall seconds, cold cache (1 run) and the median "
+        cold = run_once(args.preset, args.size, Path(folder), args.tree)
+        warm = [run_once(args.preset, args.size, Path(folder), args.tree) for _ in range(args.runs)]
+    print(f"{args.preset} {args.size[0]}x{args.size[1]}, 6 views{f', sidar_torch of {args.tree}' if args.tree else ''}: "
+          f"wall seconds, cold cache (1 run) and the median "
           f"[min, max] of {args.runs} runs with the cache warm")
     for name in FIGURES:
         values = [run[name] for run in warm]
