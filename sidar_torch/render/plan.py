@@ -136,7 +136,7 @@ class ViewPlan:
 
 
 def plan_views(sequence: SceneSequence, settings: RenderSettings,
-               canvas_size: tuple[int, int] | None = None) -> list[ViewPlan]:
+               canvas_sizes: list[tuple[int, int]] | None = None) -> list[ViewPlan]:
     """The plan of every view of ``sequence`` (see the module docstring).
 
     Args:
@@ -145,12 +145,13 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings,
             the skips count here. ``skip_idle_shadows`` false: every emitter of a view with
             occluders is shadowed, and every occluder is a caster. ``cull_occluders`` false: every
             occluder is a caster, and drawn when occluders are visible.
-        canvas_size: ``(H, W)`` pixels each camera draws (``render.canvas``); default ``sequence.image_size``.
+        canvas_sizes: per view, the ``(H, W)`` pixels its camera draws (``render.canvas``); default
+            ``sequence.image_size`` for every view.
     """
     first = sequence.views[0]
     shared = all(v.lights == first.lights and v.occluders == first.occluders for v in sequence.views)
-    frame = tuple(sequence.image_size) if canvas_size is None else tuple(canvas_size)
-    facts = [_ViewFacts(view, sequence.image_size, frame, settings) for view in sequence.views]
+    frames = [tuple(sequence.image_size)] * len(sequence.views) if canvas_sizes is None else list(canvas_sizes)
+    facts = [_ViewFacts(view, sequence.image_size, frame, settings) for view, frame in zip(sequence.views, frames)]
     casting = [{e for e in f.emitters if f.drawn or f.hits[e]} for f in facts]
     plans = []
     for view, f, cast in zip(sequence.views, facts, casting):
@@ -174,7 +175,7 @@ def plan_views(sequence: SceneSequence, settings: RenderSettings,
         casters = frozenset().union(*(p.casters for p in plans))
         plans = [replace(p, casters=casters) for p in plans]
     if settings.split_shadow_lookups:
-        plans = [_with_painting_parts(view, p, frame, settings) for view, p in zip(sequence.views, plans)]
+        plans = [_with_painting_parts(view, p, frame, settings) for view, p, frame in zip(sequence.views, plans, frames)]
     return plans
 
 

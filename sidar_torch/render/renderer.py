@@ -186,8 +186,9 @@ class SceneRenderer:
                 see instead, e.g. the painting blurred (config ``texture_blur_sigma``); the label
                 is drawn from ``painting`` either way. Default: ``painting``.
             canvas: the window of each view's pixel grid to draw (``render.canvas``): the
-                :class:`RenderedSequence`'s per-view arrays are then of ``canvas.size``, its label of
-                ``image_size`` (view 0's own camera). Default: each view itself.
+                :class:`RenderedSequence`'s per-view arrays are then of ``canvas.size``, each view's window
+                in their first rows and columns (beyond it: zeros, masks and background true), its label
+                of ``image_size`` (view 0's own camera). Default: each view itself.
 
         Raises:
             ValueError: ``sequence.image_size`` not this renderer's; ``painting`` or ``texture`` not
@@ -205,21 +206,21 @@ class SceneRenderer:
                 raise ValueError(f"{name}: expected {(*self.image_size, 3)} uint8, got {array.shape} {array.dtype}")
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
-        framed, frame = self._framed(sequence, canvas)
+        framed, frames, size = self._framed(sequence, canvas)
         self._platform.make_current()
         with timed("upload"):  # the texture object; its GL upload is timed in draw
             label_texture = self._painting_texture(painting, 0)
             texture = label_texture if texture is None else self._painting_texture(texture, 1)
         with timed("graph"):
-            plans = plan_views(framed, self.settings, frame)
-        self._passes.resize(frame[1], frame[0])
+            plans = plan_views(framed, self.settings, frames)
         views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
-        for view, plan in zip(framed.views, plans):
-            image, mask, extra = self._render_view(view, plan, framed, texture, frame)
-            views.append(image)
-            masks.append(mask)
+        for view, plan, frame in zip(framed.views, plans, frames):
+            self._passes.resize(frame[1], frame[0])
+            image, mask, extra = self._render_view(view, plan, framed, texture, frames, frame)
+            views.append(_padded(image, size, 0))  # alpha 0 beyond the window: background
+            masks.append(_padded(mask, size, True))
             for name, array in extra.items():
-                outputs[name].append(array)
+                outputs[name].append(_padded(array, size, 0))
         reference = sequence.views[0].camera
         if self.settings.label_from_painting and is_reference_camera(reference.K, reference.R, reference.t,
                                                                      self.image_size):
@@ -236,18 +237,20 @@ class SceneRenderer:
         return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
                                 {name: np.stack(arrays) for name, arrays in outputs.items()})
 
-    def _framed(self, sequence: SceneSequence, canvas: Canvas | None) -> tuple[SceneSequence, tuple[int, int]]:
-        """``sequence`` with its cameras drawing ``canvas`` (:meth:`Canvas.views`) and the ``(H, W)`` drawn,
-        checked against this context's renderbuffer limit; ``(sequence, image_size)`` without a canvas."""
+    def _framed(self, sequence: SceneSequence, canvas: Canvas | None
+                ) -> tuple[SceneSequence, list[tuple[int, int]], tuple[int, int]]:
+        """``sequence`` with its cameras drawing ``canvas`` (:meth:`Canvas.views`), the ``(H, W)`` window each
+        view draws and the arrays' ``(H, W)``, checked against this context's renderbuffer limit;
+        ``sequence`` itself and ``image_size`` without a canvas."""
         if canvas is None:
-            return sequence, self.image_size
+            return sequence, [self.image_size] * len(sequence.views), self.image_size
         if not isinstance(canvas, Canvas):
             raise TypeError(f"canvas: expected a render.Canvas or None, got {type(canvas).__name__}")
         limit = self.gl_limits[0]
         if max(canvas.size) > limit:
             raise ValueError(f"canvas size: {canvas.size} (H, W) exceeds this OpenGL context's "
                              f"GL_MAX_RENDERBUFFER_SIZE = {limit}: expected H, W <= {limit}")
-        return canvas.views(sequence), canvas.size
+        return canvas.views(sequence), [canvas.window(i) for i in range(len(sequence.views))], canvas.size
 
     def warm_up(self, sequence: SceneSequence, key: Hashable) -> bool:
         """Render ``sequence`` once, with a grey painting, and hand nothing out: the shader variants
@@ -307,10 +310,11 @@ class SceneRenderer:
         return self._textures[slot]
 
     def _render_view(self, view: ViewScene, plan: ViewPlan, sequence: SceneSequence, texture: PaintingTexture,
-                     frame: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+                     frames: list[tuple[int, int]], frame: tuple[int, int]
+                     ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
         """The view ``(H, W, 4)`` uint8 (RGB and the draw's alpha), its mask ``(H, W)`` bool and its
         optional outputs (``settings.outputs``, see :class:`RenderedSequence`), drawing what ``plan`` says
-        over ``frame (H, W)`` pixels (the canvas's, or ``image_size``)."""
+        over ``frame (H, W)`` pixels (its canvas window, or ``image_size``); ``frames``: every view's."""
         with timed("graph"):
             draws = view_draws(view.camera, view.ambient, self._plane, view.plane_material, texture, self.image_size,
                                frame)
@@ -329,7 +333,7 @@ class SceneRenderer:
             casters = [draws.occluders[i] for i in sorted(plan.casters)]
             transmitting = [draws.occluders[i] for i in sorted(plan.casters)
                             if view.occluders[i].material.transparent and not view.occluders[i].material.opaque_shadow]
-            self._passes.shadow_frusta = self._shadows.frusta(shadowed, view, sequence, frame)
+            self._passes.shadow_frusta = self._shadows.frusta(shadowed, view, sequence, frames)
             map_keys = self._shadows.map_keys(draws, shadowed, [s for s in casters if not any(s is t for t in transmitting)])
             stale = self._shadows.stale(map_keys)
             self.skipped["shadow_maps_reused"] += len(shadowed) - len(stale)
@@ -439,6 +443,16 @@ OUTPUT_PASSES: dict[str, OutputPass] = {
 each returns one view's array of its output (:class:`RenderedSequence`) after the colour pass and the mask,
 in the order of ``OUTPUTS``. ``unblocked_colour`` is no pass of its own: the colour pass draws it as a second
 output whenever a row of this producer is asked for (:func:`_unblocked_asked`)."""
+
+
+def _padded(array: np.ndarray, size: tuple[int, int], fill: float) -> np.ndarray:
+    """``array (h, w, ...)`` in the first rows and columns of an ``(H, W, ...)`` array of ``size``, ``fill``
+    elsewhere (``array`` itself when it is that size already)."""
+    if array.shape[:2] == tuple(size):
+        return array
+    out = np.full((*size, *array.shape[2:]), fill, array.dtype)
+    out[:array.shape[0], :array.shape[1]] = array
+    return out
 
 
 def _unblocked_asked(outputs: frozenset[str]) -> bool:

@@ -99,7 +99,7 @@ class ShadowMaps:
         return k
 
     def frusta(self, shadowed: list[SpotEmitter], view: ViewScene, sequence: SceneSequence,
-               canvas_size: tuple[int, int] | None = None) -> dict[int, np.ndarray]:
+               canvas_sizes: list[tuple[int, int]] | None = None) -> dict[int, np.ndarray]:
         """Fitted frusta (:func:`~.visibility.light_frustum`) of the ``shadowed`` emitters, keyed by
         ``id``, for ``"fitted"``; none for ``"cone"``, whose maps keep the cone's frustum
         (``passes.light_matrices``).
@@ -111,14 +111,14 @@ class ShadowMaps:
         painting and every occluder instead (view-independent too) measured 0.03-0.7 dB worse
         against a 4096 reference at 256-512 maps. Every occluder's ball counts as a caster. The
         window gets :data:`SHADOW_MARGIN_TEXELS` of margin. A light with no receiver in front
-        of it keeps the cone's frustum. The cameras draw ``canvas_size (H, W)`` pixels (``render.canvas``;
-        default ``image_size``).
+        of it keeps the cone's frustum. The cameras of ``sequence.views`` draw ``canvas_sizes`` ``(H, W)``
+        pixels each (``render.canvas``; default ``image_size``).
         """
-        frame = self.image_size if canvas_size is None else tuple(canvas_size)
+        frames = [self.image_size] * len(sequence.views) if canvas_sizes is None else list(canvas_sizes)
         if self.settings.shadow_frustum == "cone" or not shadowed:
             return {}
         casters = np.array([[*occ.position, np.linalg.norm(occ.scale)] for occ in view.occluders]).reshape(-1, 4)
-        points = np.vstack([p for other in sequence.views
+        points = np.vstack([p for other, frame in zip(sequence.views, frames)
                             if other.lights == view.lights and other.occluders == view.occluders
                             for p in self._visible_receivers(other.camera, casters, frame)])
         margin = SHADOW_MARGIN_TEXELS / self._passes.shadow_map_size

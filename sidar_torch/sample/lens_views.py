@@ -8,8 +8,8 @@ the view's pinhole field). So each view is drawn once over the wider undistorted
 every pixel its bilinear resampling reads (:func:`lens_canvas`: the pinhole view's pixels from the
 floor to the ceiling of its sources' coordinates), a render size apart from the output size
 (``sidar_torch.render.canvas``: the view's camera with its principal point moved by the canvas's
-origin, the same focal length); one canvas size for every view of a sample, the largest of its
-views' boxes. Every image is then resampled bilinearly into the distorted view (torch's
+origin, the same focal length), each view its own box (the arrays of a sample's views are those of
+the largest). Every image is then resampled bilinearly into the distorted view (torch's
 ``grid_sample``); masks and the background flag are resampled as fractions and cut at 1/2, so they
 stay binary. The label is view 0's pinhole camera at the output size, as without a lens. The view
 effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
@@ -147,8 +147,8 @@ def lens_canvas(sources: np.ndarray) -> Any:
     """The canvas (``sidar_torch.render.Canvas``) that holds every pinhole pixel the bilinear
     resampling of each view reads with a weight above :data:`SOURCE_SLACK`: per view the box from the floor
     to the ceiling of its ``sources (V, H, W, 2)`` (:func:`resampling_sources`, or :func:`distortion_maps`),
-    one size for all (the largest box's sides), each view's origin its box's top-left pixel (rounded down
-    to an even one: ``render.canvas.QUAD``)."""
+    each view's origin its box's top-left pixel (rounded down to an even one: ``render.canvas.QUAD``) and its
+    window the box from there (``Canvas.covering``)."""
     from ..render.canvas import Canvas  # as render_through_lens's import of render: at the first use
 
     planes = [(view[..., 0], view[..., 1]) for view in sources]  # per view and axis: numpy's (1, 2) reduction is slow
@@ -185,7 +185,7 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
     rendered = renderer.render(sequence, painting, texture=texture, canvas=canvas)
     with timed("lens"):
         names = sorted(rendered.outputs)
-        out = [_resample(_channels(rendered, i, names), view_sources, origin)
+        out = [_resample(_channels(rendered, i, names, canvas.window(i)), view_sources, origin)
                for i, (view_sources, origin) in enumerate(zip(sources, canvas.origins))]
         views = _levels([view[:3] for view in out])
         masks = torch.stack([view[3] >= 0.5 for view in out]).numpy()
@@ -208,13 +208,15 @@ def _levels(planes: list[torch.Tensor]) -> np.ndarray:
     return out
 
 
-def _channels(rendered: Any, index: int, names: list[str]) -> torch.Tensor:
-    """View ``index``'s per-view images of ``rendered`` (a ``RenderedSequence``) as one ``(C, h, w)``
-    float32 tensor: RGB, mask, background, then each of ``names``' outputs' channels (uint8 levels)."""
+def _channels(rendered: Any, index: int, names: list[str], window: tuple[int, int]) -> torch.Tensor:
+    """View ``index``'s per-view images of ``rendered`` (a ``RenderedSequence``) in its ``window (h, w)`` as
+    one ``(C, h, w)`` float32 tensor: RGB, mask, background, then each of ``names``' outputs' channels."""
+    h, w = window
     planes = [rendered.views[index], rendered.masks[index][..., None], rendered.background[index][..., None],
               *(rendered.outputs[name][index].reshape(*rendered.masks.shape[1:], -1) for name in names)]
+    planes = [plane[:h, :w] for plane in planes]
     count = sum(plane.shape[-1] for plane in planes)
-    channels = torch.empty((count, *rendered.masks.shape[1:]), dtype=torch.float32)
+    channels = torch.empty((count, h, w), dtype=torch.float32)
     start = 0
     for plane in planes:
         channels[start:start + plane.shape[-1]] = torch.from_numpy(plane).permute(2, 0, 1)

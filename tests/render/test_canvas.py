@@ -84,6 +84,19 @@ def test_an_overscan_holds_the_view_and_a_crop_is_part_of_it():
             assert diff[inside].max() <= 3 and (diff[inside] > 0).mean() < 0.005
     # Beyond the view the overscan sees more of the painting where the view's edge cuts it.
     assert (~over.masks).sum() >= (~plain.masks).sum()
+    # Windows of their own: each view's pixels in its first rows and columns, nothing beyond.
+    sizes = np.array([[h + 20, w + 30], [h + 10, w + 20], [h, w]])[:n]
+    own = renderer.render(sequence, painting, canvas=Canvas((h + 20, w + 30), origins, sizes))
+    assert own.views.shape == over.views.shape
+    for i, (wh, ww) in enumerate(sizes):
+        masks = own.masks[i][:wh, :ww], over.masks[i][:wh, :ww]
+        assert (masks[0] != masks[1]).mean() < 0.002
+        inside = ~masks[0] & ~masks[1]
+        diff = np.abs(own.views[i][:wh, :ww].astype(int) - over.views[i][:wh, :ww].astype(int))
+        assert diff[inside].max(initial=0) <= 3 and (diff[inside] > 0).mean() < 0.005
+        beyond = np.ones(own.masks[i].shape, bool)
+        beyond[:wh, :ww] = False
+        assert own.masks[i][beyond].all() and own.background[i][beyond].all() and not own.views[i][beyond].any()
 
 
 def test_a_canvas_is_checked_and_named():
@@ -106,6 +119,9 @@ def test_a_canvas_is_checked_and_named():
         Canvas.covering(np.array([[5, 0, 4, 10]]))
     covering = Canvas.covering(np.array([[-3, 1, 130, 97], [0, -6, 127, 95]]))
     assert covering.origins.tolist() == [[-4, 0], [0, -6]] and covering.size == (102, 135)
+    assert covering.sizes.tolist() == [[98, 135], [102, 128]] and covering.window(1) == (102, 128)
+    with pytest.raises(ValueError, match="canvas sizes: expected"):
+        Canvas((16, 16), np.zeros((n, 2), int), np.full((n, 2), 17))
 
 
 @pytest.mark.parametrize("model", ["brown_conrady", "division"])
