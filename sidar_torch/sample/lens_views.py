@@ -203,8 +203,8 @@ def _levels(planes: list[torch.Tensor]) -> np.ndarray:
     """The views' resampled ``planes`` (each ``(C, H, W)`` float32 levels, rounded in place) as
     ``(V, H, W, C)`` uint8."""
     out = np.empty((len(planes), *planes[0].shape[1:], planes[0].shape[0]), np.uint8)
-    for view, plane in zip(torch.from_numpy(out), planes):
-        view.copy_(plane.round_().clamp_(0, 255).permute(1, 2, 0))
+    for view, plane in zip(torch.from_numpy(out), planes):  # bilinear weights keep 0-255 levels in 0-255
+        view.copy_(plane.round_().permute(1, 2, 0))
     return out
 
 
@@ -227,10 +227,10 @@ def _channels(rendered: Any, index: int, names: list[str], window: tuple[int, in
 def _resample(channels: torch.Tensor, pixels: np.ndarray, origin: np.ndarray) -> torch.Tensor:
     """One view's canvas ``channels (C, h, w)`` float32, whose pixel ``(0, 0)`` is the view's pixel
     ``origin (2,)``, sampled bilinearly at the view's ``pixels (H, W, 2)`` float32 (border padding):
-    ``(C, H, W)`` float32, a mask's fractions kept."""
+    ``(C, H, W)`` float32, a mask's fractions kept. ``pixels`` is turned into ``grid_sample``'s grid in place."""
     h, w = channels.shape[-2:]
     scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)])
-    grid = torch.addcmul(-1 - torch.from_numpy(origin).float() * scale, torch.from_numpy(pixels), scale)
+    grid = torch.from_numpy(pixels).mul_(scale).sub_(torch.from_numpy(origin).float() * scale + 1)
     return F.grid_sample(channels[None], grid[None], mode="bilinear", padding_mode="border", align_corners=True)[0]
 
 

@@ -152,6 +152,12 @@ class OSMesaOwnBuffer:
     def multisampled(self):  # one sample per pixel, as the test's settings ask
         return contextlib.nullcontext()
 
+    def resize(self, width, height):  # OSMesa's buffer is the context's own, of one size
+        assert (height, width) == (self.height, self.width)
+
+    def clear(self, bits):
+        GL.glClear(bits)
+
     def begin_drawing(self, outputs=1):
         assert outputs == 1  # OSMesa's buffer has one colour output
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, 0)
