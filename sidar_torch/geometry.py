@@ -222,6 +222,11 @@ def homographies_from_points(points: np.ndarray) -> torch.Tensor:
     Kornia call instead of one per sequence: about 1 ms each on one core) gives the values each
     would get alone (``tests/test_geometry.py`` checks it bit for bit).
 
+    It runs on one torch thread (torch's thread count is set to 1 for the call and put back): its
+    tensors are tiny, and a second intra-op thread's synchronisation cost 12-20x the work (30-54 ms
+    against 2.5-2.7 ms per 6-view sequence with the other core busy; ``torch.set_num_threads`` is a
+    process-wide setting, so other threads' torch work also runs on one thread for those milliseconds).
+
     Args:
         points: ``(..., V, 4, 2)`` pixel coordinates of the same four plane points in each view of
             each sequence (leading dims: a batch of sequences).
@@ -232,6 +237,15 @@ def homographies_from_points(points: np.ndarray) -> torch.Tensor:
     Raises:
         RuntimeError: Kornia returned a non-finite homography (kornia < 0.9 does at times).
     """
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        return _homographies_from_points(points)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _homographies_from_points(points: np.ndarray) -> torch.Tensor:
     pts = torch.as_tensor(points, dtype=torch.float64)
     batch, v = pts.shape[:-3], pts.shape[-3]
     src = pts[..., :, None, :, :].expand(*batch, v, v, 4, 2).reshape(-1, 4, 2)
