@@ -80,7 +80,7 @@ def cut_applied(replacements: tuple[Replacement, ...]) -> Iterator[None]:
             raise ValueError(f"shader_cost: {name} holds the cut text {count} times, expected once: {old!r}")
 
     def cut_glsl(name: str) -> str:
-        text = original(name)
+        text = original.__wrapped__(name)  # read afresh (glsl caches its texts), its includes through cut_glsl
         for file, old, new in replacements:
             if file == name:
                 text = text.replace(old, new)

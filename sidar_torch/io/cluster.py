@@ -18,7 +18,9 @@ gives the bytes of this machine; a GPU driver gives other, equally valid pixels)
 Ray workers: every actor or task takes one CPU (``num_cpus=1``): llvmpipe rasterises in the calling
 thread (``LP_NUM_THREADS=0``, set by ``import sidar_torch``) and torch works on one thread there
 (Ray sets ``OMP_NUM_THREADS=1``). A worker process keeps its renderer (GL context, compiled
-shaders: about a second to make) for all the batches or tasks it runs. The GL platform is the
+shaders: about a second to make) for all the batches or tasks it runs, in itself: it forks no process
+that renders (``render.context.forks_nothing``), so it renders with Mesa's disk cache and needs no render
+process. The GL platform is the
 worker's ``PYOPENGL_PLATFORM`` (default ``osmesa``); a local cluster inherits the driver's
 environment, a remote one takes it from ``ray.init(runtime_env={"env_vars": {"PYOPENGL_PLATFORM":
 "egl"}})`` (GPU nodes) or the nodes' own environment. Every node needs ``sidar_torch`` and the GL
@@ -42,6 +44,7 @@ from ..config import as_int
 from ..data.dataset import SidarDataset
 from . import ExportPlan, ExportSummary, Layout, Progress, WriteUnit, either_shard_size, planned_export
 from ..orphans import ProcessStamp, exit_with_process
+from ..render.context import forks_nothing
 from ..sample import KEYS, SampleArrays, stack_arrays
 
 __all__ = ["ray_dataset", "ray_export", "torch_batch", "torch_batches"]
@@ -100,6 +103,7 @@ class _Renderer:
     is the actor process's own (``SidarDataset.renderer``), made at its first sample and reused."""
 
     def __init__(self, dataset: SidarDataset):
+        forks_nothing()  # a Ray worker renders in itself, with Mesa's disk cache: it forks no renderer
         self.dataset = dataset
 
     def __call__(self, batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -196,6 +200,7 @@ def _write(dataset: SidarDataset, out: Path, layout: Layout, units: list[WriteUn
     layout keeps what ``out`` holds and writes only what is missing (see :meth:`.io.Layout.write`),
     as a local rerun does; the driver holds the export's lock, so no one else writes there."""
     exit_with_process(driver)  # Ray ends a dead driver's tasks only 2-5 s later
+    forks_nothing()  # a Ray worker renders in itself, with Mesa's disk cache: it forks no renderer
     begin = time.perf_counter()
     for unit in units:
         layout.write(out, unit, dataset.sample_arrays, lambda: None)
