@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import signal
 import threading
 import weakref
 from typing import Any, Callable
@@ -146,6 +147,9 @@ def _serve(connection, settings: RenderSettings, make_renderer: Callable[[Render
     descriptors at the fork, less this end of the pipe)."""
     exit_with_parent(parent_pid, death_signal=death_signal)
     release_inherited_descriptors(inherited)
+    # Ctrl-C in a terminal reaches the whole process group: the parent decides (an interrupted call ends
+    # this process, see RenderProcess), so this process neither dies of it nor prints a traceback.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     forks_nothing()  # so its context keeps Mesa's disk cache
 
     renderer = None

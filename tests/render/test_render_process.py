@@ -79,7 +79,7 @@ def test_a_process_that_may_fork_renders_in_a_render_process_the_same_bytes_and_
 
 
 FAILURES = """
-import os, signal
+import os, signal, time
 import numpy as np
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.render import RenderProcess
@@ -107,6 +107,12 @@ if child == 0:
         os._exit(0 if f"belongs to process {renderer.owner}" in str(error) else 3)
     os._exit(4)
 assert os.waitpid(child, 0)[1] == 0
+
+# Ctrl-C in a terminal reaches the render process too: it ignores it (its parent decides).
+os.kill(renderer.pid, signal.SIGINT)
+time.sleep(0.3)
+assert renderer.usable and dataset.renderer().pid == renderer.pid
+dataset.sample(1)
 
 # A render process that dies: the call says so, the next sample starts a new one, the same bytes.
 os.kill(renderer.pid, signal.SIGKILL)
