@@ -1,8 +1,8 @@
 """A renderer in a process of its own, for a process that may fork: what its own samples render with.
 
 Mesa's on-disk shader cache is what makes a fresh process's first sample cheap (the shader variants
-are loaded, not compiled: about 0.45 s to the first 384x512 ``misaligned`` sample instead of 2.4 s,
-``docs/speed.md``). But the cache writes through a thread, and a child forked after its parent opened
+are loaded, not compiled: 0.49 s to a fresh process's first 384x512 ``misaligned`` sample instead of
+2.4 s, ``docs/speed.md``, "The first minute"). But the cache writes through a thread, and a child forked after its parent opened
 a context with the cache deadlocks at its first new variant (``context._disable_disk_cache_unless_worker``).
 A training script's main process forks (DataLoader workers), so it keeps GL out of itself: its
 renderer is a :class:`RenderProcess`, a process it forks before opening any context of its own, which
@@ -16,7 +16,7 @@ render-pool worker, the render process itself).
 
 A :class:`RenderProcess` renders what a ``SceneRenderer`` of its settings renders, byte for byte (it is
 one, in another process): ``render`` and ``warm_up`` take and return the same things, sent through a
-pipe (a 384x512 sequence of 6 views is about 5 MB: a few ms). The steps it times go to the caller's
+pipe (a 384x512 sequence of 6 views is about 5 MB: 15-20 ms). The steps it times go to the caller's
 open ``sidar_torch.timing`` collector; its CPU time is the render process's, not the caller's.
 """
 
