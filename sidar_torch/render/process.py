@@ -76,6 +76,7 @@ class RenderProcess:
         self.pid = self._process.pid
         self.settings, self.image_size, self.renders = settings, settings.image_size, 0
         self._connection, self._lock = here, threading.Lock()
+        self._warmed_up: set = set()
         self._finalizer = weakref.finalize(self, _shut_down, self.owner, here, self._process)
 
     @property
@@ -95,8 +96,13 @@ class RenderProcess:
         return self._call("render", sequence, painting, **options)
 
     def warm_up(self, sequence, key) -> bool:
-        """``SceneRenderer.warm_up(sequence, key)`` in the render process."""
-        return self._call("warm_up", sequence, key)
+        """``SceneRenderer.warm_up(sequence, key)`` in the render process; a ``key`` it warmed up already
+        returns False here, without a trip through the pipe (each sample's renderer asks)."""
+        if key in self._warmed_up:
+            return False
+        rendered = self._call("warm_up", sequence, key)
+        self._warmed_up.add(key)
+        return rendered
 
     def rasteriser(self) -> dict[str, str]:
         """``SceneRenderer.rasteriser()`` of the render process's renderer (what draws its pixels)."""

@@ -165,8 +165,8 @@ def warm_up_renderer(renderer: SceneRenderer, config: SidarConfig) -> bool:
     if renderer.renders == 0:
         announce_compiles(renderer, config)
     rendered = renderer.warm_up(*_scenes_and_key(config))
-    marker = _cache_marker(renderer, config)
-    if rendered and marker is not None:
+    marker = _cache_marker(renderer, config) if rendered else None
+    if marker is not None:
         marker.parent.mkdir(parents=True, exist_ok=True)
         marker.touch()
     return rendered
