@@ -192,3 +192,20 @@ print("ok")
 def test_an_interrupted_call_ends_the_render_process_and_threads_take_turns(tmp_path):
     result = run(INTERRUPTED, tmp_path)
     assert result.returncode == 0 and result.stdout.strip() == "ok", result.stderr[-3000:]
+
+
+NOTICE = """
+from sidar_torch import SidarDataset, load_config
+
+dataset = SidarDataset(config=load_config("ambient", image_size=(24, 32), n_views=2), seed=0)
+for index in range(3):
+    dataset.sample(index)
+"""
+
+
+def test_a_cold_cache_says_once_that_it_compiles_and_a_warm_one_says_nothing(tmp_path):
+    cold, warm = run(NOTICE, tmp_path), run(NOTICE, tmp_path)  # the same cache folder: empty, then filled
+    assert cold.returncode == 0 and warm.returncode == 0, cold.stderr[-3000:] + warm.stderr[-3000:]
+    assert cold.stderr.count("sidar_torch: compiling the renderer's shader variants") == 1, cold.stderr
+    assert str(tmp_path / "mesa") in cold.stderr
+    assert warm.stderr == "", warm.stderr
