@@ -15,8 +15,8 @@ from __future__ import annotations
 import ctypes
 import os
 
-__all__ = ["GL_PLATFORM", "EglContext", "check_platform_libraries", "current_rasteriser", "forks_nothing", "import_platform", "may_fork",
-           "open_context"]
+__all__ = ["GL_PLATFORM", "EglContext", "check_platform_libraries", "current_rasteriser", "forks_nothing",
+           "import_platform", "may_fork", "open_context"]
 
 GL_PLATFORM = os.environ["PYOPENGL_PLATFORM"]
 """The PyOpenGL platform in use, fixed when ``sidar_torch.render`` was first imported."""
@@ -73,9 +73,9 @@ _FORKS_NOTHING = False
 
 
 def forks_nothing() -> None:
-    """Declare that this process forks no process that renders (a render-pool worker), so its
-    first context may keep Mesa's on-disk shader cache, as a DataLoader worker's does (see
-    :func:`_disable_disk_cache_unless_worker`)."""
+    """Declare that this process forks no process that renders (a render-pool worker, a render process,
+    a Ray worker), so it renders in itself and its first context may keep Mesa's on-disk shader cache,
+    as a DataLoader worker's does (see :func:`_disable_disk_cache_unless_worker`)."""
     global _FORKS_NOTHING
     _FORKS_NOTHING = True
 
