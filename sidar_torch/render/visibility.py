@@ -208,12 +208,16 @@ def map_texel_box(points: np.ndarray, clip_from_world: np.ndarray, size: int) ->
     """
     if not len(points):
         return 0, 0, 0, 0
-    clip = np.column_stack([points, np.ones(len(points))]) @ np.asarray(clip_from_world, np.float64).T
+    homogeneous = np.ones((len(points), 4))
+    homogeneous[:, :3] = points
+    clip = homogeneous @ np.asarray(clip_from_world, np.float64).T
     if (clip[:, 3] <= 0).any():
         return 0, 0, size, size
     texels = (clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * size
-    x0, y0 = np.clip(np.floor(texels.min(axis=0)) - 1, 0, size)
-    x1, y1 = np.clip(np.ceil(texels.max(axis=0)) + 1, 0, size)
+    # Clamped in Python floats (np.clip's cost is its dispatch, several times these four numbers').
+    (x0, y0), (x1, y1) = ([min(max(v, 0.0), size) for v in bound]
+                          for bound in ((np.floor(texels.min(axis=0)) - 1).tolist(),
+                                        (np.ceil(texels.max(axis=0)) + 1).tolist()))
     return int(x0), int(y0), int(max(x0, x1)), int(max(y0, y1))
 
 
@@ -307,8 +311,8 @@ def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray,
         return None
     tangents = cam[:, :2] / cam[:, 2:]
     limit = math.tan(outer_cone)
-    low = np.clip(tangents.min(axis=0), -limit, limit)
-    high = np.clip(tangents.max(axis=0), -limit, limit)
+    low = np.minimum(np.maximum(tangents.min(axis=0), -limit), limit)  # np.clip's values, without its dispatch
+    high = np.minimum(np.maximum(tangents.max(axis=0), -limit), limit)
     if (high <= low).any():
         return None
     pad = margin * (high - low) + reach
