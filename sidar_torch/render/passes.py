@@ -439,7 +439,11 @@ class Passes:
         if tinted:
             # Tile k is read by the shader's k-th spot light.
             tiles = [(k, light) for k, light in enumerate(view.lights) if any(light is s for s in shadowed)]
-            self.transmittance.reserve(tiles[-1][0] + 1)
+            # A power of two of tiles: the texture's height stays a power of two as it grows, which
+            # llvmpipe's fragment-shader variants depend on (a height of another kind would compile a
+            # new variant of every transmittance program mid-stream; tiles are read by texelFetch at
+            # their own place, so the room beyond changes no pixel).
+            self.transmittance.reserve(1 << tiles[-1][0].bit_length())
             tinted_corners = self._caster_corners(tinted)
             for k, light in tiles:
                 V, P = self.matrices(view, light)

@@ -117,3 +117,13 @@ def test_a_view_with_only_transparent_casters_keeps_no_stale_opaque_shadow():
     render([cube([0.3, 0.0, 0.3], half=0.2)], lights, painting=WHITE)  # fills the depth map
     again, _ = render([ball(0.3)], lights, painting=WHITE)
     assert np.array_equal(first, again)
+
+
+def test_transmittance_tiles_grow_by_powers_of_two():
+    # The tiles' texture keeps a power-of-two height as it grows: llvmpipe compiles every program that
+    # reads it anew for a height of the other kind, which a later sample would pay mid-stream.
+    renderer = shared_renderer(RenderSettings(SMALL))  # the renderer of ``render``
+    lights = [side_spot(x, 0.5) for x in (-1.0, -0.6, 0.6)]
+    render([ball(0.3)], lights, painting=WHITE)
+    tiles = renderer._passes.transmittance.tiles
+    assert tiles >= 3 and tiles & (tiles - 1) == 0
