@@ -432,10 +432,13 @@ class Passes:
         """Draw the depth map of every ``stale`` emitter (opaque casters) and, with ``tinted``
         casters, every shadowed emitter's transmittance tile (``render.transmittance``)."""
         corners = self._caster_corners(opaque)
-        for light in stale:
-            V, P = self.matrices(view, light)
-            writes = self._caster_texels(corners, P @ V, self.shadow_map_size)
-            self._depth_pass(light.layer, V, P, opaque, writes)
+        if stale:
+            self._begin_depth_passes()
+            for light in stale:
+                V, P = self.matrices(view, light)
+                writes = self._caster_texels(corners, P @ V, self.shadow_map_size)
+                self._depth_pass(light.layer, V, P, opaque, writes)
+            GL.glUseProgram(0)
         if tinted:
             # Tile k is read by the shader's k-th spot light.
             tiles = [(k, light) for k, light in enumerate(view.lights) if any(light is s for s in shadowed)]
@@ -450,14 +453,14 @@ class Passes:
                 writes = self._caster_texels(tinted_corners, P @ V, self.transmittance.tile)
                 self.transmittance.draw_tile(k, V, P, light.pose[:3, 3], tinted, self._transmittance_program, writes)
 
-    def _depth_pass(self, layer: int, V: np.ndarray, P: np.ndarray, casters: list[Surface], writes: TexelBox) -> None:
-        """Clear shadow map ``layer`` where its last draw wrote and draw ``casters``' depths from the
-        light (``V``, ``P``), back faces culled, for a draw that writes only ``writes``."""
+    def _begin_depth_passes(self) -> None:
+        """The state every depth pass of a view draws with (:meth:`_depth_pass`), set once for all of them:
+        the shadow framebuffer without colour buffers, the map's viewport, depth test and writes (on
+        before the clears: the mask applies to them), back faces culled, no blending."""
         GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, self._shadow_framebuffer)
         GL.glDrawBuffer(GL.GL_NONE)
         GL.glReadBuffer(GL.GL_NONE)
-        GL.glDepthMask(GL.GL_TRUE)  # before the clear: the mask applies to it
-        self.shadow_maps.attach(layer, writes)
+        GL.glDepthMask(GL.GL_TRUE)
         GL.glViewport(0, 0, self.shadow_map_size, self.shadow_map_size)
         GL.glEnable(GL.GL_DEPTH_TEST)
         GL.glDepthFunc(GL.GL_LESS)
@@ -466,14 +469,23 @@ class Passes:
         GL.glCullFace(GL.GL_BACK)
         GL.glDisable(GL.GL_BLEND)
         GL.glPolygonMode(GL.GL_FRONT_AND_BACK, GL.GL_FILL)
+
+    def _depth_pass(self, layer: int, V: np.ndarray, P: np.ndarray, casters: list[Surface], writes: TexelBox) -> None:
+        """Clear shadow map ``layer`` where its last draw wrote and draw ``casters``' depths from the
+        light (``V``, ``P``), for a draw that writes only ``writes``, in the state of
+        :meth:`_begin_depth_passes`. Each program (one per vertex layout) gets the light's matrices
+        once, at its first caster; a program keeps its uniforms, so later casters set only their pose."""
+        self.shadow_maps.attach(layer, writes)  # its scissored clear leaves the scissor test off
+        lit: set[int] = set()  # ids of the programs holding this light's V and P
         for surface in casters:  # each texel keeps the nearest depth: the order changes none
             program = self._program(("depth.vert", "depth.frag"), {"INST_M_LOC": surface.mesh.defines["INST_M_LOC"]})
             program.use()
-            program.set_uniform("V", V)
-            program.set_uniform("P", P)
+            if id(program) not in lit:
+                lit.add(id(program))
+                program.set_uniform("V", V)
+                program.set_uniform("P", P)
             program.set_uniform("M", surface.pose)
             surface.mesh.draw()
-        GL.glUseProgram(0)
         GL.glFlush()
 
     def _caster_corners(self, casters: list[Surface]) -> np.ndarray | None:
