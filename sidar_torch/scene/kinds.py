@@ -107,8 +107,7 @@ def _area_beam(config: SidarConfig, rng: np.random.Generator, position: np.ndarr
 def _covering_beam(position: np.ndarray, offsets: np.ndarray, irradiance: float, size: tuple[int, int]) -> Beam:
     """Emitters at ``offsets (S, 2)`` around ``position`` whose inner cones cover the painting,
     sharing ``irradiance`` so that their sum is the drawn one."""
-    position, emitters = _covering_emitters(position, offsets, size)
-    inner = max(_cover_angle(e, size) for e in emitters)
+    position, emitters, inner = _covering_emitters(position, offsets, size)
     return Beam(position, emitters, inner, inner + CONE_MARGIN, irradiance / len(offsets))
 
 
@@ -142,7 +141,7 @@ def _cover_angle(emitter: np.ndarray, size: tuple[int, int]) -> float:
     axis = -emitter / np.linalg.norm(emitter)
     rays = geometry.plane_corners(size) - emitter
     cos = rays @ axis / np.linalg.norm(rays, axis=1)
-    return float(np.arccos(np.clip(cos, -1.0, 1.0)).max()) + CONE_MARGIN
+    return float(np.arccos(np.minimum(np.maximum(cos, -1.0), 1.0)).max()) + CONE_MARGIN  # np.clip's values
 
 
 def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[int, int]):
@@ -151,13 +150,15 @@ def _covering_emitters(position: np.ndarray, offsets: np.ndarray, size: tuple[in
     within :data:`MAX_EMITTER_CONE` (no move if they already do).
 
     Returns:
-        the (possibly moved) centre ``(3,)`` and the emitters ``(S, 3)``.
+        the (possibly moved) centre ``(3,)``, the emitters ``(S, 3)`` and the largest of their
+        :func:`_cover_angle` (rad).
     """
     while True:
         u, v, _ = geometry.look_at(position)[0]  # the square's axes: a camera's x and y there
         emitters = position + offsets[:, :1] * u + offsets[:, 1:] * v
-        if max(_cover_angle(e, size) for e in emitters) <= MAX_EMITTER_CONE - CONE_MARGIN:
-            return position, emitters
+        angle = max(_cover_angle(e, size) for e in emitters)
+        if angle <= MAX_EMITTER_CONE - CONE_MARGIN:
+            return position, emitters, angle
         position = position * 1.25
 
 
