@@ -69,9 +69,11 @@ def _icosphere(subdivisions: int) -> trimesh.Trimesh:
     return trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
 
 
+@functools.cache
 def _icosphere_gap(subdivisions: int) -> float:
     """1 - the least distance from the centre to a face plane: the inscribed polyhedron's largest
-    gap to the unit sphere (exact: it is convex with its vertices on the sphere)."""
+    gap to the unit sphere (exact: it is convex with its vertices on the sphere). Computed once per
+    level: every view's mesh level asks for it (``detail_level``)."""
     mesh = _icosphere(subdivisions)
     return 1.0 - float(np.abs(np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles[:, 0])).min())
 
