@@ -109,12 +109,18 @@ def renderer_for(settings):
     render process keeps Mesa's disk cache (see ``process``). Elsewhere, or after
     :func:`render_in_this_process`, :func:`shared_renderer`, in this process. Both have ``render``,
     ``warm_up``, ``rasteriser``, ``settings`` and ``renders``.
+
+    Raises:
+        RuntimeError: the platform's GL libraries are missing (the message names the package to install).
     """
     if _IN_THIS_PROCESS or not may_fork():
         return shared_renderer(settings)
     key = (os.getpid(), settings)
     held = _PROCESSES.get(key)
     if held is None or not held.usable:
+        from .context import check_platform_libraries
+
+        check_platform_libraries()  # the error that names the package, here rather than in a later GL import
         _PROCESSES[key] = held = RenderProcess(settings, shared_renderer)
     return held
 

@@ -130,6 +130,31 @@ def _egl_device():
     return devices[int(text)]
 
 
+_EGL_OPENED_BY: int | None = None
+"""The process (pid) that initialised an EGL display here, if any: a forked child inherits it."""
+
+
+def _refuse_inherited_egl() -> None:
+    """Refuse EGL in a child forked after its parent initialised an EGL display.
+
+    The child inherits the display's driver state without the driver's threads and device files as
+    the parent had them: a new context there hangs at its first draw on Mesa (llvmpipe, measured here)
+    and aborts the process in ``eglMakeCurrent`` or ``glReadPixels`` on NVIDIA's driver (580, an H200:
+    ``scripts/gpu_check.sh``). Neither can be undone in the child (``eglTerminate`` there hangs too).
+
+    Raises:
+        RuntimeError: this process was forked from one that had opened an EGL context.
+    """
+    if _EGL_OPENED_BY is not None and _EGL_OPENED_BY != os.getpid():
+        raise RuntimeError(
+            f"this process (pid {os.getpid()}) was forked from process {_EGL_OPENED_BY} after that one opened "
+            f"an EGL context, and EGL does not survive a fork (Mesa hangs, NVIDIA's driver aborts): render "
+            f"where no EGL context was opened before the fork. By default a process's own samples render in "
+            f"a render process (render.renderer_for), which keeps EGL out of the process that forks "
+            f"DataLoader workers; after render.render_in_this_process() or a renderer made directly, start "
+            f"the workers with DataLoader(..., multiprocessing_context='forkserver') or 'spawn'")
+
+
 class EglContext:
     """An OpenGL 4.1 core context on an EGL device, without a surface (the renderer draws into its own
     framebuffer), with the methods the renderer calls on a platform (``make_current``, ``delete_context``).
@@ -146,6 +171,8 @@ class EglContext:
 
     def __init__(self, device):
         from OpenGL import EGL, arrays
+
+        global _EGL_OPENED_BY
 
         # pyrender's platform: an off-screen display, 8-bit RGB and 24-bit depth, OpenGL 4.1 core.
         config_attributes = arrays.GLintArray.asArray([
@@ -165,6 +192,7 @@ class EglContext:
         configs = (EGL.EGLConfig * 1)()
         if not EGL.eglInitialize(self._display, major, minor):
             raise OSError(f"eglInitialize failed on {device}")
+        _EGL_OPENED_BY = os.getpid()
         if not EGL.eglChooseConfig(self._display, config_attributes, configs, 1, count) or count.value < 1:
             raise OSError(f"eglChooseConfig found no RGB8, depth-24 OpenGL config on {device}")
         if not EGL.eglBindAPI(EGL.EGL_OPENGL_API):
@@ -214,7 +242,8 @@ def open_context(width: int, height: int):
 
     Raises:
         RuntimeError: the platform's library is missing or refuses to create a context; the
-            message names the package that provides it.
+            message names the package that provides it; or, on EGL, this process was forked after its
+            parent opened an EGL context (:func:`_refuse_inherited_egl`).
         ValueError: ``EGL_DEVICE_ID`` names no EGL device.
     """
     _disable_disk_cache_unless_worker()
@@ -225,6 +254,7 @@ def open_context(width: int, height: int):
             platform = OSMesaPlatform(width, height)
             platform.init_context()
         elif GL_PLATFORM == "egl":
+            _refuse_inherited_egl()  # before EGL is touched: its device query may hang in such a child
             platform = EglContext(_egl_device())
         else:
             raise RuntimeError(f"PYOPENGL_PLATFORM={GL_PLATFORM!r}: expected 'osmesa' or 'egl'")

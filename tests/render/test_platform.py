@@ -1,6 +1,7 @@
 """Platforms: EGL renders the pixels OSMesa renders; the renderer's own framebuffer gives the pixels
-OSMesa's buffer gave; renderers on one EGL display outlive each other; a missing library or driver
-or a wrong device number says what is wrong and what to install.
+OSMesa's buffer gave; renderers on one EGL display outlive each other; a child forked after its parent
+opened an EGL context is refused with what to do instead; a missing library or driver or a wrong device
+number says what is wrong and what to install.
 
 EGL runs in subprocesses: PyOpenGL fixes its platform at its first import, and this process
 renders on OSMesa (``conftest`` imports ``sidar_torch`` first).
@@ -109,6 +110,34 @@ assert np.array_equal(third.render(seq, painting).views, expected.views)
     skip_unless_egl_opens(run_on("egl", code))
 
 
+FORK_AFTER_EGL = f"""
+import sys
+sys.path.insert(0, {str(TESTS)!r})
+from torch.utils.data import DataLoader
+from sidar_torch import SidarDataset, load_config
+from sidar_torch.render import render_in_this_process
+render_in_this_process()
+config = load_config("misaligned", image_size=(24, 32), n_views=2)
+SidarDataset(config=config).sample(0)  # an EGL context in this process
+try:
+    next(iter(DataLoader(SidarDataset(config=config, length=2), num_workers=1, timeout=120)))
+except RuntimeError as error:
+    assert "was forked from process" in str(error) and "forkserver" in str(error), error
+else:
+    raise AssertionError("a worker forked after its parent opened an EGL context rendered")
+loader = DataLoader(SidarDataset(config=config, length=2), batch_size=2, num_workers=1, timeout=120,
+                    multiprocessing_context="forkserver")
+assert tuple(next(iter(loader))["images"].shape) == (2, 2, 3, 24, 32)
+"""
+"""Renders on EGL in this process, then asks a forked DataLoader worker and a forkserver one for a sample."""
+
+
+def test_a_worker_forked_after_an_egl_render_is_refused_and_forkserver_workers_deliver():
+    # EGL does not survive a fork: a child of a process that opened an EGL context hung at its first draw
+    # (Mesa) or aborted (NVIDIA's driver). It is told so instead, and what to do.
+    skip_unless_egl_opens(run_on("egl", FORK_AFTER_EGL, MESA_SHADER_CACHE_DISABLE="true"))
+
+
 REFUSE_TO_LOAD = """
 import ctypes
 load = ctypes.CDLL.__init__
@@ -122,6 +151,18 @@ ctypes.CDLL.__init__ = refuse
 
 OSMESA_HINT = "it needs OSMesa (Debian/Ubuntu: apt-get install libosmesa6)"
 EGL_HINT = "it needs EGL (Debian/Ubuntu: apt-get install libegl1 libgl1-mesa-dri libopengl0)"
+
+
+def test_a_missing_library_says_what_to_install_on_a_datasets_default_path_too():
+    # A dataset in a process that may fork renders in a render process; the process itself checks the
+    # libraries before it starts one (it failed in an import of PyOpenGL before, with an AttributeError).
+    code = REFUSE_TO_LOAD.format(libraries=["OSMesa"]) + (
+        "from sidar_torch import SidarDataset, load_config\n"
+        "SidarDataset(config=load_config('misaligned', image_size=(24, 32), n_views=2)).sample(0)\n")
+    result = run_on("osmesa", code)
+    assert result.returncode != 0
+    assert (f"RuntimeError: cannot open an offscreen OpenGL context on platform 'osmesa' (PyOpenGL cannot load "
+            f"libOSMesa); {OSMESA_HINT}") in result.stderr, result.stderr[-2000:]
 
 
 @pytest.mark.parametrize("platform, missing, env, expected", [

@@ -202,7 +202,8 @@ def test_unknown_shadow_filter_is_named():
 
 @pytest.mark.parametrize("setup, expected", [
     # OSMesa missing: pyrender's OSMesa platform cannot be imported.
-    ("import sys; sys.modules['pyrender.platforms.osmesa'] = None", "apt-get install libosmesa6"),
+    ("import os, sys; os.environ['PYOPENGL_PLATFORM'] = 'osmesa'; sys.modules['pyrender.platforms.osmesa'] = None",
+     "apt-get install libosmesa6"),
     ("import os; os.environ['PYOPENGL_PLATFORM'] = 'vulkan'", "expected 'osmesa' or 'egl'"),
 ])
 def test_a_platform_that_cannot_open_says_what_is_missing(setup, expected):
