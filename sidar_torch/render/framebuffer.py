@@ -47,7 +47,7 @@ from typing import Iterator
 import numpy as np
 from OpenGL import GL
 
-__all__ = ["FLIP_Y", "FloatFramebuffer", "Framebuffer", "sample_counts", "size_limits"]
+__all__ = ["FLIP_Y", "FloatFramebuffer", "Framebuffer", "LevelsFramebuffer", "sample_counts", "size_limits"]
 
 FLIP_Y = np.diag([1.0, -1.0, 1.0, 1.0])
 """Left-multiplies a projection matrix so that clip-space y, and so the image, is drawn upside down."""
@@ -69,20 +69,23 @@ def sample_counts() -> tuple[int, ...]:
     return tuple(int(c) for c in np.ravel(GL.glGetInternalformativ(GL.GL_RENDERBUFFER, GL.GL_RGBA8, GL.GL_SAMPLES, n)))
 
 
-_COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1)
+_COLOURS = (GL.GL_COLOR_ATTACHMENT0, GL.GL_COLOR_ATTACHMENT1, GL.GL_COLOR_ATTACHMENT2)
 """The colour attachments of an output count's framebuffers, in output (``location``) order."""
 
 
-def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8
-                     ) -> tuple[int, list[int]]:
+def _new_framebuffer(width: int, height: int, samples: int, outputs: int, colour: int = GL.GL_RGBA8,
+                     depth: bool = True) -> tuple[int, list[int]]:
     """A framebuffer with ``outputs`` colour renderbuffers of format ``colour`` (RGBA8, or a float format
-    for the camera pass) and a 24-bit depth, 8-bit stencil renderbuffer, ``samples`` per pixel (1:
-    single-sampled), and its renderbuffers. Raises RuntimeError if the driver reports it incomplete."""
+    for the camera pass, an integer one for the lens's resampling) and, with ``depth``, a 24-bit depth,
+    8-bit stencil renderbuffer, ``samples`` per pixel (1: single-sampled), and its renderbuffers. Raises
+    RuntimeError if the driver reports it incomplete."""
     framebuffer = GL.glGenFramebuffers(1)
     GL.glBindFramebuffer(GL.GL_FRAMEBUFFER, framebuffer)
     renderbuffers = []
-    for attachment, storage in ((*((c, colour) for c in _COLOURS[:outputs]),
-                                 (GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_DEPTH24_STENCIL8))):
+    attachments = [(c, colour) for c in _COLOURS[:outputs]]
+    if depth:
+        attachments.append((GL.GL_DEPTH_STENCIL_ATTACHMENT, GL.GL_DEPTH24_STENCIL8))
+    for attachment, storage in attachments:
         renderbuffer = GL.glGenRenderbuffers(1)
         renderbuffers.append(int(renderbuffer))
         GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, renderbuffer)
@@ -245,7 +248,7 @@ class FloatFramebuffer:
     """A single-sampled float colour renderbuffer (R32F for one channel, RGBA32F for three: RGB32F need
     not be renderable) and a depth and stencil one for the depth test, of ``width`` x ``height`` pixels:
     the camera pass (``Passes.camera_frame``) writes each pixel's value into it, in float32, drawn upside
-    down like every pass.
+    down like every pass (the lens's resampling sources, ``render.resample``, upright).
 
     Raises:
         RuntimeError: the driver reports it incomplete.
@@ -281,7 +284,7 @@ class FloatFramebuffer:
 
     def end_drawing(self) -> np.ndarray:
         """Restore counter-clockwise front faces and return the first ``channels`` channels: ``(height,
-        width)`` (one) or ``(height, width, channels)`` float32, top row first."""
+        width)`` (one) or ``(height, width, channels)`` float32, the first row drawn first."""
         GL.glFrontFace(GL.GL_CCW)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 4)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
@@ -289,3 +292,37 @@ class FloatFramebuffer:
         pixels = GL.glReadPixels(0, 0, self.width, self.height, self._read, GL.GL_FLOAT)
         shape = (self.height, self.width) if self.channels == 1 else (self.height, self.width, self.channels)
         return np.array(pixels, dtype=np.float32).reshape(shape)
+
+
+class LevelsFramebuffer:
+    """Three single-sampled RGBA8UI colour renderbuffers of ``width`` x ``height`` pixels, without depth: the
+    lens's resampling pass (``render.resample``) writes each pixel's 8-bit levels into them as integers (no
+    normalisation, no rounding of its own), drawn upright: the first row in memory is the fragments' first
+    row (``gl_FragCoord.y = 0.5``).
+
+    Raises:
+        RuntimeError: the driver reports it incomplete.
+    """
+
+    _FORMATS = {1: GL.GL_RED_INTEGER, 3: GL.GL_RGB_INTEGER, 4: GL.GL_RGBA_INTEGER}
+    """channels read -> read-back format."""
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = width, height
+        self.id, _ = _new_framebuffer(width, height, 1, len(_COLOURS), GL.GL_RGBA8UI, depth=False)
+
+    def begin_drawing(self, outputs: int) -> None:
+        """Make it the draw framebuffer, drawing the fragment shader's first ``outputs`` outputs over all of it."""
+        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self.id)
+        GL.glDrawBuffers(outputs, _COLOURS[:outputs])
+        GL.glViewport(0, 0, self.width, self.height)
+
+    def read(self, output: int, channels: int) -> np.ndarray:
+        """The first ``channels`` (1, 3 or 4) levels of output ``output``: ``(height, width)`` (one) or ``(height,
+        width, channels)`` uint8, the first row drawn first (read-only)."""
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self.id)
+        GL.glReadBuffer(_COLOURS[output])
+        pixels = GL.glReadPixels(0, 0, self.width, self.height, self._FORMATS[channels], GL.GL_UNSIGNED_BYTE)
+        shape = (self.height, self.width) if channels == 1 else (self.height, self.width, channels)
+        return np.frombuffer(pixels, dtype=np.uint8).reshape(shape)

@@ -34,7 +34,9 @@ occluders (the texture as the reference camera samples it).
 A render may draw every view over a :class:`~.canvas.Canvas` instead of its own ``image_size`` pixels:
 a window of its camera's pixel grid, larger (an overscan: the wider canvas a lens resamples) or
 smaller (a crop); everything per view (culling, shadow frusta, footprints, masks, outputs) is then
-of the canvas, the painting and the label keep ``image_size`` and view 0's own camera.
+of the canvas, the painting and the label keep ``image_size`` and view 0's own camera. With a lens
+(``render.resample``), each view's window is then bent into its distorted view of ``image_size`` in GL,
+right after its passes, and only those pixels are handed out.
 
 Inside ``sidar_torch.timing.collect_timings()``, ``SceneRenderer.render`` adds the seconds spent in each step
 to the collector (``upload``, ``graph``, ``shadow``, ``colour``, ``mask``, ``depth``, ``normals``, ``opacity``,
@@ -50,7 +52,7 @@ work that cannot change a pixel is skipped there and here, each skip with its re
 
 The pieces: ``settings`` (what to draw), ``plan`` and ``visibility`` (what each view needs),
 ``draws`` (a view's draw list) built by ``scene_graph`` from the scene description, ``meshes`` and
-``gpu`` (what is uploaded), ``passes`` (the passes, with ``programs`` and ``shaders/``),
+``gpu`` (what is uploaded), ``passes`` (the passes, with ``programs`` and ``shaders/``), ``resample`` (a lens's),
 ``shadow_maps``, ``transmittance``, ``unlit`` (label and opacity), ``context`` and ``framebuffer``
 (the GL context and what it draws into). pyrender opens the context and does nothing else.
 """
@@ -79,6 +81,7 @@ from .mirror import PaintingMirror
 from .passes import LitPass, Passes, SegmentationPass, ShadowFractionPass
 from .plan import ViewPlan, plan_views
 from .canvas import Canvas
+from .resample import LensResampling, Resampler
 from .scene_graph import PAINTING_FILTERS, gl_material, view_draws
 from .settings import RenderSettings
 from .shadow_maps import ShadowMaps
@@ -156,6 +159,7 @@ class SceneRenderer:
         self._shadows = ShadowMaps(self._passes, settings)
         self._textures: list[PaintingTexture | None] = [None, None]
         self._warmed_up: set[Hashable] = set()
+        self._resampling: Resampler | None = None
         self.renders = 0
         """Sequences rendered so far, warm-ups included."""
 
@@ -175,8 +179,8 @@ class SceneRenderer:
         emitters one view has used, then stays."""
         return self._shadows.layers
 
-    def render(self, sequence: SceneSequence, painting: np.ndarray, *,
-               texture: np.ndarray | None = None, canvas: Canvas | None = None) -> RenderedSequence:
+    def render(self, sequence: SceneSequence, painting: np.ndarray, *, texture: np.ndarray | None = None,
+               canvas: Canvas | None = None, lens: LensResampling | None = None) -> RenderedSequence:
         """Render every view, mask and the label of ``sequence`` with ``painting`` as texture.
 
         Args:
@@ -189,15 +193,19 @@ class SceneRenderer:
                 :class:`RenderedSequence`'s per-view arrays are then of ``canvas.size``, each view's window
                 in their first rows and columns (beyond it: zeros, masks and background true), its label
                 of ``image_size`` (view 0's own camera). Default: each view itself.
+            lens: with ``canvas``, each view's window bent through its lens into the view's ``image_size``
+                pixels in GL (``render.resample``: bilinear, masks and background as fractions cut at 1/2):
+                the per-view arrays are then of ``image_size``, the distorted views. Default: none.
 
         Raises:
             ValueError: ``sequence.image_size`` not this renderer's; ``painting`` or ``texture`` not
                 ``(H, W, 3)`` uint8; ``canvas`` not one origin per view, or larger than this context's
-                ``GL_MAX_RENDERBUFFER_SIZE`` (naming both).
+                ``GL_MAX_RENDERBUFFER_SIZE`` (naming both); ``lens`` without a ``canvas``, or not one lens per view.
 
         Timed steps (``sidar_torch.timing``): ``"upload"`` (painting texture and meshes), ``"graph"``
         (building the draw lists), ``"shadow"``, ``"colour"``, ``"mask"``, ``"label"`` and each
-        drawn output's (draw passes) and ``"readback"``; the pixels are the same timed or not.
+        drawn output's (draw passes), ``"readback"`` and ``"lens"`` (the resampling pass, with its upload and
+        read-back); the pixels are the same timed or not.
         """
         if tuple(sequence.image_size) != self.image_size:
             raise ValueError(f"sequence.image_size {sequence.image_size} != renderer image_size {self.image_size}")
@@ -207,20 +215,31 @@ class SceneRenderer:
         if not self._release.alive:
             raise RuntimeError("SceneRenderer.render called after close()")
         framed, frames, size = self._framed(sequence, canvas)
+        if lens is not None and (canvas is None or len(lens.lenses) != len(sequence.views)):
+            raise ValueError(f"lens: expected a render.canvas.Canvas and one lens per view ({len(sequence.views)}), "
+                             f"got canvas {type(canvas).__name__} and {len(lens.lenses)} lenses")
         self._platform.make_current()
         with timed("upload"):  # the texture object; its GL upload is timed in draw
             label_texture = self._painting_texture(painting, 0)
             texture = label_texture if texture is None else self._painting_texture(texture, 1)
         with timed("graph"):
             plans = plan_views(framed, self.settings, frames)
-        views, masks, outputs = [], [], {name: [] for name in self.settings.outputs}
-        for view, plan, frame in zip(framed.views, plans, frames):
+        views, masks, backgrounds, outputs = [], [], [], {name: [] for name in self.settings.outputs}
+        for index, (view, plan, frame) in enumerate(zip(framed.views, plans, frames)):
             self._passes.resize(frame[1], frame[0])
             image, mask, extra = self._render_view(view, plan, framed, texture, frames, frame)
-            views.append(_padded(image, size, 0))  # alpha 0 beyond the window: background
-            masks.append(_padded(mask, size, True))
+            if lens is None:
+                image, mask = _padded(image, size, 0), _padded(mask, size, True)  # alpha 0 beyond: background
+                extra = {name: _padded(array, size, 0) for name, array in extra.items()}
+            else:
+                with timed("lens", GL.glFinish):
+                    image, mask, background, extra = self._resampler().resample(lens, index, canvas.origins[index],
+                                                                                image, mask, extra)
+                backgrounds.append(background)
+            views.append(image)
+            masks.append(mask)
             for name, array in extra.items():
-                outputs[name].append(_padded(array, size, 0))
+                outputs[name].append(array)
         reference = sequence.views[0].camera
         if self.settings.label_from_painting and is_reference_camera(reference.K, reference.R, reference.t,
                                                                      self.image_size):
@@ -233,9 +252,26 @@ class SceneRenderer:
             self._passes.resize(self.image_size[1], self.image_size[0])
             label = render_label(self._passes, reference, self._plane, label_texture, self.image_size)
         views = np.stack(views)
+        if lens is None:
+            views, background = np.ascontiguousarray(views[..., :3]), views[..., 3] == 0
+        else:
+            background = np.stack(backgrounds)
         self.renders += 1
-        return RenderedSequence(np.ascontiguousarray(views[..., :3]), np.stack(masks), label, views[..., 3] == 0,
+        return RenderedSequence(views, np.stack(masks), label, background,
                                 {name: np.stack(arrays) for name, arrays in outputs.items()})
+
+    def lens_sources(self, lens: LensResampling) -> np.ndarray:
+        """Where the lens's resampling pass reads each pixel of the distorted views of ``lens`` (a sequence's of
+        this renderer's ``image_size``): ``(V, H, W, 2)`` float32 Kornia pixels ``(u, v)`` of the undistorted
+        views, drawn by its shader (``render.resample``), before the clamp to each window."""
+        self._platform.make_current()
+        return np.stack([self._resampler().sources(lens, index) for index in range(len(lens.lenses))])
+
+    def _resampler(self) -> Resampler:
+        """The lens's resampling pass of this context (``render.resample``), made at the first lens."""
+        if self._resampling is None:
+            self._resampling = Resampler(self._passes.programs, self.image_size)
+        return self._resampling
 
     def _framed(self, sequence: SceneSequence, canvas: Canvas | None
                 ) -> tuple[SceneSequence, list[tuple[int, int]], tuple[int, int]]:
