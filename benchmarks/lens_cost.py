@@ -2,12 +2,13 @@
 interleaved in one process. ``python -m benchmarks.lens_cost [--config P] [--size HxW] [--samples N]``
 from the repository root.
 
-Each sample is made by ``sample.render_arrays`` (the renderer, the lens step after read-back, the
+Each sample is made by ``sample.render_arrays`` (the renderer, with a lens its resampling pass, the
 homographies; same seeds and indices, so the same scenes: the lens draws change no other draw), after 3
 warm-up samples per model; torch runs one thread. Prints per model the median ms per view in wall-clock
-and this process's CPU time, the ratio of the CPU medians to ``none``, the ``"lens"`` step's share (maps,
-canvas, resampling) and the mean canvas window a view is drawn over (``sample.lens_views.lens_canvas``), in pixels
-and as a ratio to the output's, then the machine's load. Numbers only.
+and this process's CPU time, the ratio of the CPU medians to ``none``, the ``"lens"`` step's share (the
+canvas windows and Newton steps, and the renderer's resampling pass) and the mean canvas window a view is
+drawn over (``sample.lens_views.lens_canvas``), in pixels and as a ratio to the output's, then the
+machine's load. Numbers only.
 
     python -m benchmarks.lens_cost --size 384x512 --samples 12
 """
@@ -17,7 +18,7 @@ from __future__ import annotations
 import argparse
 
 from sidar_torch import SidarDataset
-from sidar_torch.sample.lens_views import lens_canvas, resampling_sources
+from sidar_torch.sample.lens_views import lens_canvas
 from sidar_torch.sample import render_arrays
 from sidar_torch.scene import sample_sequence
 from sidar_torch.timing import collect_timings
@@ -81,6 +82,8 @@ def main(argv: list[str] | None = None) -> None:
 def _canvas_pixels(dataset: SidarDataset, samples: int) -> float:
     """Mean pixels of the canvas window each view of ``samples`` samples of ``dataset`` is drawn over (the
     output's without a lens)."""
+    from sidar_torch.render.resample import LensResampling  # imports PyOpenGL: here, so parsing loads no GL
+
     pixels: list[int] = []
     for index in range(samples):
         sequence = dataset.scene(index)
@@ -88,7 +91,7 @@ def _canvas_pixels(dataset: SidarDataset, samples: int) -> float:
         if sequence.lens_model == "none":
             pixels += [size[0] * size[1]] * len(sequence.views)
             continue
-        canvas = lens_canvas(resampling_sources(sequence.lens_model, sequence.lenses, sequence.cameras()[0], size))
+        canvas = lens_canvas(LensResampling.of(sequence).border)
         pixels += [int(h) * int(w) for h, w in canvas.sizes]
     return sum(pixels) / len(pixels)
 

@@ -1,6 +1,6 @@
-"""Views through a lens: the CPU step after read-back that distorts every per-view image of a
-sequence (:func:`render_through_lens`), the maps it resamples with (:func:`distortion_maps`) and the
-way back for users (:func:`undistort`). The models and their conventions: :mod:`sidar_torch.choices.lenses`.
+"""Views through a lens: how a sequence is rendered through its lenses (:func:`render_through_lens`), the
+maps of where each distorted pixel comes from (:func:`distortion_maps`) and the way back for users
+(:func:`undistort`). The models and their conventions: :mod:`sidar_torch.choices.lenses`.
 
 How a view is distorted, exactly. Each distorted pixel takes its colour from where the pinhole
 camera sees the same ray, which may lie outside the pinhole view (barrel distortion sees more than
@@ -8,11 +8,12 @@ the view's pinhole field). So each view is drawn once over the wider undistorted
 every pixel its bilinear resampling reads (:func:`lens_canvas`: the pinhole view's pixels from the
 floor to the ceiling of its sources' coordinates), a render size apart from the output size
 (``sidar_torch.render.canvas``: the view's camera with its principal point moved by the canvas's
-origin, the same focal length), each view its own box (the arrays of a sample's views are those of
-the largest). Every image is then resampled bilinearly into the distorted view (torch's
-``grid_sample``); masks and the background flag are resampled as fractions and cut at 1/2, so they
-stay binary. The label is view 0's pinhole camera at the output size, as without a lens. The view
-effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
+origin, the same focal length), each view its own box. The renderer then bends every per-view image
+into the distorted view in GL (``sidar_torch.render.resample``: each pixel's source in float32, a
+bilinear blend of the window's pixels with float weights, as ``grid_sample`` with border padding);
+masks and the background flag are blended as fractions and cut at 1/2, so they stay binary, and only
+the output's pixels are read back. The label is view 0's pinhole camera at the output size, as
+without a lens. The view effects (``sidar_torch.sample.effects``) come after, as a sensor's do.
 """
 
 from __future__ import annotations
@@ -25,12 +26,11 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from ..choices.lenses import CHUNK, LENS_MODELS, NO_LENS, distorted_points, undistorted_grid, undistorted_points
+from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted_grid, undistorted_points
 from ..scene import SceneSequence
 from ..timing import timed
 
-__all__ = ["LATTICE_STEP", "RESAMPLING_STEPS", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens",
-           "resampling_sources", "undistort"]
+__all__ = ["LATTICE_STEP", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens", "undistort"]
 
 
 @functools.lru_cache(maxsize=4)
@@ -73,87 +73,38 @@ lens model at every pixel (:func:`distortion_maps`): within about a thousandth o
 ranges, so Newton's method ends in 2 steps instead of 4-5."""
 
 
-def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int],
-                   normalised: bool = False) -> Any:
+def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
     """The undistorted points of a lattice spanning the view, about :data:`LATTICE_STEP` apart, interpolated
-    bilinearly at every pixel, float32: ``(H, W, 2)`` pixels, or with ``normalised`` the normalised
-    coordinates' two ``(H, W)`` planes."""
+    bilinearly at every pixel: ``(H, W, 2)`` float32 pixels (a start for Newton's method)."""
     h, w = image_size
     ys = np.linspace(0, h - 1, max(2, math.ceil((h - 1) / LATTICE_STEP) + 1))
     xs = np.linspace(0, w - 1, max(2, math.ceil((w - 1) / LATTICE_STEP) + 1))
     lattice = undistorted_points(model, lens, K, np.stack(np.meshgrid(xs, ys), -1))  # (ny, nx, 2)
-    if normalised:
-        y = (lattice[..., 1] - K[1, 2]) / K[1, 1]
-        lattice = np.stack([(lattice[..., 0] - K[0, 2] - K[0, 1] * y) / K[0, 0], y], -1)
     planes = torch.from_numpy(np.ascontiguousarray(lattice.transpose(2, 0, 1), np.float32))[None]
     full = F.interpolate(planes, size=(h, w), mode="bilinear", align_corners=True)[0]  # float32: only a start
-    return (full[0].numpy(), full[1].numpy()) if normalised else full.permute(1, 2, 0).numpy()
-
-
-def resampling_sources(model: str, lenses: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """The :func:`distortion_maps` a lens view is resampled at, in float32 as ``grid_sample`` reads them:
-    ``(V, H, W, 2)`` float32 Kornia pixels of the undistorted view.
-
-    A closed-form model (``division``) in float32 from each row's and column's normalised coordinate
-    (float32 rounding: about 3e-5 px at 500 px from the principal point); an iterative one
-    (``brown_conrady``) as one float32 Newton step from the exact answers of a lattice
-    :data:`LATTICE_STEP` pixels apart interpolated bilinearly (within 0.01-0.2 px before the step,
-    within :data:`SOURCE_SLACK` after: ``tests/render/test_canvas.py``). A third of the work of the
-    float64 maps' Newton step and check; the maps a sample hands out stay the exact float64 ones.
-
-    Args: as :func:`distortion_maps` (``model`` a lens model, not ``"none"``).
-    """
-    h, w = image_size
-    row = LENS_MODELS[model]
-    out = np.empty((len(K), h, w, 2), np.float32)
-    rows = max(1, 4 * CHUNK // w)  # Newton's float32 operations on arrays that stay in the core's cache
-    for view, (lens, k) in enumerate(zip(lenses, K)):
-        y = ((np.arange(h, dtype=np.float64) - k[1, 2]) / k[1, 1])[:, None]
-        x = np.broadcast_to((np.arange(w, dtype=np.float64)[None, :] - k[0, 2] - k[0, 1] * y) / k[0, 0], (h, w))
-        x32, y32, lens32 = x.astype(np.float32), y.astype(np.float32), np.asarray(lens, np.float32)
-        if row.iterative:
-            u0, v0 = _lattice_start(model, lens, k, image_size, normalised=True)
-            y32 = np.ascontiguousarray(np.broadcast_to(y32, (h, w)))
-            for top in range(0, h, rows):
-                part = slice(top, top + rows)
-                u, v = row.undistort((x32[part], y32[part]), lens32, (u0[part], v0[part]), RESAMPLING_STEPS)
-                _to_pixels(k, u, v, out[view, part])
-        else:
-            u, v = row.undistort((x32, y32), lens32, None, None)
-            _to_pixels(k, *np.broadcast_arrays(u, v), out[view])
-    return out
-
-
-RESAMPLING_STEPS = 1
-"""Newton steps of :func:`resampling_sources` from the lattice's start: one takes its error of 0.01-0.2 px
-to the float32 rounding's (the error after a step is about its square times the map's curvature)."""
-
-
-def _to_pixels(K: np.ndarray, u: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
-    """Write the normalised points ``(u, v)`` as pixels ``K (u, v, 1)`` into ``out (..., 2)`` (float32)."""
-    k = K.astype(np.float32)
-    out[..., 0] = k[0, 0] * u + k[0, 1] * v + k[0, 2]
-    out[..., 1] = k[1, 1] * v + k[1, 2]
+    return full.permute(1, 2, 0).numpy()
 
 
 SOURCE_SLACK = 1e-3
 """Pixels a source coordinate may pass a whole pixel before the canvas holds the next one: its bilinear
-weight there is at most this (a quarter of a level at an edge of full contrast), and ``grid_sample``'s
-border padding reads the canvas's last pixel instead. It covers :func:`resampling_sources`' float32
-rounding, so a lens of zeros draws the view itself."""
+weight there is at most this (a quarter of a level at an edge of full contrast), and the resampling's
+border clamp reads the window's last pixel instead. It covers the float32 rounding of the sources the
+renderer resamples at (within about 2e-4 px of the exact maps: ``render.resample``), so a lens of zeros
+draws the view itself."""
 
 
 def lens_canvas(sources: np.ndarray) -> Any:
-    """The canvas (``sidar_torch.render.Canvas``) that holds every pinhole pixel the bilinear
-    resampling of each view reads with a weight above :data:`SOURCE_SLACK`: per view the box from the floor
-    to the ceiling of its ``sources (V, H, W, 2)`` (:func:`resampling_sources`, or :func:`distortion_maps`),
-    each view's origin its box's top-left pixel (rounded down to an even one: ``render.canvas.QUAD``) and its
-    window the box from there (``Canvas.covering``)."""
+    """The canvas (``sidar_torch.render.Canvas``) that holds every pinhole pixel the bilinear resampling of
+    each view reads with a weight above :data:`SOURCE_SLACK`: per view the box from the floor to the ceiling
+    of its ``sources (V, ..., 2)`` (Kornia pixels of the undistorted view: ``LensResampling.border``, where the
+    renderer's pass reads the view's border pixels, which a lens that does not fold makes the border of what
+    it reads; or :func:`distortion_maps`), each view's origin its box's top-left pixel (rounded down to an
+    even one: ``render.canvas.QUAD``) and its window the box from there (``Canvas.covering``)."""
     from ..render.canvas import Canvas  # as render_through_lens's import of render: at the first use
 
-    planes = [(view[..., 0], view[..., 1]) for view in sources]  # per view and axis: numpy's (1, 2) reduction is slow
-    lo = np.floor(np.array([[u.min(), v.min()] for u, v in planes]) + SOURCE_SLACK).astype(np.int64)  # (V, 2) x, y
-    hi = np.ceil(np.array([[u.max(), v.max()] for u, v in planes]) - SOURCE_SLACK).astype(np.int64)
+    flat = np.asarray(sources).reshape(len(sources), -1, 2)
+    lo = np.floor(flat.min(axis=1) + SOURCE_SLACK).astype(np.int64)  # (V, 2) x, y
+    hi = np.ceil(flat.max(axis=1) - SOURCE_SLACK).astype(np.int64)
     return Canvas.covering(np.concatenate([lo, np.maximum(hi, lo)], axis=1))
 
 
@@ -161,77 +112,30 @@ def render_through_lens(renderer: Any, sequence: SceneSequence, painting: np.nda
                         texture: np.ndarray | None = None) -> Any:
     """Render ``sequence`` (with a lens) through its lenses: every per-view image distorted, the label not.
 
+    Each view is drawn over its :func:`lens_canvas` window and bent into the distorted view by the
+    renderer's resampling pass (``sidar_torch.render.resample``, in GL: each pixel's source in float32, a
+    bilinear blend of the window's pixels, masks and background as fractions cut at 1/2).
+
     Args:
-        renderer: a ``SceneRenderer`` of ``sequence.image_size``.
+        renderer: a ``SceneRenderer`` of ``sequence.image_size`` (or a ``RenderProcess``).
         sequence: the scenes, ``sequence.lens_model`` not ``"none"``.
         painting, texture: ``(H, W, 3)`` uint8, as for ``SceneRenderer.render``.
 
-    Timed steps (``sidar_torch.timing``): the renderer's and ``"lens"`` (maps, canvas, resampling).
+    Timed steps (``sidar_torch.timing``): the renderer's (its ``"lens"``: the resampling pass) and ``"lens"``
+    (the border's sources, the Newton steps of each view's program and the canvas).
 
     Returns:
-        The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and
-        dtypes), resampled at :func:`resampling_sources` (the :func:`distortion_maps` in float32).
+        The distorted :class:`~sidar_torch.render.renderer.RenderedSequence` (the renderer's shapes and dtypes).
 
     Raises:
         ValueError: a canvas larger than the renderer's GL context allows (``SceneRenderer.render``).
     """
-    from ..render import RenderedSequence  # imports the GL libraries: at the first render, as the renderer's
+    from ..render.resample import LensResampling  # imports the GL libraries: at the first render, as the renderer's
 
-    size = tuple(sequence.image_size)
     with timed("lens"):
-        K = sequence.cameras()[0]
-        sources = resampling_sources(sequence.lens_model, sequence.lenses, K, size)
-        canvas = lens_canvas(sources)
-    rendered = renderer.render(sequence, painting, texture=texture, canvas=canvas)
-    with timed("lens"):
-        names = sorted(rendered.outputs)
-        out = [_resample(_channels(rendered, i, names, canvas.window(i)), view_sources, origin)
-               for i, (view_sources, origin) in enumerate(zip(sources, canvas.origins))]
-        views = _levels([view[:3] for view in out])
-        masks = torch.stack([view[3] >= 0.5 for view in out]).numpy()
-        background = torch.stack([view[4] >= 0.5 for view in out]).numpy()
-        outputs, channel = {}, 5
-        for name in names:
-            c = 1 if rendered.outputs[name].ndim == 3 else 3
-            block = _levels([view[channel:channel + c] for view in out])
-            outputs[name] = block[..., 0] if c == 1 else block
-            channel += c
-    return RenderedSequence(views, masks, rendered.label, background, outputs)
-
-
-def _levels(planes: list[torch.Tensor]) -> np.ndarray:
-    """The views' resampled ``planes`` (each ``(C, H, W)`` float32 levels, rounded in place) as
-    ``(V, H, W, C)`` uint8."""
-    out = np.empty((len(planes), *planes[0].shape[1:], planes[0].shape[0]), np.uint8)
-    for view, plane in zip(torch.from_numpy(out), planes):  # bilinear weights keep 0-255 levels in 0-255
-        view.copy_(plane.round_().permute(1, 2, 0))
-    return out
-
-
-def _channels(rendered: Any, index: int, names: list[str], window: tuple[int, int]) -> torch.Tensor:
-    """View ``index``'s per-view images of ``rendered`` (a ``RenderedSequence``) in its ``window (h, w)`` as
-    one ``(C, h, w)`` float32 tensor: RGB, mask, background, then each of ``names``' outputs' channels."""
-    h, w = window
-    planes = [rendered.views[index], rendered.masks[index][..., None], rendered.background[index][..., None],
-              *(rendered.outputs[name][index].reshape(*rendered.masks.shape[1:], -1) for name in names)]
-    planes = [plane[:h, :w] for plane in planes]
-    count = sum(plane.shape[-1] for plane in planes)
-    channels = torch.empty((count, h, w), dtype=torch.float32)
-    start = 0
-    for plane in planes:
-        channels[start:start + plane.shape[-1]] = torch.from_numpy(plane).permute(2, 0, 1)
-        start += plane.shape[-1]
-    return channels
-
-
-def _resample(channels: torch.Tensor, pixels: np.ndarray, origin: np.ndarray) -> torch.Tensor:
-    """One view's canvas ``channels (C, h, w)`` float32, whose pixel ``(0, 0)`` is the view's pixel
-    ``origin (2,)``, sampled bilinearly at the view's ``pixels (H, W, 2)`` float32 (border padding):
-    ``(C, H, W)`` float32, a mask's fractions kept. ``pixels`` is turned into ``grid_sample``'s grid in place."""
-    h, w = channels.shape[-2:]
-    scale = torch.tensor([2 / max(w - 1, 1), 2 / max(h - 1, 1)])
-    grid = torch.from_numpy(pixels).mul_(scale).sub_(torch.from_numpy(origin).float() * scale + 1)
-    return F.grid_sample(channels[None], grid[None], mode="bilinear", padding_mode="border", align_corners=True)[0]
+        resampling = LensResampling.of(sequence)
+        canvas = lens_canvas(resampling.border)
+    return renderer.render(sequence, painting, texture=texture, canvas=canvas, lens=resampling)
 
 
 def _bilinear(images: torch.Tensor, pixels: np.ndarray, padding: str) -> torch.Tensor:

@@ -2,14 +2,17 @@
 view's own pixel grid shifted, an overscan holds the view, a crop is part of it, a grown framebuffer
 changes no byte, and the lens draws each view once over the canvas its resampling reads."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from sidar_torch import SidarDataset, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
 from sidar_torch.render.canvas import Canvas
-from sidar_torch.choices.lenses import scaled_lens
-from sidar_torch.sample.lens_views import SOURCE_SLACK, distortion_maps, lens_canvas, resampling_sources
+from sidar_torch.choices.lenses import LENS_MODELS, scaled_lens
+from sidar_torch.render.resample import MODEL_DEFINES, LensResampling
+from sidar_torch.sample.lens_views import SOURCE_SLACK, distortion_maps, lens_canvas
 from sidar_torch.scene import sample_sequence
 
 from conftest import small_config, textured_painting
@@ -126,28 +129,54 @@ def test_a_canvas_is_checked_and_named():
 
 @pytest.mark.parametrize("model", ["brown_conrady", "division"])
 def test_the_lens_canvas_holds_every_pixel_the_resampling_reads(model):
-    """The float32 sources a view is resampled at are the exact maps within SOURCE_SLACK (default ranges
-    and the strongest barrels that do not fold); each view's canvas holds the floor and ceiling of every
-    one (up to SOURCE_SLACK); a lens of zeros draws the views themselves; the lens path renders once."""
+    """The float32 sources the renderer's resampling pass reads (drawn by its own shader) are the exact maps
+    within SOURCE_SLACK (default ranges, the strongest barrels that do not fold, a pincushion); each view's
+    canvas, from the border's sources, holds the floor and ceiling of every one (up to SOURCE_SLACK); a lens
+    of zeros draws the views themselves; the lens path renders once."""
     config = load_config("misaligned", image_size=(48, 64), n_views=3, lens_model=model)
     dataset = SidarDataset(None, config, seed=2)
-    strong = {"brown_conrady": (-0.1, 0.03, 0.01, 0.01, 0.0), "division": (-0.5, 0.0, 0.0, 0.0, 0.0)}[model]
-    for index in range(3):
+    renderer = renderer_of(config)
+    corners = {"brown_conrady": [(-0.1, 0.03, 0.01, 0.01, 0.0), (-0.14, 0.0, 0.0, 0.0, 0.0), (0.05, 0.03, 0.002, -0.002, 0.0)],
+               "division": [(-0.5, 0.0, 0.0, 0.0, 0.0), (0.05, 0.0, 0.0, 0.0, 0.0)]}[model]
+    for index, corner in enumerate([None, None, *corners]):
         sequence = dataset.scene(index)
         K = sequence.cameras()[0]
-        lenses = sequence.lenses if index else np.stack([scaled_lens(model, np.array(strong), k, config.image_size)
-                                                         for k in K])
-        sources = resampling_sources(model, lenses, K, config.image_size)
-        assert sources.dtype == np.float32
-        assert np.abs(sources - distortion_maps(model, lenses, K, config.image_size)).max() < SOURCE_SLACK
-        canvas = lens_canvas(sources)
+        if corner is not None:
+            lenses = np.stack([scaled_lens(model, np.array(corner), k, config.image_size) for k in K])
+            sequence = dataclasses.replace(sequence, lenses=lenses)
+        lens = LensResampling.of(sequence)
+        sources = renderer.lens_sources(lens)
+        assert sources.dtype == np.float32 and sources.shape == (3, *config.image_size, 2)
+        assert np.abs(sources - distortion_maps(model, lens.lenses, K, config.image_size)).max() < SOURCE_SLACK
+        assert (lens.steps > 0).all() == (model == "brown_conrady")
+        canvas = lens_canvas(lens.border)
         shifted = sources - canvas.origins[:, None, None, :]
         assert np.floor(shifted.min() + SOURCE_SLACK) >= 0
-        assert (np.ceil(shifted.max(axis=(1, 2)) - SOURCE_SLACK) <= np.array(canvas.size[::-1]) - 1).all()
-    identity = resampling_sources(model, np.zeros((3, 5)), K, config.image_size)
-    canvas = lens_canvas(identity)
+        assert (np.ceil(shifted.max(axis=(1, 2)) - SOURCE_SLACK) <= canvas.sizes[:, ::-1] - 1).all()
+    zero = dataclasses.replace(sequence, lenses=np.zeros((3, 5)))
+    identity = LensResampling.of(zero)
+    canvas = lens_canvas(identity.border)
     assert canvas.size == config.image_size and not canvas.origins.any()
+    assert np.abs(renderer.lens_sources(identity) - distortion_maps("none", None, K, config.image_size)).max() < 1e-4
     dataset.sample(0)  # the renderer warms up at the first sample (SidarDataset.renderer)
     renders = dataset.renderer().renders
     dataset.sample(1)
     assert dataset.renderer().renders == renders + 1
+
+
+def test_a_lens_that_folds_its_view_or_a_lens_without_a_canvas_is_refused_by_name():
+    """Tangential terms can fold a barrel that the config's radial check lets through: Newton's method
+    from the shader's start then never settles, and the resampling says so rather than bend garbage."""
+    config = load_config("misaligned", image_size=(48, 64), n_views=3, lens_model="brown_conrady")
+    sequence, painting = scene(config)
+    K = sequence.cameras()[0]
+    folding = np.stack([scaled_lens("brown_conrady", np.array([-0.14, 0.0, 0.01, 0.01, 0.0]), k, config.image_size)
+                        for k in K])
+    with pytest.raises(ValueError, match="lenses: brown_conrady .* still move their sources after 16 Newton steps"):
+        LensResampling.of(dataclasses.replace(sequence, lenses=folding))
+    with pytest.raises(ValueError, match="sequence.lens_model: expected one of"):
+        LensResampling.of(dataclasses.replace(sequence, lens_model="none", lenses=None))
+    lens = LensResampling.of(sequence)
+    with pytest.raises(ValueError, match="lens: expected a render.canvas.Canvas and one lens per view"):
+        renderer_of(config).render(sequence, painting, lens=lens)
+    assert set(MODEL_DEFINES) == set(LENS_MODELS)

@@ -82,6 +82,61 @@ def test_nothing_is_paid_without_a_lens():
     assert timings["lens"] > 0
 
 
+def grid_sample_reference(rendered, maps, canvas):
+    """Every per-view plane of ``rendered`` (a render over ``canvas``, no lens) resampled at the exact ``maps``
+    (V, H, W, 2) by torch's ``grid_sample`` (bilinear, border padding) from each view's window, levels rounded,
+    masks and background cut at 1/2: the CPU lens step of commit dfa9337 and before, at exact maps."""
+    names = sorted(rendered.outputs)
+    out = {key: [] for key in ("views", "masks", "background", *names)}
+    for i, view_maps in enumerate(maps):
+        h, w = canvas.window(i)
+        planes = [rendered.views[i], rendered.masks[i][..., None], rendered.background[i][..., None],
+                  *(rendered.outputs[name][i].reshape(*rendered.masks.shape[1:], -1) for name in names)]
+        channels = torch.cat([torch.from_numpy(p[:h, :w].astype(np.float32)).permute(2, 0, 1) for p in planes])
+        grid = torch.from_numpy(view_maps - canvas.origins[i]) * torch.tensor([2 / (w - 1), 2 / (h - 1)]) - 1
+        r = torch.nn.functional.grid_sample(channels[None], grid[None].float(), mode="bilinear", padding_mode="border",
+                                            align_corners=True)[0]
+        out["views"].append(r[:3].round().permute(1, 2, 0).numpy().astype(np.uint8))
+        out["masks"].append((r[3] >= 0.5).numpy())
+        out["background"].append((r[4] >= 0.5).numpy())
+        start = 5
+        for name in names:
+            c = rendered.outputs[name].shape[-1] if rendered.outputs[name].ndim == 4 else 1
+            levels = r[start:start + c].round().permute(1, 2, 0).numpy().astype(np.uint8)
+            out[name].append(levels[..., 0] if rendered.outputs[name].ndim == 3 else levels)
+            start += c
+    return {key: np.stack(arrays) for key, arrays in out.items()}
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("model", ["brown_conrady", "division"])
+def test_the_gl_resampling_is_grid_sample_at_the_exact_maps(model):
+    """The renderer's resampling pass (``render.resample``) against ``grid_sample`` of the same canvas render at
+    the exact float64 maps: views and optional outputs within 1 level (float32 sources and float weights: on
+    under 0.05 % of the pixels), masks and background the same but for under 0.05 % of their pixels."""
+    from sidar_torch.render.resample import LensResampling
+    from sidar_torch.sample.lens_views import distortion_maps, lens_canvas
+
+    config = load_config("misaligned", image_size=(96, 128), n_views=3, lens_model=model, opacity_output=True,
+                         shadow_free_output=True, shadow_mask_output=True, n_occluders=(2, 3))
+    dataset = SidarDataset(None, config, seed=1)
+    renderer = dataset.renderer()
+    for index in range(2):
+        sequence = dataset.scene(index)
+        painting = dataset.source.painting(index, config.image_size)
+        lens = LensResampling.of(sequence)
+        canvas = lens_canvas(lens.border)
+        bent = renderer.render(sequence, painting, canvas=canvas, lens=lens)
+        expected = grid_sample_reference(renderer.render(sequence, painting, canvas=canvas),
+                                         distortion_maps(model, lens.lenses, lens.K, config.image_size), canvas)
+        got = {"views": bent.views, "masks": bent.masks, "background": bent.background, **bent.outputs}
+        assert got.keys() == expected.keys()
+        for name, array in expected.items():
+            assert got[name].shape == array.shape and got[name].dtype == array.dtype, name
+            diff = np.abs(got[name].astype(int) - array.astype(int))
+            assert diff.max() <= 1 and (diff > 0).mean() < 5e-4, (name, diff.max(), (diff > 0).mean())
+
+
 def brown_pairs(count=2, size=(192, 256)):
     """``(with the lens, without)`` arrays of ``count`` samples of misaligned through Brown-Conrady lenses,
     of built-in paintings softened by a Gaussian of 1 px (their 2-pixel grain is beyond what two bilinear
