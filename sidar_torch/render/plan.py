@@ -24,7 +24,9 @@ around the emitter by :func:`shadow_margin`, and with soft shadows the penumbra'
 (:func:`soft_reach`): :func:`lookup_margins`.
 
 And within the painting's colour draw, each shadowed emitter's lookup is made only where a caster
-may be read (``render.footprints``: the draw is split into screen rectangles, ``painting_parts``).
+may be read (``render.footprints``: the draw is split into screen rectangles, ``painting_parts``),
+in views of at least :data:`SPLIT_MIN_PIXELS` pixels: in smaller ones the split's planning and
+draws cost more than the lookups it saves, and the painting is drawn whole (the same pixels).
 
 When every view shares the lights and occluders (``scene_per_view`` false) every view gets the
 union of the views' casters, so an emitter's shadow map is the same in every view that shadows
@@ -46,8 +48,18 @@ from .footprints import PaintingPart, lookup_ranges, painting_parts
 from .settings import RenderSettings
 from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
-__all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "ViewPlan", "lookup_margins", "plan_views", "shadow_margin",
-           "soft_reach", "whole_lights"]
+__all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "SPLIT_MIN_PIXELS", "ViewPlan", "lookup_margins", "plan_views",
+           "shadow_margin", "soft_reach", "whole_lights"]
+
+SPLIT_MIN_PIXELS = 64 * 64
+"""The fewest pixels (``H * W`` of what the camera draws) whose painting draw is split by shadow
+footprints (``RenderSettings.split_shadow_lookups``). The split costs about 0.3 ms of planning and
+part draws per view whatever the size, and saves lookups in proportion to the pixels: on
+``misaligned`` (``python -m benchmarks.setting_cost --field split_shadow_lookups --values false true``,
+CPU time, median paired difference, 2026-11-28, load 1.1-1.3 on 2 cores) it cost +0.24 ms per 24x32
+view (+5.3 %, 40 sequences; 86 % of the lookups kept) and +0.10 ms per 48x64 view (+1.8 %, 30), and
+saved 1.02 ms per 96x128 view (-11.8 %, 30; 41 % kept): the two meet near 64 x 64. Either way gives the same
+bytes (``tests/render/test_skips.py``; the stored samples, 48x64, are drawn whole)."""
 
 SHADOW_READ_TEXELS = 3.0
 """How far (texels, along each map axis) from a point's shadow-map coordinate its lookup may read
@@ -204,8 +216,9 @@ def whole_lights(begin: np.ndarray, end: np.ndarray, lights: list[int]) -> tuple
 
 def _with_painting_parts(view: ViewScene, plan: ViewPlan, size: tuple[int, int], settings: RenderSettings) -> ViewPlan:
     """``plan`` with the painting's draw over the camera's ``size (H, W)`` pixels split by shadow footprints
-    (``render.footprints``), unless every part would need every lookup."""
-    if not plan.n_shadowed:
+    (``render.footprints``), unless every part would need every lookup or the view has fewer than
+    :data:`SPLIT_MIN_PIXELS` pixels."""
+    if not plan.n_shadowed or size[0] * size[1] < SPLIT_MIN_PIXELS:
         return plan
     emitters = list(plan.order[:plan.n_shadowed])
     margins = lookup_margins(view, emitters, settings.shadow_map_size, settings.light_radius)

@@ -107,6 +107,24 @@ def test_lookups_only_where_a_caster_can_shadow_the_painting_change_no_pixel(pre
     assert any("SHADOW_FREE" in defines and "SPOT_LIGHT_SHADOWS" not in defines for defines in programs)
 
 
+def test_views_under_the_split_threshold_draw_the_painting_whole(monkeypatch):
+    """Under ``plan.SPLIT_MIN_PIXELS`` a view's painting is drawn whole (no parts); with the threshold
+    lowered, the same 48x64 views are split, for the same bytes."""
+    from sidar_torch.render import plan as plan_module
+    size = (48, 64)
+    assert size[0] * size[1] < plan_module.SPLIT_MIN_PIXELS
+    cfg = small_config("misaligned", image_size=size, n_views=3, n_occluders=(2, 4))
+    painting = textured_painting(size)
+    settings = RenderSettings.from_config(cfg)
+    seqs = [sample_sequence(cfg, np.random.default_rng(seed)) for seed in range(4)]
+    assert all(not plan.painting_parts for seq in seqs for plan in plan_views(seq, settings))
+    whole = [shared_renderer(settings).render(seq, painting) for seq in seqs]
+    monkeypatch.setattr(plan_module, "SPLIT_MIN_PIXELS", 1)
+    assert any(plan.painting_parts for seq in seqs for plan in plan_views(seq, settings))
+    for seq, drawn in zip(seqs, whole):
+        assert_same_pixels(shared_renderer(settings).render(seq, painting), drawn)
+
+
 def test_any_footprint_tile_gives_the_same_pixels():
     """Tiles of 7 pixels (not a divisor of the image's sides) and of 64 split the painting's draw
     otherwise than the default 16, into more or fewer parts, for the same bytes."""
