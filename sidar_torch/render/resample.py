@@ -261,7 +261,7 @@ class Resampler:
                 GL.glTexParameteri(GL.GL_TEXTURE_2D_ARRAY, name, value)
         GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, self._texture)
         for layer, array in enumerate(layers):
-            texels = np.ascontiguousarray(array).view(np.uint32)  # the 4 levels of a pixel, byte 0 first
+            texels = np.ascontiguousarray(array).view(np.uint32)  # a pixel's 4 levels, byte 0 the lowest (little-endian)
             GL.glTexSubImage3D(GL.GL_TEXTURE_2D_ARRAY, 0, 0, 0, layer, w, h, 1, GL.GL_RED_INTEGER,
                                GL.GL_UNSIGNED_INT, texels)
         GL.glBindTexture(GL.GL_TEXTURE_2D_ARRAY, 0)
