@@ -46,7 +46,7 @@ from ..geometry import clip_polygon, plane_corners, visible_halfplanes
 from ..scene import SceneSequence, ViewScene, occluder_radius
 from .footprints import PaintingPart, lookup_ranges, painting_parts
 from .settings import RenderSettings
-from .visibility import ball_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
+from .visibility import balls_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
 __all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "SPLIT_MIN_PIXELS", "ViewPlan", "lookup_margins", "plan_views",
            "shadow_margin", "soft_reach", "whole_lights"]
@@ -241,8 +241,8 @@ class _ViewFacts:
         self.emitters = [(a, b) for a, light in enumerate(view.lights) for b in range(len(light.emitters))]
         centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
         radii = np.array([occluder_radius(occ) for occ in view.occluders])
-        self.drawn = frozenset(i for i, (c, r) in enumerate(zip(centres, radii))
-                               if settings.occluders_visible and ball_may_be_seen(cam.K, cam.R, cam.t, frame, c, r))
+        seen = balls_may_be_seen(cam.K, cam.R, cam.t, frame, centres, radii) if settings.occluders_visible else []
+        self.drawn = frozenset(i for i, visible in enumerate(seen) if visible)
         self.hits: dict[tuple[int, int], frozenset[int]] = {e: frozenset() for e in self.emitters}
         hidden = np.array([i for i in range(len(radii)) if i not in self.drawn], dtype=int)
         if not (self.emitters and len(hidden)):

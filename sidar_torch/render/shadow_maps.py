@@ -18,7 +18,7 @@ from .passes import Passes
 from .plan import soft_reach
 from .scene_graph import gl_pose
 from .settings import RenderSettings
-from .visibility import ball_may_be_seen, cube_corners, light_frustum
+from .visibility import balls_may_be_seen, cube_corners, light_frustum
 
 __all__ = ["SHADOW_MARGIN_TEXELS", "ShadowMaps"]
 
@@ -75,20 +75,27 @@ class ShadowMaps:
         # A light shaded as one (quirk 13) is shaded from its emitters' centre, aimed as they are.
         group_poses = {a: gl_pose(*look_at(view.lights[a].emitters.mean(axis=0)))
                        for a in {a for a, _ in order} if group and len(view.lights[a].emitters) > 1}
-        centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
-        radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+        light_radius = self.settings.light_radius
+        if light_radius > 0:  # the occluders' balls set the soft lookups' reach; without a radius it is 0
+            centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
+            radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+        else:
+            centres, radii = np.zeros((0, 3)), np.zeros(0)
+        shared: dict[int, dict] = {}  # per light: what its emitters share
         for a, b in order:
             light = view.lights[a]
-            if not 0.0 <= light.inner_cone <= light.outer_cone:
-                raise ValueError(f"light {a}: expected 0 <= inner_cone <= outer_cone, got {light.inner_cone}, "
-                                 f"{light.outer_cone}")
+            if a not in shared:
+                if not 0.0 <= light.inner_cone <= light.outer_cone:
+                    raise ValueError(f"light {a}: expected 0 <= inner_cone <= outer_cone, got {light.inner_cone}, "
+                                     f"{light.outer_cone}")
+                shared[a] = dict(color=np.asarray(light.color, np.float32), intensity=float(light.intensity),
+                                 inner_cone=float(light.inner_cone), outer_cone=float(light.outer_cone),
+                                 smooth_falloff=float(light.smooth_falloff),
+                                 group_size=len(light.emitters) if a in group_poses else 1, group_pose=group_poses.get(a))
             draws.lights.append(SpotEmitter(
                 pose=world_pose(gl_pose(*look_at(light.emitters[b]))),  # aimed at the centre
-                color=np.asarray(light.color, np.float32), intensity=float(light.intensity),
-                inner_cone=float(light.inner_cone), outer_cone=float(light.outer_cone), layer=self._layer(rank[a, b]),
-                smooth_falloff=float(light.smooth_falloff),
-                soft_reach=soft_reach(light.emitters[b], centres, radii, self.settings.light_radius),
-                group_size=len(light.emitters) if a in group_poses else 1, group_pose=group_poses.get(a)))
+                layer=self._layer(rank[a, b]), soft_reach=soft_reach(light.emitters[b], centres, radii, light_radius),
+                **shared[a]))
         return draws.lights[:n_shadowed]
 
     def _layer(self, k: int) -> int:
@@ -119,7 +126,7 @@ class ShadowMaps:
             return {}
         casters = np.array([[*occ.position, np.linalg.norm(occ.scale)] for occ in view.occluders]).reshape(-1, 4)
         points = np.vstack([p for other, frame in zip(sequence.views, frames)
-                            if other.lights == view.lights and other.occluders == view.occluders
+                            if other is view or (other.lights == view.lights and other.occluders == view.occluders)
                             for p in self._visible_receivers(other.camera, casters, frame)])
         margin = SHADOW_MARGIN_TEXELS / self._passes.shadow_map_size
         frusta = {id(light): light_frustum(light.pose[:3, 3], light.outer_cone, points, casters, margin, light.soft_reach)
@@ -132,8 +139,8 @@ class ShadowMaps:
         region = self._visible_region(cam, frame)
         points = [np.column_stack([region, np.zeros(len(region))])]
         if self.settings.occluders_visible:
-            points += [cube_corners(c[:3], c[3]) for c in casters
-                       if ball_may_be_seen(cam.K, cam.R, cam.t, frame, c[:3], c[3])]
+            seen = balls_may_be_seen(cam.K, cam.R, cam.t, frame, casters[:, :3], casters[:, 3])
+            points += [cube_corners(c[:3], c[3]) for c, visible in zip(casters, seen) if visible]
         return points
 
     def _visible_region(self, cam: Camera, frame: tuple[int, int]) -> np.ndarray:

@@ -7,7 +7,7 @@ are bounded by balls ``|X - centre| <= radius`` about an occluder's ``position``
 (culling, casters, footprints), and ``|scale|`` where it sets what is drawn (shadow frusta, soft
 reach, mesh levels), which a tighter ball would change.
 
-* culling: :func:`ball_may_be_seen`, :func:`shadow_may_reach`, :func:`shadow_may_fall_on_ball`
+* culling: :func:`ball_may_be_seen` (:func:`balls_may_be_seen`), :func:`shadow_may_reach`, :func:`shadow_may_fall_on_ball`
   (``render.plan`` decides with them what each view draws);
 * mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radii` (how large an occluder
   and its shadow show, in pixels);
@@ -21,6 +21,7 @@ Every test is conservative where it culls: ``False`` ("cannot be seen") only whe
 from __future__ import annotations
 
 import math
+from typing import Sequence
 
 import numpy as np
 
@@ -28,6 +29,7 @@ from ..geometry import look_at, plane_size, project, view_edges
 
 __all__ = [
     "ball_may_be_seen",
+    "balls_may_be_seen",
     "ball_pixel_radius",
     "ball_shadow_corners",
     "ball_shadow_pixel_radii",
@@ -48,9 +50,16 @@ def ball_may_be_seen(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tu
     Conservative: ``False`` only when the ball lies wholly outside one of the view's bounding
     planes (the four image edges and the camera's front).
     """
+    return balls_may_be_seen(K, R, t, image_size, [centre], [radius])[0]
+
+
+def balls_may_be_seen(K: np.ndarray, R: np.ndarray, t: np.ndarray, image_size: tuple[int, int],
+                      centres: Sequence[np.ndarray], radii: Sequence[float]) -> list[bool]:
+    """:func:`ball_may_be_seen` of each ball ``centres[k]`` ``(3,)``, ``radii[k]``: the view's bounding
+    planes computed once, each ball's test as it has it alone (the same arithmetic)."""
     edges = view_edges(K, image_size)
-    distance = edges @ (R @ centre + t) / np.linalg.norm(edges, axis=1)
-    return bool((distance >= -radius).all())
+    norms = np.linalg.norm(edges, axis=1)
+    return [bool((edges @ (R @ centre + t) / norms >= -radius).all()) for centre, radius in zip(centres, radii)]
 
 
 _CUBE = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
