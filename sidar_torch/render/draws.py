@@ -66,6 +66,13 @@ class Surface:
     pose: np.ndarray
     material: SurfaceMaterial
 
+    @functools.cached_property
+    def corners(self) -> np.ndarray:
+        """``(8, 3)`` world corners of the mesh's box under :attr:`pose` (``GpuMesh.corners``), computed at
+        the first use and kept: a view's depth range (:attr:`ViewDraws.scale`) and its shadow maps' written
+        texels (``passes``) both ask for them. The pose is not changed after that."""
+        return self.mesh.corners(self.pose)
+
 
 @dataclass(eq=False)
 class SpotEmitter:
@@ -141,7 +148,7 @@ class ViewDraws:
         """The diagonal of the box around every surface (world units): sets the default shadow
         cameras' depth range (pyrender's ``Scene.scale``). Computed at its first use, which comes
         after every surface is listed (the shadow frusta), then kept: the passes ask for it per light."""
-        corners = np.vstack([surface.mesh.corners(surface.pose) for surface in self.surfaces])
+        corners = np.vstack([surface.corners for surface in self.surfaces])
         return float(np.linalg.norm(np.diff(np.array([corners.min(axis=0), corners.max(axis=0)]), axis=0).reshape(-1)))
 
     def ordered(self, surfaces: list[Surface]) -> list[Surface]:

@@ -493,7 +493,7 @@ class Passes:
         ``None`` (every texel may be written) without ``clear_written_texels``."""
         if not self.clear_written_texels:
             return None
-        corners = [surface.mesh.corners(surface.pose) for surface in casters]
+        corners = [surface.corners for surface in casters]
         return np.concatenate(corners) if corners else np.zeros((0, 3))
 
     @staticmethod
