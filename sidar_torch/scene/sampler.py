@@ -30,11 +30,12 @@ def sample_sequence(config: SidarConfig, rng: np.random.Generator) -> SceneSeque
     """
     size = config.image_size
     cameras = _sample_cameras(config, rng)
+    centres = np.stack([camera.position for camera in cameras])  # (V, 3): occluders keep clear of them
     content = None
     views = []
     for camera in cameras:
         if content is None or config.scene_per_view:
-            content = _sample_content(config, rng, size, cameras)
+            content = _sample_content(config, rng, size, centres)
         views.append(ViewScene(camera, *content))
     if config.lens_model == NO_LENS:
         return SceneSequence(size, tuple(views))
@@ -137,11 +138,12 @@ def _camera_position(config: SidarConfig, rng: np.random.Generator, attempts: in
     return np.array([0.0, 0.0, z])
 
 
-def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int], cameras: list[Camera]):
+def _sample_content(config: SidarConfig, rng: np.random.Generator, size: tuple[int, int], centres: np.ndarray):
+    """One view's lights, occluders (clear of the camera centres ``centres (V, 3)``), painting material
+    and ambient level."""
     n_lights = rng.integers(config.n_lights[0], config.n_lights[1] + 1)
     lights = tuple(_sample_light(config, rng, size) for _ in range(n_lights))
     n_occluders = rng.integers(config.n_occluders[0], config.n_occluders[1] + 1)
-    centres = np.stack([camera.position for camera in cameras])
     occluders = tuple(o for o in (_sample_occluder(config, rng, centres) for _ in range(n_occluders)) if o is not None)
     return lights, occluders, _plane_material(config, rng), rng.uniform(*config.ambient)
 
