@@ -49,7 +49,7 @@ from .settings import RenderSettings
 from .visibility import balls_may_be_seen, shadow_may_fall_on_ball, shadow_may_reach
 
 __all__ = ["SHADOW_READ_TEXELS", "SOFT_REACH_MAX", "SPLIT_MIN_PIXELS", "ViewPlan", "lookup_margins", "plan_views",
-           "shadow_margin", "soft_reach", "whole_lights"]
+           "shadow_margin", "soft_reach", "soft_reach_balls", "whole_lights"]
 
 SPLIT_MIN_PIXELS = 64 * 64
 """The fewest pixels (``H * W`` of what the camera draws) whose painting draw is split by shadow
@@ -113,13 +113,21 @@ def soft_reach(emitter: np.ndarray, centres: np.ndarray, radii: np.ndarray, ligh
     return light_radius / nearest if nearest * SOFT_REACH_MAX > light_radius else SOFT_REACH_MAX
 
 
+def soft_reach_balls(view: ViewScene, light_radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """The occluders' balls :func:`soft_reach` measures from: centres ``(B, 3)`` and radii ``|scale|``
+    ``(B,)``; none without a ``light_radius`` (the reach is then 0 whatever they are)."""
+    if light_radius <= 0:
+        return np.zeros((0, 3)), np.zeros(0)
+    return (np.array([occ.position for occ in view.occluders]).reshape(-1, 3),
+            np.array([np.linalg.norm(occ.scale) for occ in view.occluders]))
+
+
 def lookup_margins(view: ViewScene, emitters: list[tuple[int, int]], map_size: int, light_radius: float) -> np.ndarray:
     """``(E,)`` angles (rad) around which each emitter's lookups read its map: the filter's
     (:func:`shadow_margin`) plus the soft reach (:func:`soft_reach`; a tangent offset spans at most
     that angle), with the occluders' balls of radius ``|scale|``, as the shader's reach has them
     (``ShadowMaps.add_lights``)."""
-    centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
-    radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
+    centres, radii = soft_reach_balls(view, light_radius)
     return np.array([shadow_margin(view.lights[a].outer_cone, map_size)
                      + soft_reach(view.lights[a].emitters[b], centres, radii, light_radius) for a, b in emitters])
 

@@ -15,10 +15,10 @@ from ..geometry import clip_polygon, look_at, plane_corners, visible_halfplanes
 from ..scene import Camera, SceneSequence, ViewScene
 from .draws import SpotEmitter, Surface, ViewDraws, world_pose
 from .passes import Passes
-from .plan import soft_reach
+from .plan import soft_reach, soft_reach_balls
 from .scene_graph import gl_pose
 from .settings import RenderSettings
-from .visibility import balls_may_be_seen, cube_corners, light_frustum
+from .visibility import balls_may_be_seen, cube_corners, light_frusta
 
 __all__ = ["SHADOW_MARGIN_TEXELS", "ShadowMaps"]
 
@@ -76,11 +76,7 @@ class ShadowMaps:
         group_poses = {a: gl_pose(*look_at(view.lights[a].emitters.mean(axis=0)))
                        for a in {a for a, _ in order} if group and len(view.lights[a].emitters) > 1}
         light_radius = self.settings.light_radius
-        if light_radius > 0:  # the occluders' balls set the soft lookups' reach; without a radius it is 0
-            centres = np.array([occ.position for occ in view.occluders]).reshape(-1, 3)
-            radii = np.array([np.linalg.norm(occ.scale) for occ in view.occluders])
-        else:
-            centres, radii = np.zeros((0, 3)), np.zeros(0)
+        centres, radii = soft_reach_balls(view, light_radius)
         shared: dict[int, dict] = {}  # per light: what its emitters share
         for a, b in order:
             light = view.lights[a]
@@ -91,7 +87,8 @@ class ShadowMaps:
                 shared[a] = dict(color=np.asarray(light.color, np.float32), intensity=float(light.intensity),
                                  inner_cone=float(light.inner_cone), outer_cone=float(light.outer_cone),
                                  smooth_falloff=float(light.smooth_falloff),
-                                 group_size=len(light.emitters) if a in group_poses else 1, group_pose=group_poses.get(a))
+                                 group_size=len(light.emitters) if a in group_poses else 1,
+                                 group_pose=group_poses.get(a))
             draws.lights.append(SpotEmitter(
                 pose=world_pose(gl_pose(*look_at(light.emitters[b]))),  # aimed at the centre
                 layer=self._layer(rank[a, b]), soft_reach=soft_reach(light.emitters[b], centres, radii, light_radius),
@@ -107,9 +104,9 @@ class ShadowMaps:
 
     def frusta(self, shadowed: list[SpotEmitter], view: ViewScene, sequence: SceneSequence,
                canvas_sizes: list[tuple[int, int]] | None = None) -> dict[int, np.ndarray]:
-        """Fitted frusta (:func:`~.visibility.light_frustum`) of the ``shadowed`` emitters, keyed by
-        ``id``, for ``"fitted"``; none for ``"cone"``, whose maps keep the cone's frustum
-        (``passes.light_matrices``).
+        """Fitted frusta (:func:`~.visibility.light_frustum`, all at once: :func:`~.visibility.light_frusta`)
+        of the ``shadowed`` emitters, keyed by ``id``, for ``"fitted"``; none for ``"cone"``, whose maps keep
+        the cone's frustum (``passes.light_matrices``).
 
         A fitted map covers what its shadows must be right on (the *receivers*): the part of the
         painting, and the occluders, that the cameras see, over every view of the sequence with
@@ -129,9 +126,9 @@ class ShadowMaps:
                             if other is view or (other.lights == view.lights and other.occluders == view.occluders)
                             for p in self._visible_receivers(other.camera, casters, frame)])
         margin = SHADOW_MARGIN_TEXELS / self._passes.shadow_map_size
-        frusta = {id(light): light_frustum(light.pose[:3, 3], light.outer_cone, points, casters, margin, light.soft_reach)
-                  for light in shadowed}
-        return {key: frustum for key, frustum in frusta.items() if frustum is not None}
+        fitted = light_frusta([light.pose[:3, 3] for light in shadowed], [light.outer_cone for light in shadowed],
+                              points, casters, margin, [light.soft_reach for light in shadowed])
+        return {id(light): frustum for light, frustum in zip(shadowed, fitted) if frustum is not None}
 
     def _visible_receivers(self, cam: Camera, casters: np.ndarray, frame: tuple[int, int]) -> list[np.ndarray]:
         """World points ``(N, 3)`` bounding what ``cam`` sees over ``frame (H, W)`` pixels: the corners of

@@ -7,11 +7,11 @@ are bounded by balls ``|X - centre| <= radius`` about an occluder's ``position``
 (culling, casters, footprints), and ``|scale|`` where it sets what is drawn (shadow frusta, soft
 reach, mesh levels), which a tighter ball would change.
 
-* culling: :func:`ball_may_be_seen` (:func:`balls_may_be_seen`), :func:`shadow_may_reach`, :func:`shadow_may_fall_on_ball`
-  (``render.plan`` decides with them what each view draws);
+* culling: :func:`ball_may_be_seen` (:func:`balls_may_be_seen`), :func:`shadow_may_reach`,
+  :func:`shadow_may_fall_on_ball` (``render.plan`` decides with them what each view draws);
 * mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radii` (how large an occluder
   and its shadow show, in pixels);
-* shadow maps: :func:`light_frustum`, :func:`cube_corners`; which texels a draw into a map may
+* shadow maps: :func:`light_frustum` (:func:`light_frusta`), :func:`cube_corners`; which texels a draw into a map may
   write: :func:`map_texel_box` of :func:`bounds_corners`;
 * masks without a draw: :func:`painting_mask`.
 
@@ -36,6 +36,7 @@ __all__ = [
     "bounds_corners",
     "cube_corners",
     "light_frustum",
+    "light_frusta",
     "map_texel_box",
     "painting_mask",
     "shadow_may_fall_on_ball",
@@ -314,21 +315,40 @@ def light_frustum(emitter: np.ndarray, outer_cone: float, receivers: np.ndarray,
         ``(6,)`` float64, or ``None`` when a receiver is not in front of the light (no frustum
         of this kind holds them) or the receivers span no area inside the cone.
     """
-    R, t = look_at(emitter)
-    cam = receivers @ R.T + t
-    if len(cam) == 0 or (cam[:, 2] <= 0).any():
-        return None
-    tangents = cam[:, :2] / cam[:, 2:]
-    limit = math.tan(outer_cone)
-    low = np.minimum(np.maximum(tangents.min(axis=0), -limit), limit)  # np.clip's values, without its dispatch
-    high = np.minimum(np.maximum(tangents.max(axis=0), -limit), limit)
-    if (high <= low).any():
-        return None
-    pad = margin * (high - low) + reach
-    far = float(cam[:, 2].max())
-    depths = [float(cam[:, 2].min())]
+    return light_frusta([emitter], [outer_cone], receivers, casters, margin, [reach])[0]
+
+
+def light_frusta(emitters: Sequence[np.ndarray], outer_cones: Sequence[float], receivers: np.ndarray,
+                 casters: np.ndarray, margin: float = 0.0, reaches: Sequence[float] = ()) -> list[np.ndarray | None]:
+    """:func:`light_frustum` of each light ``emitters[k]`` ``(3,)``, ``outer_cones[k]``, ``reaches[k]``
+    (default 0) over the same receivers and casters: each light's frame from :func:`look_at`, the
+    rest in one set of array operations over the lights, each value the one the light gets alone
+    (the same products, per light, and elementwise operations and exact minima and maxima)."""
+    count = len(emitters)
+    if count == 0:
+        return []
+    frames = [look_at(emitter) for emitter in emitters]
+    Rt = np.stack([R.T for R, _ in frames])  # (L, 3, 3)
+    t = np.stack([t for _, t in frames])[:, None, :]  # (L, 1, 3)
+    cam = receivers @ Rt + t  # (L, N, 3)
+    if cam.shape[1] == 0:
+        return [None] * count
+    depth = cam[..., 2]
+    behind = (depth <= 0).any(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # lights with a receiver behind: not used
+        tangents = cam[..., :2] / cam[..., 2:]
+    limit = np.array([math.tan(cone) for cone in outer_cones])[:, None]  # math.tan, as each light alone
+    low = np.minimum(np.maximum(tangents.min(axis=1), -limit), limit)  # (L, 2)
+    high = np.minimum(np.maximum(tangents.max(axis=1), -limit), limit)
+    empty = (high <= low).any(axis=1)
+    reach = np.zeros(count) if len(reaches) == 0 else np.asarray(reaches, np.float64)
+    pad = margin * (high - low) + reach[:, None]
+    far = depth.max(axis=1)
+    near = depth.min(axis=1)
     if len(casters):
-        depths.append(float(((casters[:, :3] @ R.T + t)[:, 2] - casters[:, 3]).min()))
-    near = max(min(depths), far / 1000)
-    far += margin * (far - near)
-    return np.array([low[0] - pad[0], high[0] + pad[0], low[1] - pad[1], high[1] + pad[1], near, far])
+        near = np.minimum(near, ((casters[:, :3] @ Rt + t)[..., 2] - casters[:, 3]).min(axis=1))
+    near = np.maximum(near, far / 1000)
+    far = far + margin * (far - near)
+    frusta = np.stack([low[:, 0] - pad[:, 0], high[:, 0] + pad[:, 0], low[:, 1] - pad[:, 1], high[:, 1] + pad[:, 1],
+                       near, far], axis=1)
+    return [None if behind[k] or empty[k] else frusta[k] for k in range(count)]
