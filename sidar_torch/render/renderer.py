@@ -298,7 +298,10 @@ class SceneRenderer:
         shadow maps are keyed on their contents. :attr:`skipped` counts no warm-up work.
 
         Args:
-            sequence: the scenes (``sequence.image_size`` must be this renderer's).
+            sequence: the scenes (``sequence.image_size`` must be this renderer's). With a lens, each view
+                is also bent by the resampling pass (``render.resample``) at its lens, over a canvas of the
+                view itself: for the identity lens (zero coefficients) that is all the pass reads, and it
+                compiles the program most views of the default ranges take.
             key: names what ``sequence`` warms up; a renderer already warmed up with ``key``
                 renders nothing.
 
@@ -308,7 +311,12 @@ class SceneRenderer:
         if key in self._warmed_up:
             return False
         skipped = self.skipped.copy()
-        self.render(sequence, np.full((*self.image_size, 3), 128, np.uint8))
+        lens = canvas = None
+        if sequence.lens_model != "none":  # the resampling pass's program too, drawn over the whole view
+            lens = LensResampling.of(sequence)
+            h, w = self.image_size
+            canvas = Canvas.covering(np.tile([0, 0, w - 1, h - 1], (len(sequence.views), 1)))
+        self.render(sequence, np.full((*self.image_size, 3), 128, np.uint8), canvas=canvas, lens=lens)
         self.skipped = skipped
         self._warmed_up.add(key)
         return True

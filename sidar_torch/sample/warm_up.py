@@ -21,6 +21,9 @@ its ``occluder_materials`` kinds draw (:func:`variant_signature`), in
    first view with that many lights, once with every occluder and once without (the painting's
    program for that count, drawn beside the shadow maps and without them).
 
+With a lens (``lens_model`` not ``"none"``) every view also has the identity lens of the config's model, so
+the warm-up compiles the resampling pass's program that most views take (``render.resample``).
+
 A renderer renders it once (``SceneRenderer.warm_up``, through :func:`warm_up_renderer`): it hands out
 no sample and changes no pixel of later samples (``tests/render/test_warm_up.py``). Who owns a renderer
 warms it up; the path that makes a sample (``sample.render_arrays``) takes a renderer and compiles
@@ -53,6 +56,7 @@ from typing import TYPE_CHECKING, Hashable
 
 import numpy as np
 
+from ..choices.lenses import NO_LENS
 from ..config import SidarConfig
 from ..render import RenderProcess
 from ..render.context import may_fork
@@ -135,7 +139,11 @@ def warm_up_sequence(config: SidarConfig) -> SceneSequence:
         # One-emitter lights (a group each, whatever area_light_shading says), copied from the first's.
         lights = tuple(replace(light, emitters=light.emitters[:1]) for light in islice(cycle(first.lights), count))
         views += (replace(first, occluders=spheres, lights=lights), replace(first, occluders=(), lights=lights))
-    return SceneSequence(tuple(config.image_size), views)
+    if config.lens_model == NO_LENS:
+        return SceneSequence(tuple(config.image_size), views)
+    # The identity lens of the config's model: its resampling program, which most views take (2 Newton
+    # steps of an iterative model; a view whose lens needs more compiles its program at its first use).
+    return SceneSequence(tuple(config.image_size), views, lens_model=config.lens_model, lenses=np.zeros((len(views), 5)))
 
 
 @functools.lru_cache(maxsize=32)
@@ -146,7 +154,7 @@ def _scenes_and_key(config: SidarConfig) -> tuple[SceneSequence, Hashable]:
     sequence = warm_up_sequence(config)
     signatures = sorted({variant_signature(o.material) for v in sequence.views for o in v.occluders}, key=repr)
     lit = bool(sequence.views[0].lights)
-    return sequence, (lit, light_group_counts(config) if lit else (), *signatures)
+    return sequence, (lit, light_group_counts(config) if lit else (), config.lens_model, *signatures)
 
 
 def warm_up_renderer(renderer: SceneRenderer, config: SidarConfig) -> bool:

@@ -6,6 +6,8 @@ import pytest
 
 from sidar_torch import SidarDataset, available_presets, load_config
 from sidar_torch.render import RenderSettings, SceneRenderer
+from sidar_torch.render.resample import LensResampling
+from sidar_torch.sample.lens_views import render_through_lens
 from sidar_torch.scene import sample_sequence
 from sidar_torch.sample.warm_up import light_group_counts, variant_signature, warm_up_renderer, warm_up_sequence
 
@@ -30,6 +32,26 @@ def test_after_the_warm_up_no_sample_of_a_preset_compiles_a_program(preset):
         dataset = SidarDataset(config=config, seed=0)
         for index in range(24):
             renderer.render(dataset.scene(index), painting_of(dataset, index))
+            assert renderer.program_count == compiled, f"sample {index} compiled a program"
+    finally:
+        renderer.close()
+
+
+@pytest.mark.parametrize("preset, overrides", [("lens", {}), ("misaligned", {"lens_model": "brown_conrady"})])
+def test_after_the_warm_up_no_lens_view_compiles_its_resampling_program(preset, overrides):
+    # The resampling pass (render.resample) has a program per lens model and Newton steps; the warm-up
+    # draws its views through the identity lens, which compiles the one these views take. (Warmed up
+    # without the lens, the first sample compiled it.)
+    config = load_config(preset, image_size=(48, 64), **overrides)
+    renderer = SceneRenderer(RenderSettings.from_config(config))
+    try:
+        assert renderer.warm_up(warm_up_sequence(config), "all variants")
+        compiled = renderer.program_count
+        dataset = SidarDataset(config=config, seed=0)
+        for index in range(12):
+            sequence = dataset.scene(index)
+            assert (LensResampling.of(sequence).steps <= 2).all()  # what the identity lens takes
+            render_through_lens(renderer, sequence, painting_of(dataset, index))
             assert renderer.program_count == compiled, f"sample {index} compiled a program"
     finally:
         renderer.close()
