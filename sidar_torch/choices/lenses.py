@@ -27,19 +27,19 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["CHUNK", "LENS_MODELS", "Components", "LensModel", "NO_LENS", "NEWTON_TOLERANCE", "undistorted_grid", "corner_coefficients", "corner_radius", "distorted_points", "scaled_lens", "undistorted_points"]
+__all__ = ["CHUNK", "LENS_MODELS", "Components", "LensModel", "NO_LENS", "NEWTON_TOLERANCE", "undistorted_grid", "corner_coefficients", "corner_radius", "distorted_points", "LEAST_SLOPE", "lens_folds", "scaled_lens", "undistorted_points"]
 
 NO_LENS = "none"
 """``lens_model`` of a pinhole camera: nothing is distorted, nothing is drawn or paid."""
 
 NEWTON_STEPS = 30
-"""Newton steps at most inverting Brown-Conrady; within the config's bounds (:func:`radial_folds`) it
+"""Newton steps at most inverting Brown-Conrady; for a lens that does not fold (:func:`lens_folds`) it
 converges in under 10 from the distorted point itself, in 2 from a start within a thousandth of a pixel."""
 
 NEWTON_TOLERANCE = 1e-10
 """Newton's method stops where every point's residual ``|distort(x) - x_d|`` (normalised coordinates, each
 axis) is under this: its error is at most the residual times the inverse Jacobian's norm, which the
-config's bounds keep under 20 (:func:`radial_folds`' slope 0.05), so under 2e-6 pixels for any focal
+config keeps under 20 (:func:`lens_folds`: :data:`LEAST_SLOPE`), so under 2e-6 pixels for any focal
 length under 1000 pixels."""
 
 CHUNK = 8192
@@ -229,27 +229,66 @@ def _pixels(K: np.ndarray, x: Components) -> np.ndarray:
     return out
 
 
-def radial_folds(model: str, corner: tuple[float, ...]) -> bool:
-    """Whether the lens with coefficients ``corner`` at the image's corner (see :func:`scaled_lens`)
-    folds before the corner: some distorted radius up to the corner's then has no undistorted source,
-    or more than one. Radial terms only (the tangential ones, at most 1e-2, move a point by far less).
+LEAST_SLOPE = 0.05
+"""The least slope a lens that does not fold keeps over the image (:func:`lens_folds`): its inverse's Jacobian
+then has a norm under 20, so Newton's method is well conditioned and a residual moves a source little."""
 
-    Brown-Conrady: ``s (1 + c1 s^2 + c2 s^4 + c3 s^6)`` (``s`` the undistorted radius over the
-    corner's) must rise, with slope above 0.05, until it reaches 1. Division: ``1 + lambda s^2``
-    must stay above 0.1 and ``s / (1 + lambda s^2)`` rise (slope ``(1 - lambda s^2) / (1 + lambda
-    s^2)^2`` above 0.05) for ``s`` up to 1.
+_FOLD_RADII = np.linspace(0.0, 3.0, 3001)
+"""Radii, over the corner's, at which :func:`lens_folds` looks (steps of 1e-3; a lens reaching the corner only
+beyond 3 folds)."""
+
+
+def lens_folds(model: str, corners: np.ndarray) -> np.ndarray:
+    """Whether each lens with coefficients ``corners (..., 5)`` (float64, at the image's corner: see
+    :func:`scaled_lens`) folds the view over the image: some pixel then has no source in the undistorted view,
+    or more than one, or one so ill-conditioned that Newton's method may not settle on it. ``(...)`` bool. The
+    one definition of folding: the config refuses ranges holding such a lens, the renderer
+    (``render.resample.LensResampling.of``) and the export reader refuse such a lens. The renderer's Newton steps
+    settle for lenses that do not fold (``tests/render/test_lens.py`` measures it near the edge of folding).
+
+    In coordinates over the corner's radius (the image inside the unit disk) every lens is a map ``D`` of the
+    plane, and a lens does not fold when it stays :data:`LEAST_SLOPE` away from folding out to the corner:
+
+    - ``brown_conrady`` (``D`` undistorted to distorted, ``D(s) = s a(|s|^2) + |s|^2 p + 2 (p . s) s``, ``p = (p2,
+      p1)``): ``D``'s Jacobian is symmetric (``D`` is a gradient), ``[[g + 6 |s| p_r, 2 |s| p_t], [2 |s| p_t, a +
+      2 |s| p_r]]`` in the frame of ``s`` (``g = d(|s| a)/d|s|`` the radial slope, ``p_r, p_t`` ``p``'s components
+      along and across ``s``). Its smallest eigenvalue must exceed :data:`LEAST_SLOPE` over the disk ``|s| <= rho``,
+      ``rho`` the least radius whose circle ``D`` maps outside the unit disk. Then ``D`` is strongly monotone on
+      that (convex) disk, so one to one with an inverse Jacobian under ``1 / LEAST_SLOPE``, and its image holds
+      the unit disk (``D(0) = 0``): every pixel of the image has one source. Both the eigenvalue and ``|D|``
+      depend on ``s`` only through ``|s|`` and its angle to ``p``; their least values over the angle are taken in
+      closed form, so the check runs over :data:`_FOLD_RADII` alone. Without tangential terms the eigenvalues are
+      ``g`` and ``a``, and this is: ``|s| a`` rises with slope above :data:`LEAST_SLOPE` until it reaches 1.
+    - ``division`` (``D`` distorted to undistorted, ``s / (1 + lambda |s|^2)``, in closed form): ``1 + lambda
+      |s|^2`` must stay above 0.1 and the radial slope ``(1 - lambda |s|^2) / (1 + lambda |s|^2)^2`` above
+      :data:`LEAST_SLOPE` for ``|s|`` up to 1.
+
+    A lens is worse the lower its radial coefficients (every eigenvalue and ``|D|`` fall with them) and the larger
+    ``|p|``, so the worst lens of a box of coefficients is one of its corners
+    (``tests/config/test_config_lens.py`` measures it).
     """
-    s = np.linspace(0.0, 3.0, 3001)
+    corners = np.asarray(corners, np.float64)
+    c1, c2, p1, p2, c3 = (corners[..., i, None] for i in range(5))  # (..., 1) each, against radii on the last axis
     if model == "division":
-        lam = corner[0]
-        s = s[s <= 1.0]
-        d = 1 + lam * s * s
-        return bool(d.min() <= 0.1 or ((1 - lam * s * s) / d**2).min() <= 0.05)
-    c1, c2, _, _, c3 = corner
+        s2 = np.square(_FOLD_RADII[_FOLD_RADII <= 1.0])
+        d = 1 + c1 * s2
+        return (d.min(axis=-1) <= 0.1) | (((1 - c1 * s2) / d**2).min(axis=-1) <= LEAST_SLOPE)
+    s = _FOLD_RADII
     s2 = s * s
-    value = s * (1 + s2 * (c1 + s2 * (c2 + s2 * c3)))
-    slope = 1 + s2 * (3 * c1 + s2 * (5 * c2 + 7 * c3 * s2))
-    reach = np.flatnonzero(value >= 1.0)
-    if len(reach) == 0:
-        return True
-    return bool(slope[: reach[0] + 1].min() <= 0.05)
+    a = 1 + s2 * (c1 + s2 * (c2 + s2 * c3))  # the radial factor
+    g = 1 + s2 * (3 * c1 + s2 * (5 * c2 + 7 * c3 * s2))  # d(s a) / ds
+    e = 2 * s * np.hypot(p1, p2)  # the Jacobian's tangential part is e times [[3 cos, sin], [sin, cos]]
+    half = (g - a) / 2
+    # At the cosine c of the angle between s and p the smallest eigenvalue is (g + a) / 2 + 2 e c - sqrt(half^2 +
+    # e^2 + 2 half e c), convex in c: least at its stationary point -(3 half^2 / 4 + e^2) / (2 half e) when that
+    # lies in [-1, 1], else at c = -1 (p against s).
+    stationary = 0.75 * half * half + e * e
+    inside = stationary < 2 * half * e
+    c = np.where(inside, -stationary / np.where(inside, 2 * half * e, 1.0), -1.0)
+    least_eigenvalue = (g + a) / 2 + 2 * e * c - np.sqrt(np.maximum(half * half + e * e + 2 * half * e * c, 0.0))
+    # |D|^2 / s^2 = a^2 + 3 a e c + 2 e^2 c^2 + e^2 / 4, least at c = -3 a / (4 e) within [-1, 1].
+    c = np.clip(-3 * a / np.where(e > 0, 4 * e, 1.0), -1.0, 1.0) * (e > 0)
+    radius = s * np.sqrt(np.maximum(a * a + 3 * a * e * c + 2 * e * e * c * c + e * e / 4, 0.0))
+    reached = radius >= 1.0
+    before = np.cumsum(reached, axis=-1) - reached == 0  # radii up to the first that reaches the unit circle
+    return ~reached.any(axis=-1) | (before & (least_eigenvalue <= LEAST_SLOPE)).any(axis=-1)

@@ -15,7 +15,9 @@ import itertools
 import math
 from typing import Any, Mapping
 
-from ..choices.lenses import LENS_MODELS, NO_LENS, radial_folds
+import numpy as np
+
+from ..choices.lenses import LEAST_SLOPE, LENS_MODELS, NO_LENS, lens_folds
 from ..choices.render import AUTO_MAP_SIZE, shadow_map_side
 from ..choices.outputs import OUTPUTS
 from .allowed import MAX_CAMERA_DISTANCE, MAX_GL_SIZE, MAX_SAMPLE_BYTES, MAX_SHADOWED_LIGHTS
@@ -191,9 +193,10 @@ def _check_image_sides(config: Any) -> None:
 
 def _check_lens(config: Any) -> None:
     """With a lens, no output a lens may not resample (``OptionalOutput.lens_resample``: depth and flow, of
-    pinhole cameras only), and no end of its ranges may fold the image before its corner (``choices.lenses.radial_folds``):
-    each radial coefficient's ends are tried together (the radius is linear in them, so the worst lens
-    of the box is one of its corners)."""
+    pinhole cameras only), and no lens of its ranges may fold the view over the image
+    (``choices.lenses.lens_folds``, the renderer's and the export reader's test too): every corner of the box of
+    ranges is tried, tangential terms included, where the worst lens of the box lies (a lens folds more the lower
+    its radial coefficients and the larger its tangential ones)."""
     if config.lens_model == NO_LENS:
         return
     for row in OUTPUTS.values():  # a pinhole's values; a lens would resample them wrongly
@@ -201,14 +204,22 @@ def _check_lens(config: Any) -> None:
             raise ValueError(f"config field {row.switch!r}: expected false with lens_model {config.lens_model!r} "
                              f"({row.name} is rendered for pinhole cameras only, lens_model none), got true")
     fields = LENS_MODELS[config.lens_model].fields
-    ends = [getattr(config, f) if f is not None and f not in ("lens_p1", "lens_p2") else (0.0, 0.0) for f in fields]
-    for corner in itertools.product(*ends):
-        if radial_folds(config.lens_model, corner):
-            named = [f for f in fields if f is not None]
-            raise ValueError(f"config fields {', '.join(map(repr, named))}: expected ranges of lens_model "
-                             f"{config.lens_model!r} whose every lens bends the image without folding it before its "
-                             f"corner, got {', '.join(str(getattr(config, f)) for f in named)}, whose lens "
-                             f"{tuple(float(c) for c in corner)} folds it: narrow the ranges towards 0")
+    corners = np.array(list(itertools.product(*(getattr(config, f) if f else (0.0, 0.0) for f in fields))))
+    folding = lens_folds(config.lens_model, corners)
+    if not folding.any():
+        return
+    corner = corners[folding][0]
+    named = [f for f in fields if f is not None]
+    tangential = [f for f in ("lens_p1", "lens_p2") if f in fields]
+    radial = corner * [f not in tangential for f in fields]
+    why = (f" (with {' and '.join(tangential)} at 0 it would not: the tangential terms fold it)"
+           if tangential and not lens_folds(config.lens_model, radial) else "")
+    raise ValueError(f"config fields {', '.join(map(repr, named))}: expected ranges of lens_model "
+                     f"{config.lens_model!r} whose every lens bends the image without folding it (the distortion's "
+                     f"Jacobian keeping its eigenvalues above {LEAST_SLOPE:g} out to the image's corner, so that every "
+                     f"pixel has one source: choices.lenses.lens_folds), got "
+                     f"{', '.join(f'{f}={shown(getattr(config, f))}' for f in named)}, whose lens "
+                     f"{tuple(float(c) for c in corner)} at the corner folds it{why}: narrow the ranges towards 0")
 
 
 def _check_memory(config: Any) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..config import SidarConfig
 from ..config.numbers import shown
-from ..choices.lenses import LENS_MODELS, NO_LENS, corner_coefficients, radial_folds
+from ..choices.lenses import LENS_MODELS, NO_LENS, corner_coefficients, lens_folds
 from ..sample.lens_views import distortion_maps
 from ..sample import FLOAT_OUTPUTS, KEYS, SampleArrays, SampleKey, present_keys
 
@@ -171,8 +171,8 @@ def lens_problem(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[
     """Why ``lens (5,)`` float64 is not a lens of ``model`` that a config allows for a view of ``K (3, 3)``
     and ``image_size (H, W)``, or None: its coefficients must be finite, those at the image's corner
     (:func:`sidar_torch.choices.lenses.corner_coefficients`) within their config fields' bounds, those the
-    model has none of 0, and the lens must not fold the image before its corner
-    (:func:`sidar_torch.choices.lenses.radial_folds`)."""
+    model has none of 0, and the lens must not fold the view over the image
+    (:func:`sidar_torch.choices.lenses.lens_folds`)."""
     if not np.isfinite(lens).all():
         return f"expected finite coefficients, got {shown(lens.tolist())}"
     corner = corner_coefficients(model, lens, K, image_size)
@@ -185,8 +185,8 @@ def lens_problem(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[
         if not low - LENS_BOUNDS_SLACK <= value <= high + LENS_BOUNDS_SLACK:
             return (f"a coefficient at the image's corner is {value:.6g}, outside the bounds [{low:g}, {high:g}] of "
                     f"config field {name!r} (lens {shown(lens.tolist())})")
-    if radial_folds(model, tuple(corner)):
-        return f"expected a lens that does not fold the image before its corner, got {shown(lens.tolist())}"
+    if lens_folds(model, corner):
+        return f"expected a lens that does not fold the view over the image, got {shown(lens.tolist())}"
     return None
 
 
