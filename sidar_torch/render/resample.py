@@ -32,7 +32,7 @@ from typing import Iterator
 import numpy as np
 from OpenGL import GL
 
-from ..choices.lenses import LENS_MODELS
+from ..choices.lenses import LENS_MODELS, corner_coefficients, lens_folds
 from ..scene import SceneSequence
 from .framebuffer import FloatFramebuffer, LevelsFramebuffer
 from .programs import Program, ProgramCache
@@ -103,9 +103,10 @@ def _border_sources(model: str, lenses: np.ndarray, K: np.ndarray, image_size: t
                 steps[(steps == 0) & (moves < ITERATION_SLACK)] = count
                 if steps.all():
                     break
-        if not steps.all():
+        if not steps.all():  # only lenses that fold do not settle (choices.lenses.lens_folds' tests measure it)
             raise ValueError(f"lenses: {model} {lenses[steps == 0].tolist()} still move their sources after "
-                             f"{STEP_CHOICES[-1]} Newton steps from the shader's start (lenses that fold their view)")
+                             f"{STEP_CHOICES[-1]} Newton steps from the shader's start (lenses that fold their view: "
+                             f"choices.lenses.lens_folds)")
     return np.stack([fx * u + skew * v + cx, fy * v + cy], -1), steps
 
 
@@ -134,13 +135,22 @@ class LensResampling:
         """The resampling of ``sequence``'s lenses (:func:`_border_sources`).
 
         Raises:
-            ValueError: ``sequence`` has no lens (``lens_model`` ``"none"``); a lens that folds its view.
+            ValueError: ``sequence`` has no lens (``lens_model`` ``"none"``); a lens that folds its view
+                (``choices.lenses.lens_folds``, the test that the config's ranges pass: such a lens comes only
+                from a sequence made or changed by hand).
         """
         if sequence.lens_model not in MODEL_DEFINES:
             raise ValueError(f"sequence.lens_model: expected one of {sorted(MODEL_DEFINES)}, got {sequence.lens_model!r}")
         K = sequence.cameras()[0]
         lenses = np.asarray(sequence.lenses, np.float64)
-        border, steps = _border_sources(sequence.lens_model, lenses, K, tuple(sequence.image_size))
+        image_size = tuple(sequence.image_size)
+        border, steps = _border_sources(sequence.lens_model, lenses, K, image_size)
+        corners = np.stack([corner_coefficients(sequence.lens_model, lens, k, image_size) for lens, k in zip(lenses, K)])
+        folding = lens_folds(sequence.lens_model, corners)
+        if folding.any():
+            raise ValueError(f"lenses: {sequence.lens_model} {lenses[folding].tolist()} (at the image's corner "
+                             f"{corners[folding].tolist()}) fold their view over the image (choices.lenses.lens_folds, "
+                             f"which the config's lens ranges pass)")
         return cls(sequence.lens_model, lenses, K, steps, border)
 
 

@@ -342,3 +342,59 @@ def test_sidar_augment_and_homography_pairs_carry_the_lens():
     a, b = pairs["views"].unbind(1)
     assert torch.equal(pairs["lens_a"], batch["lens"][torch.arange(2), a])
     assert torch.equal(pairs["lens_b"], batch["lens"][torch.arange(2), b])
+
+
+EDGE_OF_FOLDING = dict(lens_model="brown_conrady", lens_k2=(0.0, 0.0), lens_k3=(0.0, 0.0), lens_p1=(0.01, 0.01),
+                       lens_p2=(0.01, 0.01))
+"""Ranges of a barrel whose tangential terms bring it to the edge of folding (k1 r^2 = -0.12003 with them, -0.148
+without): with lens_k1 = (-0.12, -0.12) just inside."""
+
+
+def test_the_renderer_refuses_by_the_configs_test_exactly_the_lenses_that_fold():
+    """``LensResampling.of`` (at render time) refuses a lens iff ``choices.lenses.lens_folds`` (what the config
+    checks its ranges with) says it folds at the view's corner; near the edge of folding and over the fields'
+    bounds, at 768 x 1024, the pass's Newton steps settle for every lens that does not fold."""
+    import dataclasses
+
+    from sidar_torch.choices.lenses import corner_coefficients, lens_folds
+    from sidar_torch.render.resample import LensResampling
+
+    config = load_config("misaligned", image_size=(768, 1024), n_views=2, lens_model="brown_conrady")
+    sequence = sample_sequence(config, np.random.default_rng(0))
+    K = sequence.cameras()[0]
+    rng = np.random.default_rng(5)
+    edge = [(-0.12, 0.0, 0.01, 0.01, 0.0), (-0.1201, 0.0, 0.01, 0.01, 0.0), (-0.1479, 0.0, 0.0, 0.0, 0.0),
+            (-0.148, 0.0, 0.0, 0.0, 0.0), (-0.14, 0.0, 0.01, 0.01, 0.0), (-0.14, 0.0, 0.002, -0.002, 0.0)]
+    drawn = [np.concatenate([rng.uniform(-0.5, 0.5, 2), rng.uniform(-0.01, 0.01, 2), rng.uniform(-0.5, 0.5, 1)])
+             for _ in range(60)]
+    refused = 0
+    for corner in [*edge, *drawn]:
+        lenses = np.stack([scaled_lens("brown_conrady", np.array(corner), k, config.image_size) for k in K])
+        at_corner = np.stack([corner_coefficients("brown_conrady", lens, k, config.image_size) for lens, k in zip(lenses, K)])
+        changed = dataclasses.replace(sequence, lenses=lenses)
+        if lens_folds("brown_conrady", at_corner).any():
+            refused += 1
+            with pytest.raises(ValueError, match=r"lenses: brown_conrady .* fold their view.*choices\.lenses\.lens_folds"):
+                LensResampling.of(changed)
+        else:
+            assert (LensResampling.of(changed).steps > 0).all(), corner
+    assert 10 < refused < 50
+    assert load_config("misaligned", **EDGE_OF_FOLDING, lens_k1=(-0.12, -0.12)).lens_k1 == (-0.12, -0.12)
+    with pytest.raises(ValueError, match=r"lens_k1=\(-0.1201, -0.1201\).*the tangential terms fold it"):
+        load_config("misaligned", **EDGE_OF_FOLDING, lens_k1=(-0.1201, -0.1201))
+
+
+@pytest.mark.gl
+def test_a_lens_just_inside_the_edge_of_folding_renders():
+    """The config the edge lets through renders: finite views of the painting with binary masks, whose
+    distortion maps send every distorted pixel back to itself through the lens."""
+    config = load_config("misaligned", image_size=(48, 64), n_views=2, distortion_map_output=True, **EDGE_OF_FOLDING,
+                         lens_k1=(-0.12, -0.12))
+    sample = {key: value.numpy() if torch.is_tensor(value) else value
+              for key, value in SidarDataset(None, config, seed=0).sample(0).items()}
+    assert sample["images"].shape == (2, 3, 48, 64) and np.isfinite(sample["images"]).all()
+    assert set(np.unique(sample["masks"])) <= {0, 1} and (sample["masks"] == 0).any()
+    grid = np.stack(np.meshgrid(np.arange(64.0), np.arange(48.0)), -1)
+    for lens, k, maps in zip(sample["lens"], sample["K"], sample["distortion_maps"]):
+        back = distorted_points("brown_conrady", lens, k, maps.transpose(1, 2, 0).astype(np.float64))
+        assert np.abs(back - grid).max() < 1e-2
