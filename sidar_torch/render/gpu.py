@@ -13,6 +13,8 @@ import numpy as np
 import trimesh
 from OpenGL import GL
 
+from .mipmaps import exact_on_cpu, mip_levels
+
 __all__ = ["GpuMesh", "PaintingTexture"]
 
 _FLOAT = 4  # bytes
@@ -155,21 +157,28 @@ class PaintingTexture:
         time), unless they are there already; returns whether it did."""
         if not self._stale:
             return False
-        h, w = self.rgb.shape[:2]
         # Rows of 3 W bytes (the renderer's context unpacks with alignment 1); GL fills alpha with 255.
         rows = np.ascontiguousarray(self.rgb[::-1])
+        # Levels 1.. made on the CPU, llvmpipe's bytes (render.mipmaps), where that is exact; else by GL.
+        on_cpu = exact_on_cpu(rows.shape[:2])
+        levels = [rows, *mip_levels(rows)] if on_cpu else [rows]
         if self.id is None:
             self.id = GL.glGenTextures(1)
             GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
-            GL.glTexImage2D(GL.GL_TEXTURE_2D, 0, GL.GL_RGBA8, w, h, 0, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, rows)
+            for k, level in enumerate(levels):
+                GL.glTexImage2D(GL.GL_TEXTURE_2D, k, GL.GL_RGBA8, level.shape[1], level.shape[0], 0, GL.GL_RGB,
+                                GL.GL_UNSIGNED_BYTE, level)
             minify, magnify, _ = self.filters
             for name, value in ((GL.GL_TEXTURE_MAG_FILTER, magnify), (GL.GL_TEXTURE_MIN_FILTER, minify),
                                 (GL.GL_TEXTURE_WRAP_S, GL.GL_CLAMP_TO_EDGE), (GL.GL_TEXTURE_WRAP_T, GL.GL_CLAMP_TO_EDGE)):
                 GL.glTexParameteri(GL.GL_TEXTURE_2D, name, value)
         else:
             GL.glBindTexture(GL.GL_TEXTURE_2D, self.id)
-            GL.glTexSubImage2D(GL.GL_TEXTURE_2D, 0, 0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, rows)
-        GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
+            for k, level in enumerate(levels):
+                GL.glTexSubImage2D(GL.GL_TEXTURE_2D, k, 0, 0, level.shape[1], level.shape[0], GL.GL_RGB,
+                                   GL.GL_UNSIGNED_BYTE, level)
+        if not on_cpu:
+            GL.glGenerateMipmap(GL.GL_TEXTURE_2D)
         GL.glBindTexture(GL.GL_TEXTURE_2D, 0)
         self._stale = False
         return True
