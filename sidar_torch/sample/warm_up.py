@@ -198,8 +198,8 @@ def announce_compiles(renderer: SceneRenderer, config: SidarConfig) -> None:
         return
     _ANNOUNCED.add(marker)
     print(f"sidar_torch: compiling the renderer's shader variants for this config (about {COLD_COMPILE_S} s on an "
-          f"idle core, once: Mesa's shader cache in {marker.parents[1]} keeps them for later processes)",
-          file=sys.stderr)
+          f"idle core with Mesa's llvmpipe, once: the driver's shader cache keeps them for later processes; "
+          f"Mesa's is in {marker.parents[1]})", file=sys.stderr)
 
 
 def _cache_marker(renderer: SceneRenderer, config: SidarConfig) -> Path | None:
