@@ -1,7 +1,7 @@
 """The sample floor: the contract every consumer reads (:mod:`.contract`: ``KEYS``, ``SampleArrays``), the
 one path that assembles a sample from the renderer's output (:mod:`.assembly`: ``render_arrays``), and the
-steps it runs after read-back: the view effects (:mod:`.effects`), a lens's resampling (:mod:`.lens_views`),
-flow from depth (:mod:`.depth_flow`, and
+steps around the renderer: a lens's canvas and resampling (:mod:`.lens_views`: the renderer bends the views in
+GL), then after read-back the view effects (:mod:`.effects`) and flow from depth (:mod:`.depth_flow`, and
 :mod:`.correspondence` for a sample's views); a renderer's warm-up (:mod:`.warm_up`)."""
 
 from .assembly import COMPUTATIONS, batch_homographies, render_arrays, render_sample, sequence_homographies

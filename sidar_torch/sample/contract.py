@@ -105,7 +105,7 @@ PIXEL_KEYS = frozenset(key.name for key in KEYS if key.entry is not None and key
 ``masks``, ``label`` and the optional ``opacities``, ``shadow_masks`` and ``shadow_free``)."""
 
 LENS_KEYS = ("lens", "lens_model", "distortion_maps")
-"""The keys the lens step makes (:mod:`sidar_torch.sample.lens_views`, a CPU step after read-back), not the renderer:
+"""The keys the lens step makes (:mod:`sidar_torch.sample.lens_views`, from the config and the lenses), not the renderer:
 the optional keys besides ``choices.outputs.OUTPUTS``' rows. ``lens`` and ``lens_model`` are turned on by
 ``lens_model`` (not ``"none"``), ``distortion_maps`` by ``distortion_map_output``; none has a file of its
 own (``lens`` is in ``cameras.json``, ``lens_model`` in the export's recorded config, the maps are
