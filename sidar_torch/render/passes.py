@@ -45,7 +45,7 @@ from .mirror import MIRROR_DEFINES, REFRACTION, PaintingMirror
 from .programs import Program, ProgramCache
 from .shadow_array import ShadowMapArray, TexelBox
 from .transmittance import TransmittanceMaps
-from .visibility import map_texel_box
+from .visibility import map_texel_boxes
 
 __all__ = ["CAMERA_QUANTITIES", "UNROLLED_LIGHT_GROUPS", "CameraQuantity", "ForwardPass", "LitPass", "Passes",
            "SegmentationPass", "ShadowFractionPass", "UnlitPass", "frustum_projection", "light_group_count",
@@ -434,9 +434,9 @@ class Passes:
         corners = self._caster_corners(opaque)
         if stale:
             self._begin_depth_passes()
-            for light in stale:
-                V, P = self.matrices(view, light)
-                writes = self._caster_texels(corners, P @ V, self.shadow_map_size)
+            matrices = [self.matrices(view, light) for light in stale]
+            boxes = self._caster_texels(corners, [P @ V for V, P in matrices], self.shadow_map_size)
+            for light, (V, P), writes in zip(stale, matrices, boxes):
                 self._depth_pass(light.layer, V, P, opaque, writes)
             GL.glUseProgram(0)
         if tinted:
@@ -447,10 +447,10 @@ class Passes:
             # new variant of every transmittance program mid-stream; tiles are read by texelFetch at
             # their own place, so the room beyond changes no pixel).
             self.transmittance.reserve(1 << tiles[-1][0].bit_length())
-            tinted_corners = self._caster_corners(tinted)
-            for k, light in tiles:
-                V, P = self.matrices(view, light)
-                writes = self._caster_texels(tinted_corners, P @ V, self.transmittance.tile)
+            matrices = [self.matrices(view, light) for _, light in tiles]
+            boxes = self._caster_texels(self._caster_corners(tinted), [P @ V for V, P in matrices],
+                                        self.transmittance.tile)
+            for (k, light), (V, P), writes in zip(tiles, matrices, boxes):
                 self.transmittance.draw_tile(k, V, P, light.pose[:3, 3], tinted, self._transmittance_program, writes)
 
     def _begin_depth_passes(self) -> None:
@@ -497,12 +497,12 @@ class Passes:
         return np.concatenate(corners) if corners else np.zeros((0, 3))
 
     @staticmethod
-    def _caster_texels(corners: np.ndarray | None, light_matrix: np.ndarray, size: int) -> TexelBox:
-        """The texels of a ``size``-texel map under ``light_matrix`` (``P V``) that drawing casters with
-        the box ``corners`` may write (``None``: the whole map)."""
+    def _caster_texels(corners: np.ndarray | None, light_matrices: list[np.ndarray], size: int) -> list[TexelBox]:
+        """For each of ``light_matrices`` (``P V``, a light's), the texels of a ``size``-texel map that drawing
+        casters with the box ``corners`` may write (``None``: the whole map), all at once (:func:`map_texel_boxes`)."""
         if corners is None:
-            return 0, 0, size, size
-        return map_texel_box(corners, light_matrix, size)
+            return [(0, 0, size, size)] * len(light_matrices)
+        return map_texel_boxes(corners, light_matrices, size)
 
     def _transmittance_program(self, surface: Surface) -> Program:
         return self._program(("surface.vert", "transmittance.frag"), surface.mesh.defines)

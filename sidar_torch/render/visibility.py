@@ -12,7 +12,7 @@ reach, mesh levels), which a tighter ball would change.
 * mesh detail: :func:`ball_pixel_radius`, :func:`ball_shadow_pixel_radii` (how large an occluder
   and its shadow show, in pixels);
 * shadow maps: :func:`light_frustum` (:func:`light_frusta`), :func:`cube_corners`; which texels a draw into a map may
-  write: :func:`map_texel_box` of :func:`bounds_corners`;
+  write: :func:`map_texel_box` (:func:`map_texel_boxes`) of :func:`bounds_corners`;
 * masks without a draw: :func:`painting_mask`.
 
 Every test is conservative where it culls: ``False`` ("cannot be seen") only when certain.
@@ -38,6 +38,7 @@ __all__ = [
     "light_frustum",
     "light_frusta",
     "map_texel_box",
+    "map_texel_boxes",
     "painting_mask",
     "shadow_may_fall_on_ball",
     "shadow_may_reach",
@@ -216,19 +217,34 @@ def map_texel_box(points: np.ndarray, clip_from_world: np.ndarray, size: int) ->
         ``(x0, y0, x1, y1)``: texel columns ``x0 .. x1 - 1`` and rows ``y0 .. y1 - 1`` (window
         coordinates, row 0 first in memory), clipped to the map; empty (``x0 == x1``) for no points.
     """
-    if not len(points):
-        return 0, 0, 0, 0
+    return map_texel_boxes(points, [clip_from_world], size)[0]
+
+
+def map_texel_boxes(points: np.ndarray, clip_from_worlds: Sequence[np.ndarray],
+                    size: int) -> list[tuple[int, int, int, int]]:
+    """:func:`map_texel_box` of the same ``points`` under each of ``clip_from_worlds`` ``(4, 4)`` (a view's
+    lights), in one batched product and one set of array operations: each box the one the matrix gets alone
+    (the same products per matrix, then elementwise operations and exact minima and maxima)."""
+    count = len(clip_from_worlds)
+    if not len(points) or not count:
+        return [(0, 0, 0, 0)] * count
     homogeneous = np.ones((len(points), 4))
     homogeneous[:, :3] = points
-    clip = homogeneous @ np.asarray(clip_from_world, np.float64).T
-    if (clip[:, 3] <= 0).any():
-        return 0, 0, size, size
-    texels = (clip[:, :2] / clip[:, 3:] * 0.5 + 0.5) * size
-    # Clamped in Python floats (np.clip's cost is its dispatch, several times these four numbers').
-    (x0, y0), (x1, y1) = ([min(max(v, 0.0), size) for v in bound]
-                          for bound in ((np.floor(texels.min(axis=0)) - 1).tolist(),
-                                        (np.ceil(texels.max(axis=0)) + 1).tolist()))
-    return int(x0), int(y0), int(max(x0, x1)), int(max(y0, y1))
+    clip = homogeneous @ np.asarray(clip_from_worlds, np.float64).transpose(0, 2, 1)  # (L, N, 4)
+    behind = (clip[..., 3] <= 0).any(axis=1).tolist()
+    with np.errstate(divide="ignore", invalid="ignore"):  # a matrix with a point behind it: the whole map
+        texels = (clip[..., :2] / clip[..., 3:] * 0.5 + 0.5) * size
+    lows = (np.floor(texels.min(axis=1)) - 1).tolist()
+    highs = (np.ceil(texels.max(axis=1)) + 1).tolist()
+    boxes = []
+    for whole, low, high in zip(behind, lows, highs):
+        if whole:
+            boxes.append((0, 0, size, size))
+            continue
+        # Clamped in Python floats (np.clip's cost is its dispatch, several times these four numbers').
+        (x0, y0), (x1, y1) = ([min(max(v, 0.0), size) for v in bound] for bound in (low, high))
+        boxes.append((int(x0), int(y0), int(max(x0, x1)), int(max(y0, y1))))
+    return boxes
 
 
 def ball_shadow_corners(emitters: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
