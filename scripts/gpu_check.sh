@@ -16,7 +16,7 @@
 #                 filters textures and rounds differently, so the tests that compare pixels with llvmpipe's
 #                 bytes are expected to fail there, and so are those that open OSMesa itself where it is not
 #                 installed (tests.txt lists every failure, one line each); any other failure is a defect of
-#                 the EGL path. docs/gpu.md says what an H200 gave.
+#                 the EGL path. docs/rendering.md ("On a GPU") says what an H200 gave.
 # Each step has its own time limit, so one that hangs leaves the others' files.
 set -u
 out=${1:?usage: bash scripts/gpu_check.sh OUT_DIR}
