@@ -13,11 +13,18 @@ import numpy as np
 import trimesh
 from OpenGL import GL
 
+from .gl_entry import gl_entry
 from .mipmaps import exact_on_cpu, mip_levels
 
 __all__ = ["GpuMesh", "PaintingTexture"]
 
 _FLOAT = 4  # bytes
+
+_DRAW_ELEMENTS = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_int, ctypes.c_uint, ctypes.c_void_p, ctypes.c_int)
+_DRAW_ARRAYS = ctypes.CFUNCTYPE(None, ctypes.c_uint, ctypes.c_int, ctypes.c_int, ctypes.c_int)
+"""``glDrawElementsInstanced(mode, count, type, offset, instances)``, ``glDrawArraysInstanced(mode, first,
+count, instances)``."""
+_TRIANGLES, _UNSIGNED_INT = int(GL.GL_TRIANGLES), int(GL.GL_UNSIGNED_INT)
 
 
 class GpuMesh:
@@ -101,11 +108,12 @@ class GpuMesh:
         GL.glBindVertexArray(self._vao)
 
     def draw_bound(self) -> None:
-        """Draw every triangle with the bound program and state (the array bound by :meth:`bind`)."""
+        """Draw every triangle with the bound program and state (the array bound by :meth:`bind`), one
+        instance, through ctypes (``gl_entry``: a view draws its meshes dozens of times)."""
         if self.faces is not None:
-            GL.glDrawElementsInstanced(GL.GL_TRIANGLES, self.faces.size, GL.GL_UNSIGNED_INT, ctypes.c_void_p(0), 1)
+            gl_entry("glDrawElementsInstanced", _DRAW_ELEMENTS)(_TRIANGLES, self.faces.size, _UNSIGNED_INT, None, 1)
         else:
-            GL.glDrawArraysInstanced(GL.GL_TRIANGLES, 0, len(self.positions), 1)
+            gl_entry("glDrawArraysInstanced", _DRAW_ARRAYS)(_TRIANGLES, 0, len(self.positions), 1)
 
     def draw(self) -> None:
         """Bind, draw every triangle, unbind."""

@@ -1,20 +1,19 @@
-"""Uniform arrays handed to GL through ctypes directly, without PyOpenGL's array handling.
+"""Uniform arrays handed to GL through ctypes directly (``gl_entry``), without PyOpenGL's array handling.
 
-A lit view sets about 120 vector and matrix uniforms. PyOpenGL's ``glUniform*v`` entry points
-find a handler for each array argument, convert and check it, and ask GL for its error after every
-call: several times the cost of the call itself. Here each of those functions is called through a
-ctypes prototype that takes the values as bytes (the array converted to the uniform's 32-bit type,
-as PyOpenGL converts it: the same bits reach GL). GL's error flag stays set until it is read, so
-an error of one of these calls raises at the next call made through PyOpenGL, which checks it.
+A lit view sets about 120 vector and matrix uniforms. PyOpenGL's ``glUniform*v`` entry points find a
+handler for each array argument, convert and check it, and ask GL for its error after every call. Here
+each of those functions takes the values as bytes (the array converted to the uniform's 32-bit type, as
+PyOpenGL converts it: the same bits reach GL).
 """
 
 from __future__ import annotations
 
 import ctypes
-from typing import Callable
+import functools
 
 import numpy as np
-from OpenGL import platform
+
+from .gl_entry import gl_entry
 
 __all__ = ["set_uniform_array"]
 
@@ -24,21 +23,15 @@ _TYPES = {"f": np.float32, "i": np.int32, "u": np.uint32}
 _VECTOR = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.c_int, ctypes.c_char_p)
 _MATRIX = ctypes.CFUNCTYPE(None, ctypes.c_int, ctypes.c_int, ctypes.c_ubyte, ctypes.c_char_p)
 
-_FUNCTIONS: dict[tuple[int, str], Callable] = {}
-"""Function per ``(n, kind)``: a vector of ``n`` elements of ``kind``, or an ``n x n`` matrix (kind
-``"m"``), looked up in the platform's GL library at first use."""
 
-
-def _function(key: tuple[int, str]) -> Callable:
-    """The ctypes function for the uniforms of ``key`` (see :data:`_FUNCTIONS`)."""
-    function = _FUNCTIONS.get(key)
-    if function is None:
-        n, kind = key
-        name, prototype = ((f"glUniformMatrix{n}fv", _MATRIX) if kind == "m" else
-                           (f"glUniform{n}{'ui' if kind == 'u' else kind}v", _VECTOR))
-        address = ctypes.cast(platform.PLATFORM.GL[name], ctypes.c_void_p).value
-        function = _FUNCTIONS[key] = prototype(address)
-    return function
+@functools.cache
+def _function(key: tuple[int, str]):
+    """The ctypes function for the uniforms of ``key``: a vector of ``n`` elements of ``kind``, or an
+    ``n x n`` matrix (kind ``"m"``)."""
+    n, kind = key
+    if kind == "m":
+        return gl_entry(f"glUniformMatrix{n}fv", _MATRIX)
+    return gl_entry(f"glUniform{n}{'ui' if kind == 'u' else kind}v", _VECTOR)
 
 
 def set_uniform_array(location: int, value: np.ndarray, kind: str = "f") -> None:
