@@ -19,7 +19,6 @@ without a lens. The view effects (``sidar_torch.sample.effects``) come after, as
 from __future__ import annotations
 
 import functools
-import math
 from typing import Any, Mapping
 
 import numpy as np
@@ -30,7 +29,7 @@ from ..choices.lenses import LENS_MODELS, NO_LENS, distorted_points, undistorted
 from ..scene import SceneSequence
 from ..timing import timed
 
-__all__ = ["LATTICE_STEP", "SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens", "undistort"]
+__all__ = ["SOURCE_SLACK", "distortion_maps", "lens_canvas", "render_through_lens", "undistort"]
 
 
 @functools.lru_cache(maxsize=4)
@@ -54,35 +53,20 @@ def distortion_maps(model: str, lenses: np.ndarray | None, K: np.ndarray, image_
         image_size: ``(H, W)``.
 
     Returns:
-        ``(V, H, W, 2)`` float64 Kornia pixels ``(u, v)`` of the undistorted view: each pixel's own answer
-        (an iterative model starts from the answers of a lattice :data:`LATTICE_STEP` pixels apart,
-        interpolated, and ends within its tolerance: ``choices.lenses.NEWTON_TOLERANCE``).
+        ``(V, H, W, 2)`` float64 Kornia pixels ``(u, v)`` of the undistorted view: each pixel's own answer (an
+        iterative model: safeguarded Newton's method from the GL pass's start, ended within its tolerance,
+        ``choices.lenses.NEWTON_TOLERANCE``, at every pixel).
+
+    Raises:
+        ValueError: a lens whose iterative inverse does not converge at some pixel (one that folds the view,
+            ``choices.lenses.lens_folds``), naming it and the worst residual.
     """
     grid = _pixel_grid(tuple(image_size))
     if model == NO_LENS:
         return np.broadcast_to(grid, (len(K), *grid.shape)).copy()
     if not LENS_MODELS[model].iterative:
         return np.stack([undistorted_grid(model, lens, k, image_size) for lens, k in zip(lenses, K)])
-    return np.stack([undistorted_points(model, lens, k, grid, _lattice_start(model, lens, k, image_size))
-                     for lens, k in zip(lenses, K)])
-
-
-LATTICE_STEP = 8
-"""Pixels between the points of the lattice whose answers, interpolated bilinearly, start an iterative
-lens model at every pixel (:func:`distortion_maps`): within about a thousandth of a pixel for the default
-ranges, so Newton's method ends in 2 steps instead of 4-5."""
-
-
-def _lattice_start(model: str, lens: np.ndarray, K: np.ndarray, image_size: tuple[int, int]) -> np.ndarray:
-    """The undistorted points of a lattice spanning the view, about :data:`LATTICE_STEP` apart, interpolated
-    bilinearly at every pixel: ``(H, W, 2)`` float32 pixels (a start for Newton's method)."""
-    h, w = image_size
-    ys = np.linspace(0, h - 1, max(2, math.ceil((h - 1) / LATTICE_STEP) + 1))
-    xs = np.linspace(0, w - 1, max(2, math.ceil((w - 1) / LATTICE_STEP) + 1))
-    lattice = undistorted_points(model, lens, K, np.stack(np.meshgrid(xs, ys), -1))  # (ny, nx, 2)
-    planes = torch.from_numpy(np.ascontiguousarray(lattice.transpose(2, 0, 1), np.float32))[None]
-    full = F.interpolate(planes, size=(h, w), mode="bilinear", align_corners=True)[0]  # float32: only a start
-    return full.permute(1, 2, 0).numpy()
+    return np.stack([undistorted_points(model, lens, k, grid) for lens, k in zip(lenses, K)])
 
 
 SOURCE_SLACK = 1e-3

@@ -13,9 +13,12 @@ from PIL import Image, ImageFilter
 from conftest import assert_same_sample, small_config
 from sidar_torch import ExportedDataset, SidarDataset, export_dataset, load_config, undistort
 from sidar_torch.config.allowed import LENS_MODELS as LENS_CHOICES
-from sidar_torch.choices.lenses import LENS_MODELS, distorted_points, scaled_lens
+from sidar_torch.choices import lenses
+from sidar_torch.choices.lenses import (LEAST_SLOPE, LENS_MODELS, distorted_points, lens_folds, scaled_lens,
+                                         undistorted_points)
 from sidar_torch.geometry import plane_corners, project
 from sidar_torch.sample import render_arrays, stack_samples
+from sidar_torch.sample.lens_views import distortion_maps
 from sidar_torch.scene import sample_sequence
 from sidar_torch.timing import collect_timings
 
@@ -398,3 +401,66 @@ def test_a_lens_just_inside_the_edge_of_folding_renders():
     for lens, k, maps in zip(sample["lens"], sample["K"], sample["distortion_maps"]):
         back = distorted_points("brown_conrady", lens, k, maps.transpose(1, 2, 0).astype(np.float64))
         assert np.abs(back - grid).max() < 1e-2
+
+
+EXACT_SIZE = (768, 1024)
+"""The lens preset's size, at which the exact maps are checked pixel by pixel."""
+
+
+def exact_intrinsics(size=EXACT_SIZE, fov_degrees=80.0):
+    h, w = size
+    f = 0.5 * w / np.tan(np.radians(fov_degrees) / 2)
+    return np.array([[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1.0]])
+
+
+def accepted_brown_conrady_corners(n, seed, low=(-0.5, -0.5, -0.01, -0.01, -0.5), high=(0.5, 0.5, 0.01, 0.01, 0.5)):
+    """``(n, 5)`` Brown-Conrady coefficients at the corner, uniform within ``low``-``high`` (default: the config's
+    bounds), that ``lens_folds`` accepts."""
+    draws = np.random.default_rng(seed).uniform(low, high, (20 * n, 5))
+    return draws[~lens_folds("brown_conrady", draws)][:n]
+
+
+def assert_exact_maps(corners):
+    """Every pixel's exact source (``distortion_maps``) distorts back onto it within 1e-6 px (Newton's tolerance is
+    under 2e-6 px), and the sources of neighbouring pixels lie under 1 / LEAST_SLOPE = 20 px apart (the inverse's
+    Jacobian bound of a lens that does not fold: a root beyond a fold would jump)."""
+    K = exact_intrinsics()
+    grid = np.stack(np.meshgrid(np.arange(EXACT_SIZE[1], dtype=float), np.arange(EXACT_SIZE[0], dtype=float)), -1)
+    for corner in corners:
+        lens = scaled_lens("brown_conrady", corner, K, EXACT_SIZE)
+        maps = distortion_maps("brown_conrady", lens[None], K[None], EXACT_SIZE)[0]
+        back = np.abs(distorted_points("brown_conrady", lens, K, maps) - grid).max()
+        assert back < 1e-6, (corner.tolist(), back)
+        jump = max(np.abs(np.diff(maps, axis=0)).max(), np.abs(np.diff(maps, axis=1)).max())
+        assert jump < 1 / LEAST_SLOPE, (corner.tolist(), jump)
+
+
+def test_the_exact_maps_of_strong_pincushions_with_negative_k3_return_every_pixel():
+    # Newton's method from the distorted point (up to 79fbdc3) left these pixels 0.7 px to 1e12 px off, silently.
+    assert_exact_maps(np.array([[0.473, 0.083, 0, 0, -0.446], [0.321, 0.07, -0.002, -0.002, -0.38],
+                                [0.449, 0.136, -0.008, -0.004, -0.486], [0.334, 0.194, 0.001, -0.005, -0.499],
+                                [0.256, 0.26, 0.003, -0.004, -0.456]]))
+
+
+def test_the_exact_maps_of_random_accepted_lenses_return_every_pixel():
+    # the config's bounds, tangential terms included; then strong pincushions with negative k3, the hardest.
+    assert_exact_maps(accepted_brown_conrady_corners(12, seed=11))
+    assert_exact_maps(accepted_brown_conrady_corners(12, seed=12, low=(0.2, -0.5, -0.01, -0.01, -0.5),
+                                                     high=(0.5, 0.5, 0.01, 0.01, -0.2)))
+
+
+def test_an_unconverged_exact_inverse_raises_naming_the_lens_and_its_residual(monkeypatch):
+    K = exact_intrinsics()
+    corner = np.array([0.473, 0.083, 0, 0, -0.446])
+    lens = scaled_lens("brown_conrady", corner, K, EXACT_SIZE)
+    monkeypatch.setattr(lenses, "NEWTON_STEPS", 1)
+    with pytest.raises(ValueError, match=r"lens: brown_conrady \[.*\] \(normalised coordinates\) left a residual "
+                                         r"of .* after 1 Newton steps, over NEWTON_TOLERANCE 1e-10"):
+        distortion_maps("brown_conrady", lens[None], K[None], EXACT_SIZE)
+    monkeypatch.undo()
+    # a lens that folds before the image's corner (set by hand: the config refuses it) has no source there
+    folding = np.array([-0.3, 0, 0, 0, 0])
+    assert lens_folds("brown_conrady", folding)
+    corners = np.array([[0.0, 0.0], [EXACT_SIZE[1] - 1.0, EXACT_SIZE[0] - 1.0]])
+    with pytest.raises(ValueError, match="left a residual of"):
+        undistorted_points("brown_conrady", scaled_lens("brown_conrady", folding, K, EXACT_SIZE), K, corners)
