@@ -69,7 +69,7 @@ _LENS = ("range of a lens coefficient (``lens_model``) at the image's corner, dr
          "``k3 r^6``, ``p1 r``, ``p2 r`` (brown_conrady) or ``lambda r^2`` (division), ``r`` the corner's normalised "
          "radius ``|K^-1 (u, v, 1)|``, so a lens bends every field of view alike (``k1 = -0.1``: the corner 10 % "
          "closer to the centre); the sample's ``lens`` holds the coefficients themselves. The ranges' ends must "
-         "not fold the image before its corner (checked).")
+         "not fold the image before its corner, tangential terms included (checked).")
 _COAT = ("ranges of the weight and roughness of a clear coat on the painting (a second, sharper specular lobe "
          "with 4 % reflectance).")
 
