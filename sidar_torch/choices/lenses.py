@@ -360,8 +360,10 @@ def lens_folds(model: str, corners: np.ndarray) -> np.ndarray:
     :func:`scaled_lens`) folds the view over the image: some pixel then has no source in the undistorted view,
     or more than one, or one so ill-conditioned that Newton's method may not settle on it. ``(...)`` bool. The
     one definition of folding: the config refuses ranges holding such a lens, the renderer
-    (``render.resample.LensResampling.of``) and the export reader refuse such a lens. The renderer's Newton steps
-    settle for lenses that do not fold (``tests/render/test_lens.py`` measures it near the edge of folding).
+    (``render.resample.LensResampling.of``) and the export reader refuse such a lens. The exact inverse
+    (:func:`undistorted_points`) converges for every lens that does not fold; the renderer's undamped Newton steps
+    do near the edge of barrel folding (``tests/render/test_lens.py``), not for about 1 % of strong pincushions
+    with negative ``k3`` (``render.resample._border_sources`` then refuses them).
 
     In coordinates over the corner's radius (the image inside the unit disk) every lens is a map ``D`` of the
     plane, and a lens does not fold when it stays :data:`LEAST_SLOPE` away from folding out to the corner:
