@@ -20,21 +20,27 @@ def painting_of(dataset, index):
     return dataset.source.painting(index % len(dataset.source), dataset.config.image_size)
 
 
-@pytest.mark.parametrize("preset", available_presets())
-def test_after_the_warm_up_no_sample_of_a_preset_compiles_a_program(preset):
-    # Without the warm-up, samples 1 and 3 of aligned (and 1 of misaligned, paper_aligned) each add
-    # programs to the 13 the first sample compiles.
-    config = load_config(preset, image_size=(48, 64))
+def assert_no_sample_compiles_after_the_warm_up(config, samples, draw):
+    """Warm a fresh renderer for ``config`` up, then ``draw(renderer, sequence, painting)`` its dataset's first
+    ``samples`` samples: none may compile a program."""
     renderer = SceneRenderer(RenderSettings.from_config(config))
     try:
         assert renderer.warm_up(warm_up_sequence(config), "all variants")
         compiled = renderer.program_count
         dataset = SidarDataset(config=config, seed=0)
-        for index in range(24):
-            renderer.render(dataset.scene(index), painting_of(dataset, index))
+        for index in range(samples):
+            draw(renderer, dataset.scene(index), painting_of(dataset, index))
             assert renderer.program_count == compiled, f"sample {index} compiled a program"
     finally:
         renderer.close()
+
+
+@pytest.mark.parametrize("preset", available_presets())
+def test_after_the_warm_up_no_sample_of_a_preset_compiles_a_program(preset):
+    # Without the warm-up, samples 1 and 3 of aligned (and 1 of misaligned, paper_aligned) each add
+    # programs to the 13 the first sample compiles.
+    assert_no_sample_compiles_after_the_warm_up(load_config(preset, image_size=(48, 64)), 24,
+                                               lambda renderer, sequence, painting: renderer.render(sequence, painting))
 
 
 @pytest.mark.parametrize("preset, overrides", [("lens", {}), ("misaligned", {"lens_model": "brown_conrady"})])
@@ -42,19 +48,11 @@ def test_after_the_warm_up_no_lens_view_compiles_its_resampling_program(preset, 
     # The resampling pass (render.resample) has a program per lens model and Newton steps; the warm-up
     # draws its views through the identity lens, which compiles the one these views take. (Warmed up
     # without the lens, the first sample compiled it.)
-    config = load_config(preset, image_size=(48, 64), **overrides)
-    renderer = SceneRenderer(RenderSettings.from_config(config))
-    try:
-        assert renderer.warm_up(warm_up_sequence(config), "all variants")
-        compiled = renderer.program_count
-        dataset = SidarDataset(config=config, seed=0)
-        for index in range(12):
-            sequence = dataset.scene(index)
-            assert (LensResampling.of(sequence).steps <= 2).all()  # what the identity lens takes
-            render_through_lens(renderer, sequence, painting_of(dataset, index))
-            assert renderer.program_count == compiled, f"sample {index} compiled a program"
-    finally:
-        renderer.close()
+    def draw(renderer, sequence, painting):
+        assert (LensResampling.of(sequence).steps <= 2).all()  # what the identity lens takes
+        render_through_lens(renderer, sequence, painting)
+
+    assert_no_sample_compiles_after_the_warm_up(load_config(preset, image_size=(48, 64), **overrides), 12, draw)
 
 
 def test_the_warm_up_meets_every_variant_of_the_configs_materials():
